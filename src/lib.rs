@@ -1,0 +1,29 @@
+//! Kestrel: onboard autonomy for multirotor drones.
+//!
+//! Modules are listed in data-flow order:
+//!
+//! ```text
+//! MAVLink ─▶ platform ─▶ estimator ─▶ state ─┬─▶ behavior server ─▶ reference ─▶ controller ─▶ platform ─▶ MAVLink
+//!                                            │         ▲      │ path request                        ▲
+//! range/scan/depth ─▶ mapping ─▶ grid/graph ─┴─▶ planning ◀───┘                                     │
+//! HTTP/WS ─▶ api ─▶ mission executor ─▶ behavior requests                  safety/failsafe ─▶ (override)
+//! ```
+//!
+//! Everything between `platform` and `controller` is synchronous and never reads the clock:
+//! [`core::DroneCore::tick`] takes the time as an argument, so the same code runs on a vehicle
+//! (real-time driver), in the simulator (simulated time) and in tests (ticked by hand).
+
+pub mod types;
+pub mod config;
+pub mod platform;
+pub mod estimator;
+pub mod mapping;
+pub mod planning;
+pub mod behavior;
+pub mod control;
+pub mod core;
+pub mod sim;
+pub mod mission;
+pub mod api;
+pub mod safety;
+pub mod flightlog;
