@@ -1,1 +1,218 @@
-//! (being written)
+//! One drone's deterministic core: estimator → frames → behavior server → controller.
+//!
+//! In (each tick): the time since start and what the platform reported ([`PlatformFeedback`]).
+//! Out: a [`TickOutput`] with the setpoint and platform requests for this tick, plus the
+//! behavior events that happened. The core never reads the clock and never does I/O, so a
+//! real-time driver, the simulator and tests tick exactly the same code.
+
+use crate::behavior::{
+    BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Registry,
+    ServerError,
+};
+use crate::control::{Controller, ControllerConfig, Setpoint};
+use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
+use crate::estimator::geodetic::GeodeticOrigin;
+use crate::estimator::{self, Estimator, EstimatorPlugin};
+use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest};
+use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
+use std::time::Duration;
+
+/// Settings of one drone core.
+#[derive(Debug, Clone)]
+pub struct CoreConfig {
+    pub drone_id: String,
+    pub estimator: EstimatorPlugin,
+    pub controller: ControllerConfig,
+    pub behaviors: BehaviorConfig,
+    pub geo_origin: GeodeticOrigin,
+}
+
+impl CoreConfig {
+    pub fn new(drone_id: &str) -> Self {
+        Self {
+            drone_id: drone_id.to_string(),
+            estimator: EstimatorPlugin::GroundTruth,
+            controller: ControllerConfig::default(),
+            behaviors: BehaviorConfig::default(),
+            geo_origin: GeodeticOrigin::default(),
+        }
+    }
+}
+
+/// What one tick produces for the platform and the outside world.
+#[derive(Debug, Default)]
+pub struct TickOutput {
+    pub setpoint: Option<Setpoint>,
+    pub requests: Vec<PlatformRequest>,
+    pub events: Vec<BehaviorEvent>,
+}
+
+/// A request to the behavior server from outside the core (mission executor, API).
+#[derive(Debug, Clone, PartialEq)]
+pub enum BehaviorCommand {
+    Start {
+        behavior: String,
+        goal: serde_json::Value,
+    },
+    Pause(BehaviorId),
+    Resume(BehaviorId),
+    Stop(BehaviorId),
+    Modify {
+        id: BehaviorId,
+        goal: serde_json::Value,
+    },
+}
+
+pub struct DroneCore {
+    config: CoreConfig,
+    capabilities: Capabilities,
+    estimator: Box<dyn Estimator>,
+    frames: FrameTree,
+    server: BehaviorServer,
+    controller: Controller,
+    state: EstimatedState,
+    platform: PlatformStatus,
+    home_enu_m: Option<Vec3>,
+    last_tick: Option<Duration>,
+    now: Duration,
+}
+
+impl DroneCore {
+    pub fn new(config: CoreConfig, capabilities: Capabilities, registry: Registry) -> Self {
+        Self {
+            estimator: estimator::build(config.estimator),
+            controller: Controller::new(config.controller, capabilities.setpoints),
+            server: BehaviorServer::new(registry),
+            frames: FrameTree::new(),
+            capabilities,
+            state: EstimatedState::default(),
+            platform: PlatformStatus::default(),
+            home_enu_m: None,
+            last_tick: None,
+            now: Duration::ZERO,
+            config,
+        }
+    }
+
+    pub fn drone_id(&self) -> &str {
+        &self.config.drone_id
+    }
+
+    pub fn vehicle_state(&self) -> VehicleState {
+        VehicleState {
+            drone: self.config.drone_id.clone(),
+            estimate: self.state,
+            platform: self.platform.clone(),
+        }
+    }
+
+    pub fn server(&self) -> &BehaviorServer {
+        &self.server
+    }
+
+    pub fn frames(&self) -> &FrameTree {
+        &self.frames
+    }
+
+    pub fn geo_origin(&self) -> &GeodeticOrigin {
+        &self.config.geo_origin
+    }
+
+    pub fn home_enu_m(&self) -> Option<Vec3> {
+        self.home_enu_m
+    }
+
+    pub fn set_frame(
+        &mut self,
+        frame: &str,
+        parent: &str,
+        motion: FrameMotion,
+    ) -> Result<(), FrameError> {
+        self.frames.set(frame, parent, motion)
+    }
+
+    /// Applies a command to the behavior server with the state of the last tick.
+    pub fn command(&mut self, cmd: BehaviorCommand) -> Result<Option<BehaviorId>, ServerError> {
+        let ctx = BehaviorContext {
+            now: self.now,
+            dt_s: 0.0,
+            state: &self.state,
+            platform: &self.platform,
+            capabilities: self.capabilities,
+            frames: &self.frames,
+            geo_origin: &self.config.geo_origin,
+            home_enu_m: self.home_enu_m,
+            config: &self.config.behaviors,
+        };
+        match cmd {
+            BehaviorCommand::Start { behavior, goal } => {
+                self.server.start(&behavior, &goal, &ctx).map(Some)
+            }
+            BehaviorCommand::Pause(id) => self.server.pause(id, &ctx).map(|_| None),
+            BehaviorCommand::Resume(id) => self.server.resume(id, &ctx).map(|_| None),
+            BehaviorCommand::Stop(id) => self.server.stop(id, &ctx).map(|_| None),
+            BehaviorCommand::Modify { id, goal } => {
+                self.server.modify(id, &goal, &ctx).map(|_| None)
+            }
+        }
+    }
+
+    /// One control tick at time `now` (since the start of the run).
+    pub fn tick(&mut self, now: Duration, feedback: &PlatformFeedback) -> TickOutput {
+        let dt_s = self
+            .last_tick
+            .map_or(0.0, |t| now.saturating_sub(t).as_secs_f64());
+        self.last_tick = Some(now);
+        self.now = now;
+        let was_armed = self.platform.armed;
+        let previous_link = self.platform.link;
+        self.platform = feedback.status.clone();
+        self.state = self.estimator.update(now, &feedback.measurements);
+        self.frames.set_base_link(self.state.pose, now);
+        if self.platform.armed && !was_armed && self.state.valid.position {
+            self.home_enu_m = Some(self.state.pose.position_m);
+        }
+        let ctx = BehaviorContext {
+            now,
+            dt_s,
+            state: &self.state,
+            platform: &self.platform,
+            capabilities: self.capabilities,
+            frames: &self.frames,
+            geo_origin: &self.config.geo_origin,
+            home_enu_m: self.home_enu_m,
+            config: &self.config.behaviors,
+        };
+        // Never command blind: without a link or a position estimate, behaviors end and the
+        // autopilot's own failsafe takes over.
+        if self.platform.link == LinkHealth::Lost && previous_link != LinkHealth::Lost {
+            self.server.stop_all("link to the autopilot lost", &ctx);
+            self.server.clear_hold();
+        }
+        if self.platform.flight == crate::types::FlightStatus::Crashed {
+            let reason = self
+                .platform
+                .last_error
+                .clone()
+                .unwrap_or_else(|| "crashed".into());
+            self.server.stop_all(&reason, &ctx);
+            self.server.clear_hold();
+        }
+        let out = self.server.tick(&ctx);
+        let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
+        let setpoint = match out.reference {
+            Some(reference) if usable => {
+                Some(self.controller.update(&self.state, &reference, dt_s))
+            }
+            _ => {
+                self.controller.reset();
+                None
+            }
+        };
+        TickOutput {
+            setpoint,
+            requests: out.requests,
+            events: self.server.drain_events(),
+        }
+    }
+}

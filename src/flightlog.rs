@@ -1,1 +1,109 @@
-//! (being written)
+//! Flight log: one JSON object per line, written for every flight (real or simulated).
+//!
+//! Every record has `t` (seconds since the start of the run), `drone` and `type`:
+//! - `pose`: `x`, `y`, `z` (ENU m), `yaw` (rad), `vx`, `vy`, `vz` (m/s), `armed`, `flight`,
+//!   `behavior` (the active motion behavior or null); at `pose_rate_hz` (default 10 Hz).
+//! - `behavior`: a behavior event (`event` = started / paused / resumed / modified / finished,
+//!   `id`, `behavior`, and `goal` or `result`).
+//! - `command`: a command received from outside (`command` and its fields).
+//! - `collision` / `error`: what ended or disturbed the flight (`reason`).
+//!
+//! Outside tools read it line by line; later records never change earlier ones.
+
+use crate::behavior::BehaviorEvent;
+use crate::types::VehicleState;
+use serde_json::{json, Value};
+use std::collections::HashMap;
+use std::io::Write;
+use std::time::Duration;
+
+pub struct FlightLog {
+    out: Box<dyn Write + Send>,
+    pose_period: Duration,
+    next_pose: HashMap<String, Duration>,
+    failed: Option<String>,
+}
+
+impl FlightLog {
+    pub fn new(out: Box<dyn Write + Send>, pose_rate_hz: f64) -> Self {
+        Self {
+            out,
+            pose_period: Duration::from_secs_f64(1.0 / pose_rate_hz.max(0.1)),
+            next_pose: HashMap::new(),
+            failed: None,
+        }
+    }
+
+    pub fn create(path: &std::path::Path) -> std::io::Result<Self> {
+        let file = std::fs::File::create(path)?;
+        Ok(Self::new(Box::new(std::io::BufWriter::new(file)), 10.0))
+    }
+
+    /// The first write error, if any; logging never stops the flight.
+    pub fn error(&self) -> Option<&str> {
+        self.failed.as_deref()
+    }
+
+    fn write(&mut self, record: Value) {
+        if self.failed.is_some() {
+            return;
+        }
+        let line = record.to_string();
+        if let Err(e) = writeln!(self.out, "{line}") {
+            self.failed = Some(e.to_string());
+        }
+    }
+
+    /// Writes a pose record if one is due for this drone.
+    pub fn pose(&mut self, t: Duration, state: &VehicleState, behavior: Option<&str>) {
+        let due = self
+            .next_pose
+            .get(&state.drone)
+            .is_none_or(|next| t >= *next);
+        if !due {
+            return;
+        }
+        self.next_pose
+            .insert(state.drone.clone(), t + self.pose_period);
+        let p = state.estimate.pose.position_m;
+        let v = state.estimate.velocity_enu_mps;
+        self.write(json!({
+            "t": t.as_secs_f64(), "drone": state.drone, "type": "pose",
+            "x": p.x, "y": p.y, "z": p.z, "yaw": state.estimate.pose.yaw_rad(),
+            "vx": v.x, "vy": v.y, "vz": v.z,
+            "armed": state.platform.armed, "flight": state.platform.flight, "behavior": behavior,
+        }));
+    }
+
+    pub fn behavior(&mut self, t: Duration, drone: &str, event: &BehaviorEvent) {
+        let mut record = serde_json::to_value(event).unwrap_or(Value::Null);
+        if let Value::Object(map) = &mut record {
+            map.insert("t".into(), json!(t.as_secs_f64()));
+            map.insert("drone".into(), json!(drone));
+            map.insert("type".into(), json!("behavior"));
+        }
+        self.write(record);
+    }
+
+    pub fn command(&mut self, t: Duration, drone: &str, command: &str, fields: Value) {
+        self.write(json!({ "t": t.as_secs_f64(), "drone": drone, "type": "command", "command": command, "fields": fields }));
+    }
+
+    pub fn event(&mut self, t: Duration, drone: &str, kind: &str, reason: &str) {
+        self.write(json!({ "t": t.as_secs_f64(), "drone": drone, "type": kind, "reason": reason }));
+    }
+
+    pub fn flush(&mut self) {
+        if let Err(e) = self.out.flush() {
+            self.failed.get_or_insert(e.to_string());
+        }
+    }
+}
+
+/// Reads a flight log back (for tests and plotting tools).
+pub fn read(text: &str) -> Result<Vec<Value>, serde_json::Error> {
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(serde_json::from_str)
+        .collect()
+}

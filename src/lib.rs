@@ -13,17 +13,17 @@
 //! [`core::DroneCore::tick`] takes the time as an argument, so the same code runs on a vehicle
 //! (real-time driver), in the simulator (simulated time) and in tests (ticked by hand).
 
-pub mod types;
-pub mod config;
-pub mod platform;
-pub mod estimator;
-pub mod mapping;
-pub mod planning;
+pub mod api;
 pub mod behavior;
+pub mod config;
 pub mod control;
 pub mod core;
-pub mod sim;
-pub mod mission;
-pub mod api;
-pub mod safety;
+pub mod estimator;
 pub mod flightlog;
+pub mod mapping;
+pub mod mission;
+pub mod planning;
+pub mod platform;
+pub mod safety;
+pub mod sim;
+pub mod types;

@@ -1,1 +1,52 @@
-fn main() {}
+//! `kestrel`: the composition root. Parses the command line, loads config, wires the parts.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+mod cli_sim;
+
+#[derive(Parser)]
+#[command(
+    name = "kestrel",
+    version,
+    about = "Onboard autonomy for multirotor drones: behaviors, missions, mapping and planning over MAVLink"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Fly in the built-in simulator (no hardware needed). Without options: the demo flight.
+    Sim(cli_sim::SimArgs),
+    /// Check a config file and print the validated result.
+    CheckConfig {
+        /// Config file (TOML).
+        #[arg(long, default_value = "/etc/kestrel/kestrel.toml")]
+        config: PathBuf,
+    },
+}
+
+fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_target(false)
+        .init();
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Sim(args) => cli_sim::run(args),
+        Command::CheckConfig { config } => {
+            let c = kestrel::config::Config::load(&config)
+                .with_context(|| format!("checking {}", config.display()))?;
+            println!("{}", toml::to_string_pretty(&c).context("printing config")?);
+            if c.drone.id.is_empty() {
+                bail!("drone.id is empty");
+            }
+            Ok(())
+        }
+    }
+}

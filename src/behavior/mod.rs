@@ -1,1 +1,150 @@
-//! (being written)
+//! Behaviors: goal-driven skills (takeoff, go_to, follow_path ...) with one lifecycle.
+//!
+//! In: goals (JSON arguments, parsed and checked by each behavior) and, each tick, a
+//! [`BehaviorContext`] with the estimated state, platform status and frames.
+//! Out: each tick, a motion reference for the controller, platform requests, and events
+//! (started, paused, resumed, modified, finished with a result).
+//!
+//! Lifecycle, shared by all: `start(goal)` → running; `pause` → paused (the server holds the
+//! vehicle where it is); `resume` → running again from where it is; `modify(goal)` changes the
+//! goal in flight; `stop` → aborted. Results: succeeded, failed(reason), aborted(reason).
+
+mod follow_path;
+mod follow_reference;
+mod go_to;
+mod goal;
+mod hover;
+mod land;
+mod registry;
+mod rotate;
+mod sequence;
+mod server;
+mod takeoff;
+
+pub use goal::{FramedPoint, YawMode};
+pub use registry::{BehaviorSpec, Registry, Resource};
+pub use server::{
+    ActiveInfo, BehaviorEvent, BehaviorId, BehaviorResult, BehaviorServer, RunState, ServerError,
+};
+
+use crate::control::{MotionReference, YawTarget};
+use crate::estimator::frames::FrameTree;
+use crate::estimator::geodetic::GeodeticOrigin;
+use crate::platform::{Capabilities, PlatformRequest};
+use crate::types::{EstimatedState, PlatformStatus, Vec3};
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+
+/// Vehicle-wide tuning the behaviors share (SI units).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BehaviorConfig {
+    /// go_to and follow_reference finish within this 3-D distance of the goal (m).
+    pub goal_threshold_m: f64,
+    /// follow_path counts a waypoint passed within this distance (m).
+    pub waypoint_threshold_m: f64,
+    /// takeoff finishes within this distance of the requested height (m).
+    pub takeoff_threshold_m: f64,
+    /// Acceleration used to plan trajectories (m/s^2).
+    pub max_acceleration_mps2: f64,
+    /// A behavior that gets no closer to its goal for this long fails (s).
+    pub no_progress_timeout_s: f64,
+    /// Arming and entering offboard must complete within this time (s).
+    pub arm_timeout_s: f64,
+    /// Speed used to hold position after pause or stop (m/s).
+    pub hold_speed_mps: f64,
+}
+
+impl Default for BehaviorConfig {
+    fn default() -> Self {
+        Self {
+            goal_threshold_m: 0.1,
+            waypoint_threshold_m: 0.2,
+            takeoff_threshold_m: 0.05,
+            max_acceleration_mps2: 2.0,
+            no_progress_timeout_s: 20.0,
+            arm_timeout_s: 15.0,
+            hold_speed_mps: 1.0,
+        }
+    }
+}
+
+/// What a behavior sees each tick.
+pub struct BehaviorContext<'a> {
+    pub now: Duration,
+    pub dt_s: f64,
+    pub state: &'a EstimatedState,
+    pub platform: &'a PlatformStatus,
+    pub capabilities: Capabilities,
+    pub frames: &'a FrameTree,
+    pub geo_origin: &'a GeodeticOrigin,
+    /// Where the vehicle last armed, in `earth`; `None` before the first arming.
+    pub home_enu_m: Option<Vec3>,
+    pub config: &'a BehaviorConfig,
+}
+
+impl BehaviorContext<'_> {
+    pub fn position(&self) -> Vec3 {
+        self.state.pose.position_m
+    }
+    pub fn yaw(&self) -> f64 {
+        self.state.pose.yaw_rad()
+    }
+    /// A reference that holds the current position and heading.
+    pub fn hold_here(&self) -> MotionReference {
+        MotionReference::hold(self.position(), self.yaw(), self.config.hold_speed_mps)
+    }
+    pub fn is_flying(&self) -> bool {
+        self.platform.flight.is_airborne() && self.platform.armed
+    }
+}
+
+/// Result of one behavior tick.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    /// Still working. `reference` = what the controller should track (None: nothing to send,
+    /// e.g. during an autopilot-native takeoff); `feedback` is published as is.
+    Running {
+        reference: Option<MotionReference>,
+        feedback: serde_json::Value,
+    },
+    Succeeded,
+    Failed(String),
+}
+
+/// One behavior instance, created from a goal by its [`BehaviorSpec`].
+///
+/// Contract: `activate` is called once before any `run`; it rejects (Err with a reason) goals
+/// that cannot be flown now, and must not command anything itself. `run` is called every tick
+/// while running (never while paused). `modify` replaces the goal in flight; the default
+/// refuses. `resume` is called after a pause, before the next `run`.
+pub trait Behavior: Send {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String>;
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step;
+    fn modify(&mut self, _ctx: &BehaviorContext, _args: &serde_json::Value) -> Result<(), String> {
+        Err("this behavior cannot be modified in flight".into())
+    }
+    fn resume(&mut self, _ctx: &BehaviorContext) {}
+}
+
+/// Turns a yaw mode into a yaw target for this tick; `toward` is the point the vehicle heads to.
+pub(crate) fn yaw_target(
+    mode: &goal::ResolvedYaw,
+    ctx: &BehaviorContext,
+    toward: &Vec3,
+) -> YawTarget {
+    let facing = |target: &Vec3| {
+        let d = target - ctx.position();
+        // Too close to tell a direction: keep the heading rather than spin.
+        if d.xy().norm() < 0.3 {
+            None
+        } else {
+            Some(d.y.atan2(d.x))
+        }
+    };
+    match mode {
+        goal::ResolvedYaw::Fixed(angle) => YawTarget::Angle(*angle),
+        goal::ResolvedYaw::PathFacing => YawTarget::Angle(facing(toward).unwrap_or(ctx.yaw())),
+        goal::ResolvedYaw::Face(point) => YawTarget::Angle(facing(point).unwrap_or(ctx.yaw())),
+    }
+}

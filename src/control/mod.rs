@@ -1,1 +1,12 @@
-//! (being written)
+//! Motion control: PID loops, the motion controller and trajectory generation.
+//!
+//! In: a [`reference::MotionReference`] from the behavior server and the estimated state.
+//! Out: a [`reference::Setpoint`] of a kind the platform accepts.
+
+pub mod controller;
+pub mod pid;
+pub mod reference;
+pub mod trajectory;
+
+pub use controller::{Controller, ControllerConfig};
+pub use reference::{AcceptedSetpoints, MotionReference, Setpoint, YawTarget};

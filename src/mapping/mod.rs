@@ -1,1 +1,3 @@
-//! (being written)
+//! Mapping: range data into occupancy grids, topological graphs and merged multi-drone maps.
+
+pub mod scan;

@@ -1,1 +1,135 @@
-//! (being written)
+//! The built-in simulator: several multirotors in one world, stepped in simulated time.
+//!
+//! In: a [`world::World`], per-drone setpoints and requests (through [`vehicle::SimVehicle`]'s
+//! `Platform` impl), a seed. Out: vehicle states, range scans, collisions. Reproducible: the same
+//! seed, world and commands give the same flight.
+
+pub mod dynamics;
+pub mod runner;
+pub mod script;
+pub mod sensors;
+pub mod vehicle;
+pub mod world;
+
+use crate::types::Vec3;
+use dynamics::MultirotorParams;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use std::time::Duration;
+use vehicle::SimVehicle;
+use world::{SensorConfig, Shape, World};
+
+/// Disturbances applied to every vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Environment {
+    pub wind_mps: Vec3,
+    /// Standard deviation of a random acceleration on each axis (m/s^2).
+    pub turbulence_mps2: f64,
+}
+
+pub struct SimWorld {
+    pub world: World,
+    shapes: Vec<Shape>,
+    pub vehicles: Vec<SimVehicle>,
+    pub sensor: SensorConfig,
+    pub environment: Environment,
+    rng: ChaCha8Rng,
+}
+
+impl SimWorld {
+    /// `n` vehicles at the world's start poses for `n` drones.
+    pub fn new(world: World, n: usize, seed: u64, environment: Environment) -> Self {
+        let params = MultirotorParams::default();
+        let vehicles = world
+            .starts(n)
+            .into_iter()
+            .map(|(xy, yaw)| SimVehicle::new(Vec3::new(xy.x, xy.y, 0.0), yaw, params))
+            .collect();
+        Self {
+            shapes: world.shapes(),
+            sensor: world.sensor,
+            world,
+            vehicles,
+            environment,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+        }
+    }
+
+    pub fn shapes(&self) -> &[Shape] {
+        &self.shapes
+    }
+
+    /// Advances every vehicle by `dt_s`, then checks collisions and produces due scans.
+    pub fn step(&mut self, now: Duration, dt_s: f64) {
+        let noise = Normal::new(0.0, self.environment.turbulence_mps2.max(0.0)).ok();
+        for v in self.vehicles.iter_mut() {
+            let mut sample = || noise.map_or(0.0, |n| n.sample(&mut self.rng));
+            let disturbance = if v.is_armed() {
+                Vec3::new(sample(), sample(), sample())
+            } else {
+                Vec3::zeros()
+            };
+            v.step(now, dt_s, &self.environment.wind_mps, &disturbance);
+        }
+        self.detect_collisions();
+        self.produce_scans(now);
+    }
+
+    fn detect_collisions(&mut self) {
+        for i in 0..self.vehicles.len() {
+            let v = &self.vehicles[i];
+            if v.crashed().is_some() || v.state.on_ground() {
+                continue;
+            }
+            let p = v.state.position_m;
+            let hit = self
+                .shapes
+                .iter()
+                .enumerate()
+                .find(|(_, s)| s.distance_m(&p).is_some_and(|d| d < v.params.radius_m));
+            if let Some((k, _)) = hit {
+                let reason = format!(
+                    "collision with obstacle {k} at ({:.2}, {:.2}, {:.2})",
+                    p.x, p.y, p.z
+                );
+                self.vehicles[i].crash(reason);
+            }
+        }
+        for i in 0..self.vehicles.len() {
+            for j in (i + 1)..self.vehicles.len() {
+                let (a, b) = (&self.vehicles[i], &self.vehicles[j]);
+                if a.state.on_ground() && b.state.on_ground() {
+                    continue;
+                }
+                if (a.state.position_m - b.state.position_m).norm()
+                    < a.params.radius_m + b.params.radius_m
+                {
+                    let reason = |other: usize| format!("collision with drone_{other}");
+                    self.vehicles[i].crash(reason(j));
+                    self.vehicles[j].crash(reason(i));
+                }
+            }
+        }
+    }
+
+    fn produce_scans(&mut self, now: Duration) {
+        let Some(period) = sensors::period_s(&self.sensor) else {
+            return;
+        };
+        for v in self.vehicles.iter_mut() {
+            if now >= v.next_scan_at {
+                v.next_scan_at = now + Duration::from_secs_f64(period);
+                if let Some(scan) = sensors::scan(
+                    &self.sensor,
+                    &self.shapes,
+                    &v.state.position_m,
+                    v.state.yaw_rad,
+                    &mut self.rng,
+                ) {
+                    v.pending_scans.push(scan);
+                }
+            }
+        }
+    }
+}

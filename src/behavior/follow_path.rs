@@ -1,0 +1,181 @@
+//! `follow_path`: fly a smooth trajectory through waypoints without stopping between them.
+
+use super::goal::{
+    check_finite, check_positive, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs,
+};
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::{yaw_target, Behavior, BehaviorContext, Step};
+use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
+use crate::control::MotionReference;
+use crate::platform::PlatformRequest;
+use crate::types::Vec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FollowPathGoal {
+    /// Waypoints [x, y, z] (m) in `frame_id`.
+    pub path: Vec<[f64; 3]>,
+    /// Cruise speed (m/s).
+    pub speed: f64,
+    #[serde(flatten)]
+    pub yaw: YawArgs,
+    #[serde(default)]
+    pub frame_id: Option<String>,
+}
+
+impl Goal for FollowPathGoal {
+    fn check(&self) -> Result<(), String> {
+        if self.path.is_empty() {
+            return Err("path must have at least one waypoint".into());
+        }
+        for (i, p) in self.path.iter().enumerate() {
+            check_finite(&format!("path[{i}]"), p)?;
+        }
+        check_positive("speed", self.speed, "m/s")?;
+        self.yaw.check()
+    }
+    fn targets(&self) -> Vec<FramedPoint> {
+        let frame_id = frame_or_earth(&self.frame_id);
+        self.path
+            .iter()
+            .map(|&[x, y, z]| FramedPoint {
+                position_m: Vec3::new(x, y, z),
+                frame_id: frame_id.clone(),
+            })
+            .collect()
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed]
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "follow_path",
+        "Fly through waypoints on a smooth, speed- and acceleration-limited trajectory",
+        Resource::Motion,
+        FollowPath::new,
+    )
+}
+
+pub struct FollowPath {
+    goal: FollowPathGoal,
+    /// Waypoints in `earth`, fixed at activation (and on modify).
+    waypoints: Vec<Vec3>,
+    /// Index in `waypoints` of the first not yet passed.
+    next: usize,
+    trajectory: Option<PathTrajectory>,
+    yaw: ResolvedYaw,
+}
+
+impl FollowPath {
+    fn new(goal: FollowPathGoal) -> Self {
+        Self {
+            goal,
+            waypoints: Vec::new(),
+            next: 0,
+            trajectory: None,
+            yaw: ResolvedYaw::Fixed(0.0),
+        }
+    }
+
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        let frame = frame_or_earth(&self.goal.frame_id);
+        self.waypoints = self
+            .goal
+            .path
+            .iter()
+            .map(|&[x, y, z]| {
+                ctx.frames
+                    .point_to_earth(&Vec3::new(x, y, z), &frame, ctx.now)
+                    .map_err(|e| format!("cannot resolve path: {e}"))
+            })
+            .collect::<Result<_, _>>()?;
+        self.yaw = self.goal.yaw.resolve(ctx, &frame)?;
+        self.next = 0;
+        self.plan(ctx);
+        Ok(())
+    }
+
+    /// Plans the trajectory from where the vehicle is through the waypoints not yet passed.
+    fn plan(&mut self, ctx: &BehaviorContext) {
+        let limits = TrajectoryLimits {
+            cruise_speed_mps: self.goal.speed,
+            max_acceleration_mps2: ctx.config.max_acceleration_mps2,
+            ..TrajectoryLimits::default()
+        };
+        let remaining = self.waypoints.get(self.next..).unwrap_or(&[]);
+        self.trajectory = Some(PathTrajectory::new(ctx.position(), remaining, limits));
+    }
+}
+
+impl Behavior for FollowPath {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if !ctx.is_flying() {
+            return Err("platform is not flying".into());
+        }
+        self.start(ctx)
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
+        let goal: FollowPathGoal = parse_args(args)?;
+        goal.check()?;
+        let previous = std::mem::replace(&mut self.goal, goal);
+        if let Err(e) = self.start(ctx) {
+            self.goal = previous;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        self.plan(ctx);
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
+        let Some(trajectory) = self.trajectory.as_mut() else {
+            return Step::Failed("no trajectory".into());
+        };
+        let sample = trajectory.advance(ctx.dt_s, &ctx.position());
+        // Waypoints count as passed when the vehicle comes within the threshold.
+        while let Some(w) = self.waypoints.get(self.next) {
+            if (w - ctx.position()).norm() < ctx.config.waypoint_threshold_m
+                && self.next + 1 < self.waypoints.len()
+            {
+                self.next += 1;
+            } else {
+                break;
+            }
+        }
+        let last = self
+            .waypoints
+            .last()
+            .copied()
+            .unwrap_or_else(|| ctx.position());
+        let distance_to_end = (last - ctx.position()).norm();
+        if sample.finished && distance_to_end < ctx.config.goal_threshold_m {
+            return Step::Succeeded;
+        }
+        let next_point = self.waypoints.get(self.next).copied().unwrap_or(last);
+        let heading_point = sample.position_enu_m + sample.velocity_enu_mps;
+        let reference = MotionReference::Trajectory {
+            position_enu_m: sample.position_enu_m,
+            velocity_enu_mps: sample.velocity_enu_mps,
+            acceleration_enu_mps2: sample.acceleration_enu_mps2,
+            yaw: yaw_target(&self.yaw, ctx, &heading_point),
+        };
+        let feedback = json!({
+            "actual_speed": ctx.state.velocity_enu_mps.norm(),
+            "actual_distance_to_next_waypoint": (next_point - ctx.position()).norm(),
+            "remaining_waypoints": self.waypoints.len().saturating_sub(self.next),
+            "next_waypoint_id": self.next.to_string(),
+        });
+        Step::Running {
+            reference: Some(reference),
+            feedback,
+        }
+    }
+}

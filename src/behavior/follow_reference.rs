@@ -1,0 +1,144 @@
+//! `follow_reference`: track a point in a (possibly moving) frame with per-axis speed limits.
+//! Never finishes by itself; stop it or start another motion behavior.
+
+use super::goal::{check_finite, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs};
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::server::seconds_since;
+use super::{yaw_target, Behavior, BehaviorContext, Step};
+use crate::control::MotionReference;
+use crate::platform::PlatformRequest;
+use crate::types::Vec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FollowReferenceGoal {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub frame_id: String,
+    /// Speed limits per axis (m/s); 0 = the vehicle limit.
+    #[serde(default)]
+    pub speed_x: f64,
+    #[serde(default)]
+    pub speed_y: f64,
+    #[serde(default)]
+    pub speed_z: f64,
+    #[serde(flatten)]
+    pub yaw: YawArgs,
+}
+
+impl Goal for FollowReferenceGoal {
+    fn check(&self) -> Result<(), String> {
+        check_finite("x, y, z", &[self.x, self.y, self.z])?;
+        if [self.speed_x, self.speed_y, self.speed_z]
+            .iter()
+            .any(|s| !s.is_finite() || *s < 0.0)
+        {
+            return Err("speed_x, speed_y, speed_z must be >= 0 m/s".into());
+        }
+        self.yaw.check()
+    }
+    fn targets(&self) -> Vec<FramedPoint> {
+        vec![FramedPoint {
+            position_m: Vec3::new(self.x, self.y, self.z),
+            frame_id: frame_or_earth(&Some(self.frame_id.clone())),
+        }]
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed_x, self.speed_y, self.speed_z]
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "follow_reference",
+        "Track a point in a possibly moving frame until stopped",
+        Resource::Motion,
+        FollowReference::new,
+    )
+}
+
+pub struct FollowReference {
+    goal: FollowReferenceGoal,
+    yaw: ResolvedYaw,
+    last_target: Option<(Vec3, Duration)>,
+}
+
+impl FollowReference {
+    fn new(goal: FollowReferenceGoal) -> Self {
+        Self {
+            goal,
+            yaw: ResolvedYaw::Fixed(0.0),
+            last_target: None,
+        }
+    }
+    fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, String> {
+        ctx.frames
+            .point_to_earth(
+                &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
+                &self.goal.frame_id,
+                ctx.now,
+            )
+            .map_err(|e| format!("cannot resolve reference: {e}"))
+    }
+}
+
+impl Behavior for FollowReference {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if !ctx.is_flying() {
+            return Err("platform is not flying".into());
+        }
+        self.target(ctx)?;
+        self.yaw = self.goal.yaw.resolve(ctx, &self.goal.frame_id)?;
+        Ok(())
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
+        let goal: FollowReferenceGoal = parse_args(args)?;
+        goal.check()?;
+        let previous = std::mem::replace(&mut self.goal, goal);
+        if let Err(e) = self.activate(ctx) {
+            self.goal = previous;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
+        let target = match self.target(ctx) {
+            Ok(t) => t,
+            Err(e) => return Step::Failed(e),
+        };
+        let target_velocity = match self.last_target {
+            Some((prev, t)) if ctx.now > t => (target - prev) / seconds_since(ctx.now, t),
+            _ => Vec3::zeros(),
+        };
+        self.last_target = Some((target, ctx.now));
+        let max_speed = [self.goal.speed_x, self.goal.speed_y, self.goal.speed_z]
+            .into_iter()
+            .fold(0.0, f64::max);
+        let max_speed = if max_speed > 0.0 {
+            max_speed
+        } else {
+            f64::INFINITY
+        };
+        let reference = MotionReference::Position {
+            position_enu_m: target,
+            velocity_ff_enu_mps: target_velocity,
+            yaw: yaw_target(&self.yaw, ctx, &target),
+            max_speed_mps: max_speed,
+        };
+        let feedback = json!({
+            "actual_speed": ctx.state.velocity_enu_mps.norm(),
+            "actual_distance_to_goal": (target - ctx.position()).norm(),
+        });
+        Step::Running {
+            reference: Some(reference),
+            feedback,
+        }
+    }
+}

@@ -1,0 +1,230 @@
+//! `go_to`: fly to a point in any frame (a moving frame is tracked), and `go_to_gps`.
+
+use super::goal::{
+    check_finite, check_positive, frame_or_earth, FramedPoint, ResolvedYaw, YawArgs,
+};
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::server::seconds_since;
+use super::{yaw_target, Behavior, BehaviorContext, Step};
+use crate::control::MotionReference;
+use crate::estimator::frames::EARTH;
+use crate::estimator::geodetic::GeoPoint;
+use crate::platform::PlatformRequest;
+use crate::types::Vec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GoToGoal {
+    /// Target (m) in `frame_id`.
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    /// Cruise speed (m/s).
+    pub speed: f64,
+    #[serde(flatten)]
+    pub yaw: YawArgs,
+    /// Frame of the target; `earth` when absent.
+    #[serde(default)]
+    pub frame_id: Option<String>,
+}
+
+impl Goal for GoToGoal {
+    fn check(&self) -> Result<(), String> {
+        check_finite("x, y, z", &[self.x, self.y, self.z])?;
+        check_positive("speed", self.speed, "m/s")?;
+        self.yaw.check()
+    }
+    fn targets(&self) -> Vec<FramedPoint> {
+        vec![FramedPoint {
+            position_m: Vec3::new(self.x, self.y, self.z),
+            frame_id: frame_or_earth(&self.frame_id),
+        }]
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed]
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GoToGpsGoal {
+    /// WGS84 latitude and longitude (deg), altitude above mean sea level (m).
+    pub lat: f64,
+    pub lon: f64,
+    pub alt: f64,
+    /// Cruise speed (m/s).
+    pub speed: f64,
+    #[serde(flatten)]
+    pub yaw: YawArgs,
+}
+
+impl Goal for GoToGpsGoal {
+    fn check(&self) -> Result<(), String> {
+        GeoPoint {
+            lat_deg: self.lat,
+            lon_deg: self.lon,
+            alt_m: self.alt,
+        }
+        .validate()
+        .map_err(|e| e.to_string())?;
+        check_positive("speed", self.speed, "m/s")?;
+        self.yaw.check()
+    }
+    fn targets(&self) -> Vec<FramedPoint> {
+        vec![FramedPoint {
+            position_m: Vec3::new(self.lat, self.lon, self.alt),
+            frame_id: super::goal::WGS84.into(),
+        }]
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed]
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "go_to",
+        "Fly to a point given in any frame; a point in a moving frame is tracked",
+        Resource::Motion,
+        GoTo::new,
+    )
+}
+
+pub fn gps_spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "go_to_gps",
+        "Fly to a WGS84 latitude, longitude and altitude (AMSL)",
+        Resource::Motion,
+        |g: GoToGpsGoal| {
+            GoTo::new(GoToGoal {
+                x: g.lat,
+                y: g.lon,
+                z: g.alt,
+                speed: g.speed,
+                yaw: g.yaw,
+                frame_id: Some(super::goal::WGS84.into()),
+            })
+        },
+    )
+}
+
+pub struct GoTo {
+    goal: GoToGoal,
+    yaw: ResolvedYaw,
+    last_target: Option<(Vec3, Duration)>,
+    best_distance_m: f64,
+    best_at: Duration,
+}
+
+impl GoTo {
+    fn new(goal: GoToGoal) -> Self {
+        Self {
+            goal,
+            yaw: ResolvedYaw::Fixed(0.0),
+            last_target: None,
+            best_distance_m: f64::INFINITY,
+            best_at: Duration::ZERO,
+        }
+    }
+
+    /// The goal in `earth` now.
+    fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, String> {
+        let frame = frame_or_earth(&self.goal.frame_id);
+        let point = Vec3::new(self.goal.x, self.goal.y, self.goal.z);
+        if frame == super::goal::WGS84 {
+            let geo = GeoPoint {
+                lat_deg: point.x,
+                lon_deg: point.y,
+                alt_m: point.z,
+            };
+            return ctx.geo_origin.to_enu(&geo).map_err(|e| e.to_string());
+        }
+        ctx.frames
+            .point_to_earth(&point, &frame, ctx.now)
+            .map_err(|e| format!("cannot resolve goal: {e}"))
+    }
+
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        let frame = frame_or_earth(&self.goal.frame_id);
+        let yaw_frame = if frame == super::goal::WGS84 {
+            EARTH.to_string()
+        } else {
+            frame
+        };
+        self.yaw = self.goal.yaw.resolve(ctx, &yaw_frame)?;
+        let target = self.target(ctx)?;
+        self.best_distance_m = (target - ctx.position()).norm();
+        self.best_at = ctx.now;
+        self.last_target = None;
+        Ok(())
+    }
+}
+
+impl Behavior for GoTo {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if !ctx.is_flying() {
+            return Err("platform is not flying".into());
+        }
+        self.start(ctx)
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
+        let goal: GoToGoal = super::goal::parse_args(args)?;
+        goal.check()?;
+        let previous = std::mem::replace(&mut self.goal, goal);
+        if let Err(e) = self.start(ctx) {
+            self.goal = previous;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        self.best_at = ctx.now;
+        self.last_target = None;
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
+        let target = match self.target(ctx) {
+            Ok(t) => t,
+            Err(e) => return Step::Failed(e),
+        };
+        // Velocity of the target itself (non-zero in a moving frame), used as feed-forward.
+        let target_velocity = match self.last_target {
+            Some((prev, t)) if ctx.now > t => (target - prev) / seconds_since(ctx.now, t),
+            _ => Vec3::zeros(),
+        };
+        self.last_target = Some((target, ctx.now));
+        let distance = (target - ctx.position()).norm();
+        if distance < ctx.config.goal_threshold_m {
+            return Step::Succeeded;
+        }
+        if distance < self.best_distance_m - 0.1 {
+            self.best_distance_m = distance;
+            self.best_at = ctx.now;
+        } else if seconds_since(ctx.now, self.best_at) > ctx.config.no_progress_timeout_s {
+            return Step::Failed(format!(
+                "no progress for {:.0} s, {distance:.2} m from the goal",
+                ctx.config.no_progress_timeout_s
+            ));
+        }
+        let reference = MotionReference::Position {
+            position_enu_m: target,
+            velocity_ff_enu_mps: target_velocity,
+            yaw: yaw_target(&self.yaw, ctx, &target),
+            max_speed_mps: self.goal.speed,
+        };
+        let feedback = json!({
+            "actual_speed": ctx.state.velocity_enu_mps.norm(),
+            "actual_distance_to_goal": distance,
+        });
+        Step::Running {
+            reference: Some(reference),
+            feedback,
+        }
+    }
+}

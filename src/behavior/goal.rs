@@ -1,0 +1,163 @@
+//! Goal pieces shared by behaviors: framed points and yaw modes, parsed from JSON arguments.
+
+use super::BehaviorContext;
+use crate::estimator::frames::EARTH;
+use crate::types::Vec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// How the heading is chosen while moving. Accepts Aerostack2's numbers (0 keep, 1 path
+/// facing, 2 fixed yaw) or names (`keep`, `path_facing`, `fixed`, `face_point`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum YawMode {
+    #[default]
+    Keep,
+    PathFacing,
+    Fixed,
+    FacePoint,
+}
+
+impl<'de> Deserialize<'de> for YawMode {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(u64),
+            Name(String),
+        }
+        let bad = |what: String| {
+            serde::de::Error::custom(format!(
+                "unknown yaw_mode {what}: use 0 keep, 1 path_facing, 2 fixed, or face_point"
+            ))
+        };
+        match Raw::deserialize(d)? {
+            Raw::Number(0) => Ok(Self::Keep),
+            Raw::Number(1) => Ok(Self::PathFacing),
+            Raw::Number(2) => Ok(Self::Fixed),
+            Raw::Number(n) => Err(bad(n.to_string())),
+            Raw::Name(s) => match s.to_ascii_lowercase().as_str() {
+                "keep" | "keep_yaw" => Ok(Self::Keep),
+                "path_facing" => Ok(Self::PathFacing),
+                "fixed" | "fixed_yaw" => Ok(Self::Fixed),
+                "face_point" | "face_reference" => Ok(Self::FacePoint),
+                _ => Err(bad(format!("`{s}`"))),
+            },
+        }
+    }
+}
+
+/// Yaw settings common to motion goals: `yaw_mode`, `yaw_angle` (rad, in the goal's frame),
+/// `face_point` ([x, y, z] m in the goal's frame).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct YawArgs {
+    #[serde(default)]
+    pub yaw_mode: YawMode,
+    #[serde(default)]
+    pub yaw_angle: Option<f64>,
+    #[serde(default)]
+    pub face_point: Option<[f64; 3]>,
+}
+
+/// Yaw after resolution against frames at activation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ResolvedYaw {
+    Fixed(f64),
+    PathFacing,
+    Face(Vec3),
+}
+
+impl YawArgs {
+    pub fn check(&self) -> Result<(), String> {
+        match self.yaw_mode {
+            YawMode::Fixed if self.yaw_angle.is_none() => {
+                Err("yaw_mode fixed needs yaw_angle (rad)".into())
+            }
+            YawMode::FacePoint if self.face_point.is_none() => {
+                Err("yaw_mode face_point needs face_point [x, y, z] (m)".into())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    pub fn resolve(&self, ctx: &BehaviorContext, frame: &str) -> Result<ResolvedYaw, String> {
+        Ok(match self.yaw_mode {
+            YawMode::Keep => ResolvedYaw::Fixed(ctx.yaw()),
+            YawMode::PathFacing => ResolvedYaw::PathFacing,
+            YawMode::Fixed => {
+                let angle = self
+                    .yaw_angle
+                    .ok_or("yaw_mode fixed needs yaw_angle (rad)")?;
+                ResolvedYaw::Fixed(
+                    ctx.frames
+                        .yaw_to_earth(angle, frame, ctx.now)
+                        .map_err(|e| e.to_string())?,
+                )
+            }
+            YawMode::FacePoint => {
+                let [x, y, z] = self
+                    .face_point
+                    .ok_or("yaw_mode face_point needs face_point")?;
+                ResolvedYaw::Face(
+                    ctx.frames
+                        .point_to_earth(&Vec3::new(x, y, z), frame, ctx.now)
+                        .map_err(|e| e.to_string())?,
+                )
+            }
+        })
+    }
+}
+
+/// Pseudo-frame of geographic goals: x = latitude (deg), y = longitude (deg), z = altitude AMSL (m).
+pub const WGS84: &str = "wgs84";
+
+/// A point (m) in a named frame; what mission validation checks against frames and geofence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FramedPoint {
+    pub position_m: Vec3,
+    pub frame_id: String,
+}
+
+/// The frame a goal names, `earth` when absent or empty.
+pub fn frame_or_earth(frame_id: &Option<String>) -> String {
+    match frame_id {
+        Some(f) if !f.is_empty() => f.clone(),
+        _ => EARTH.to_string(),
+    }
+}
+
+/// Refuses non-finite or out-of-range numbers with the argument's name and unit.
+pub fn check_positive(name: &str, value: f64, unit: &str) -> Result<(), String> {
+    if !value.is_finite() || value <= 0.0 {
+        return Err(format!(
+            "{name} must be a positive number of {unit}, got {value}"
+        ));
+    }
+    Ok(())
+}
+
+pub fn check_finite(name: &str, values: &[f64]) -> Result<(), String> {
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(format!("{name} must be finite numbers"));
+    }
+    Ok(())
+}
+
+/// Parses JSON arguments into a goal type, with the path of the offending field in the error.
+pub fn parse_args<T: serde::de::DeserializeOwned>(args: &serde_json::Value) -> Result<T, String> {
+    serde_json::from_value(args.clone()).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn yaw_mode_accepts_numbers_and_names() {
+        let m: YawMode = serde_json::from_str("1").unwrap();
+        assert_eq!(m, YawMode::PathFacing);
+        let m: YawMode = serde_json::from_str("\"fixed_yaw\"").unwrap();
+        assert_eq!(m, YawMode::Fixed);
+        assert!(serde_json::from_str::<YawMode>("7").is_err());
+    }
+}

@@ -1,0 +1,81 @@
+//! `hover`: hold position, for `duration` seconds or until stopped.
+
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::server::seconds_since;
+use super::{Behavior, BehaviorContext, Step};
+use crate::control::MotionReference;
+use crate::platform::PlatformRequest;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct HoverGoal {
+    /// How long to hover (s); absent = until stopped.
+    #[serde(default)]
+    pub duration: Option<f64>,
+}
+
+impl Goal for HoverGoal {
+    fn check(&self) -> Result<(), String> {
+        match self.duration {
+            Some(d) if !d.is_finite() || d < 0.0 => {
+                Err(format!("duration must be >= 0 s, got {d}"))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "hover",
+        "Hold the current position, for a time or until stopped",
+        Resource::Motion,
+        Hover::new,
+    )
+}
+
+pub struct Hover {
+    goal: HoverGoal,
+    hold: Option<MotionReference>,
+    started: Duration,
+}
+
+impl Hover {
+    fn new(goal: HoverGoal) -> Self {
+        Self {
+            goal,
+            hold: None,
+            started: Duration::ZERO,
+        }
+    }
+}
+
+impl Behavior for Hover {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if !ctx.is_flying() {
+            return Err("platform is not flying".into());
+        }
+        self.hold = Some(ctx.hold_here());
+        self.started = ctx.now;
+        Ok(())
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        self.hold = Some(ctx.hold_here());
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
+        let elapsed = seconds_since(ctx.now, self.started);
+        if self.goal.duration.is_some_and(|d| elapsed >= d) {
+            return Step::Succeeded;
+        }
+        Step::Running {
+            reference: self.hold,
+            feedback: json!({ "elapsed_s": elapsed }),
+        }
+    }
+}

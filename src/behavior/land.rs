@@ -1,0 +1,158 @@
+//! `land`: descend at `speed` until touchdown, then disarm.
+//!
+//! Touchdown is the platform's landed state, or (for platforms without a land detector) no
+//! descent for one second after at least 0.2 m of descent.
+
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::server::seconds_since;
+use super::{goal::check_positive, Behavior, BehaviorContext, Step};
+use crate::control::MotionReference;
+use crate::platform::PlatformRequest;
+use crate::types::{FlightStatus, Vec3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LandGoal {
+    /// Descent speed (m/s).
+    #[serde(default = "default_speed")]
+    pub speed: f64,
+}
+
+fn default_speed() -> f64 {
+    0.5
+}
+
+impl Goal for LandGoal {
+    fn check(&self) -> Result<(), String> {
+        check_positive("speed", self.speed, "m/s")
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed]
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "land",
+        "Descend until touchdown, then disarm",
+        Resource::Motion,
+        Land::new,
+    )
+}
+
+pub struct Land {
+    goal: LandGoal,
+    hold_xy: Vec3,
+    yaw_rad: f64,
+    start_z: f64,
+    still_since: Option<Duration>,
+    touchdown_at: Option<Duration>,
+    requested_native: bool,
+}
+
+/// Disarming must be confirmed within this time after touchdown.
+const DISARM_TIMEOUT_S: f64 = 5.0;
+
+impl Land {
+    fn new(goal: LandGoal) -> Self {
+        Self {
+            goal,
+            hold_xy: Vec3::zeros(),
+            yaw_rad: 0.0,
+            start_z: 0.0,
+            still_since: None,
+            touchdown_at: None,
+            requested_native: false,
+        }
+    }
+}
+
+impl Behavior for Land {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if !ctx.platform.armed {
+            return Err("not armed: already on the ground".into());
+        }
+        self.hold_xy = ctx.position();
+        self.yaw_rad = ctx.yaw();
+        self.start_z = ctx.position().z;
+        Ok(())
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        self.hold_xy = ctx.position();
+        self.still_since = None;
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        let feedback = json!({
+            "actual_land_height": ctx.position().z,
+            "actual_land_speed": ctx.state.velocity_enu_mps.z,
+        });
+        if let Some(t) = self.touchdown_at {
+            if !ctx.platform.armed {
+                return Step::Succeeded;
+            }
+            if seconds_since(ctx.now, t) > DISARM_TIMEOUT_S {
+                return Step::Failed(format!(
+                    "landed but disarm refused: {}",
+                    ctx.platform.last_error.clone().unwrap_or_default()
+                ));
+            }
+            requests.push(PlatformRequest::Disarm);
+            return Step::Running {
+                reference: None,
+                feedback,
+            };
+        }
+        if !ctx.platform.armed {
+            // The autopilot disarmed by itself after its own touchdown detection.
+            return Step::Succeeded;
+        }
+        if ctx.capabilities.native_land {
+            if !self.requested_native {
+                requests.push(PlatformRequest::Land);
+                self.requested_native = true;
+            }
+            return Step::Running {
+                reference: None,
+                feedback,
+            };
+        }
+        if self.touched_down(ctx) {
+            self.touchdown_at = Some(ctx.now);
+            requests.push(PlatformRequest::Disarm);
+            return Step::Running {
+                reference: None,
+                feedback,
+            };
+        }
+        // A target far below the ground: the controller's speed limit sets the descent rate.
+        let target = Vec3::new(self.hold_xy.x, self.hold_xy.y, ctx.position().z - 10.0);
+        let reference = MotionReference::hold(target, self.yaw_rad, self.goal.speed);
+        Step::Running {
+            reference: Some(reference),
+            feedback,
+        }
+    }
+}
+
+impl Land {
+    fn touched_down(&mut self, ctx: &BehaviorContext) -> bool {
+        if ctx.platform.flight == FlightStatus::Landed {
+            return true;
+        }
+        let descended = self.start_z - ctx.position().z > 0.2;
+        let still = ctx.state.velocity_enu_mps.z.abs() < 0.2 * self.goal.speed;
+        if descended && still {
+            let since = *self.still_since.get_or_insert(ctx.now);
+            seconds_since(ctx.now, since) > 1.0
+        } else {
+            self.still_since = None;
+            false
+        }
+    }
+}

@@ -1,0 +1,132 @@
+//! `rotate`: turn in place to a heading (`yaw_angle`, in `frame_id`) or by an angle (`by_angle`)
+//! at `yaw_speed`.
+
+use super::goal::{frame_or_earth, parse_args};
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::{Behavior, BehaviorContext, Step};
+use crate::control::{MotionReference, YawTarget};
+use crate::platform::PlatformRequest;
+use crate::types::{wrap_angle_rad, Vec3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RotateGoal {
+    /// Heading to reach (rad, CCW from the frame's x axis).
+    #[serde(default)]
+    pub yaw_angle: Option<f64>,
+    /// Angle to turn by (rad, CCW positive), instead of `yaw_angle`.
+    #[serde(default)]
+    pub by_angle: Option<f64>,
+    /// Turn rate (rad/s).
+    #[serde(default = "default_yaw_speed")]
+    pub yaw_speed: f64,
+    #[serde(default)]
+    pub frame_id: Option<String>,
+}
+
+fn default_yaw_speed() -> f64 {
+    0.5
+}
+
+impl Goal for RotateGoal {
+    fn check(&self) -> Result<(), String> {
+        match (self.yaw_angle, self.by_angle) {
+            (Some(_), Some(_)) => return Err("give yaw_angle or by_angle (rad), not both".into()),
+            (None, None) => return Err("give yaw_angle or by_angle (rad)".into()),
+            (Some(a), None) | (None, Some(a)) if !a.is_finite() => {
+                return Err("angle must be finite (rad)".into())
+            }
+            _ => {}
+        }
+        super::goal::check_positive("yaw_speed", self.yaw_speed, "rad/s")
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "rotate",
+        "Turn in place to a heading or by an angle",
+        Resource::Motion,
+        Rotate::new,
+    )
+}
+
+pub struct Rotate {
+    goal: RotateGoal,
+    position: Vec3,
+    /// Heading still to turn (rad, signed), consumed at yaw_speed.
+    remaining_rad: f64,
+    commanded_rad: f64,
+}
+
+impl Rotate {
+    fn new(goal: RotateGoal) -> Self {
+        Self {
+            goal,
+            position: Vec3::zeros(),
+            remaining_rad: 0.0,
+            commanded_rad: 0.0,
+        }
+    }
+
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        self.position = ctx.position();
+        self.commanded_rad = ctx.yaw();
+        self.remaining_rad = match (self.goal.yaw_angle, self.goal.by_angle) {
+            (Some(angle), _) => {
+                let target = ctx
+                    .frames
+                    .yaw_to_earth(angle, &frame_or_earth(&self.goal.frame_id), ctx.now)
+                    .map_err(|e| e.to_string())?;
+                wrap_angle_rad(target - ctx.yaw())
+            }
+            (None, Some(by)) => by,
+            (None, None) => return Err("give yaw_angle or by_angle".into()),
+        };
+        Ok(())
+    }
+}
+
+impl Behavior for Rotate {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if !ctx.is_flying() {
+            return Err("platform is not flying".into());
+        }
+        self.start(ctx)
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
+        let goal: RotateGoal = parse_args(args)?;
+        goal.check()?;
+        self.goal = goal;
+        self.start(ctx)
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        self.position = ctx.position();
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
+        let step = (self.goal.yaw_speed * ctx.dt_s).min(self.remaining_rad.abs())
+            * self.remaining_rad.signum();
+        self.commanded_rad += step;
+        self.remaining_rad -= step;
+        let error = wrap_angle_rad(self.commanded_rad - ctx.yaw());
+        if self.remaining_rad.abs() < 1e-9 && error.abs() < 0.03 {
+            return Step::Succeeded;
+        }
+        let reference = MotionReference::Position {
+            position_enu_m: self.position,
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Angle(wrap_angle_rad(self.commanded_rad)),
+            max_speed_mps: ctx.config.hold_speed_mps,
+        };
+        Step::Running {
+            reference: Some(reference),
+            feedback: json!({ "remaining_angle_rad": self.remaining_rad + error }),
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! Composite behaviors: a sequence of registered behaviors run one after another, built from
+//! the primitives (never copied from them). `rtl` = go_to home at a height, then land.
+
+use super::goal::check_positive;
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::{Behavior, BehaviorContext, Step};
+use crate::platform::PlatformRequest;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+/// Runs child behaviors in order; fails as soon as one fails.
+pub struct Sequence {
+    /// Specs and goals of the children, built when the sequence activates.
+    plan: Vec<(BehaviorSpec, serde_json::Value)>,
+    index: usize,
+    current: Option<Box<dyn Behavior>>,
+}
+
+impl Sequence {
+    pub fn new(plan: Vec<(BehaviorSpec, serde_json::Value)>) -> Self {
+        Self {
+            plan,
+            index: 0,
+            current: None,
+        }
+    }
+
+    fn start_child(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        let (spec, goal) = self.plan.get(self.index).ok_or("sequence is empty")?;
+        let mut child = (spec.create)(goal)?;
+        child
+            .activate(ctx)
+            .map_err(|e| format!("{}: {e}", spec.name))?;
+        self.current = Some(child);
+        Ok(())
+    }
+
+    fn child_name(&self) -> &'static str {
+        self.plan.get(self.index).map(|(s, _)| s.name).unwrap_or("")
+    }
+}
+
+impl Behavior for Sequence {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        self.index = 0;
+        self.start_child(ctx)
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        if let Some(c) = self.current.as_mut() {
+            c.resume(ctx);
+        }
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        let Some(child) = self.current.as_mut() else {
+            return Step::Failed("no active step".into());
+        };
+        match child.run(ctx, requests) {
+            Step::Running {
+                reference,
+                feedback,
+            } => {
+                let feedback = json!({ "step": self.child_name(), "step_index": self.index, "step_feedback": feedback });
+                Step::Running {
+                    reference,
+                    feedback,
+                }
+            }
+            Step::Failed(reason) => Step::Failed(format!("{}: {reason}", self.child_name())),
+            Step::Succeeded => {
+                self.index += 1;
+                if self.index >= self.plan.len() {
+                    return Step::Succeeded;
+                }
+                if let Err(e) = self.start_child(ctx) {
+                    return Step::Failed(e);
+                }
+                Step::Running {
+                    reference: Some(ctx.hold_here()),
+                    feedback: json!({ "step": self.child_name(), "step_index": self.index }),
+                }
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RtlGoal {
+    /// Height to fly home at (m, in `earth`).
+    pub height: f64,
+    /// Cruise speed (m/s).
+    pub speed: f64,
+    /// Descent speed (m/s).
+    #[serde(default = "default_land_speed")]
+    pub land_speed: f64,
+}
+
+fn default_land_speed() -> f64 {
+    0.5
+}
+
+impl Goal for RtlGoal {
+    fn check(&self) -> Result<(), String> {
+        check_positive("height", self.height, "metres")?;
+        check_positive("speed", self.speed, "m/s")?;
+        check_positive("land_speed", self.land_speed, "m/s")
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed, self.land_speed]
+    }
+}
+
+pub fn rtl_spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "rtl",
+        "Return to the arming point at a height, then land",
+        Resource::Motion,
+        Rtl::new,
+    )
+}
+
+/// `rtl`: resolves home when it starts, then runs go_to + land as a [`Sequence`].
+pub struct Rtl {
+    goal: RtlGoal,
+    sequence: Option<Sequence>,
+}
+
+impl Rtl {
+    fn new(goal: RtlGoal) -> Self {
+        Self {
+            goal,
+            sequence: None,
+        }
+    }
+}
+
+impl Behavior for Rtl {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        let home = ctx
+            .home_enu_m
+            .ok_or("no home position: the vehicle has not armed")?;
+        let go_home = json!({ "x": home.x, "y": home.y, "z": home.z + self.goal.height, "speed": self.goal.speed, "frame_id": "earth" });
+        let land = json!({ "speed": self.goal.land_speed });
+        let mut sequence = Sequence::new(vec![
+            (super::go_to::spec(), go_home),
+            (super::land::spec(), land),
+        ]);
+        sequence.activate(ctx)?;
+        self.sequence = Some(sequence);
+        Ok(())
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        if let Some(s) = self.sequence.as_mut() {
+            s.resume(ctx);
+        }
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        match self.sequence.as_mut() {
+            Some(s) => s.run(ctx, requests),
+            None => Step::Failed("rtl was not activated".into()),
+        }
+    }
+}

@@ -1,0 +1,336 @@
+//! The behavior server: runs behaviors through their shared lifecycle, one per resource.
+//!
+//! Motion behaviors share the `motion` resource: starting one stops the one running (it ends
+//! aborted, "preempted"). When no motion behavior runs, or one is paused, the server holds the
+//! vehicle where it was, so stop, pause and failure all leave it hovering.
+
+use super::registry::{Registry, Resource};
+use super::{Behavior, BehaviorContext, Step};
+use crate::control::MotionReference;
+use crate::platform::PlatformRequest;
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+
+pub type BehaviorId = u64;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunState {
+    Running,
+    Paused,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "result", content = "reason")]
+pub enum BehaviorResult {
+    Succeeded,
+    Failed(String),
+    Aborted(String),
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "event")]
+pub enum BehaviorEvent {
+    Started {
+        id: BehaviorId,
+        behavior: String,
+        goal: serde_json::Value,
+    },
+    Paused {
+        id: BehaviorId,
+        behavior: String,
+    },
+    Resumed {
+        id: BehaviorId,
+        behavior: String,
+    },
+    Modified {
+        id: BehaviorId,
+        behavior: String,
+        goal: serde_json::Value,
+    },
+    Finished {
+        id: BehaviorId,
+        behavior: String,
+        result: BehaviorResult,
+    },
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ServerError {
+    #[error("unknown behavior `{0}`")]
+    UnknownBehavior(String),
+    #[error("goal rejected by {behavior}: {reason}")]
+    Rejected { behavior: String, reason: String },
+    #[error("no running behavior with id {0}")]
+    NotActive(BehaviorId),
+    #[error("behavior {0} is not running")]
+    NotRunning(BehaviorId),
+    #[error("behavior {0} is not paused")]
+    NotPaused(BehaviorId),
+}
+
+/// A snapshot of one active behavior, for status displays.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ActiveInfo {
+    pub id: BehaviorId,
+    pub behavior: String,
+    pub state: RunState,
+    pub goal: serde_json::Value,
+    pub feedback: serde_json::Value,
+    pub started_at_s: f64,
+}
+
+struct Active {
+    info: ActiveInfo,
+    resource: Resource,
+    behavior: Box<dyn Behavior>,
+    /// Where to hold while paused.
+    hold: Option<MotionReference>,
+}
+
+/// What one server tick produces.
+#[derive(Debug, Default)]
+pub struct ServerOutput {
+    pub reference: Option<MotionReference>,
+    pub requests: Vec<PlatformRequest>,
+}
+
+pub struct BehaviorServer {
+    registry: Registry,
+    active: Vec<Active>,
+    next_id: BehaviorId,
+    /// Hold reference used when no motion behavior is running.
+    hold: Option<MotionReference>,
+    events: Vec<BehaviorEvent>,
+}
+
+impl BehaviorServer {
+    pub fn new(registry: Registry) -> Self {
+        Self {
+            registry,
+            active: Vec::new(),
+            next_id: 1,
+            hold: None,
+            events: Vec::new(),
+        }
+    }
+
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+
+    /// Events since the last call, oldest first.
+    pub fn drain_events(&mut self) -> Vec<BehaviorEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    pub fn active(&self) -> Vec<ActiveInfo> {
+        self.active.iter().map(|a| a.info.clone()).collect()
+    }
+
+    pub fn info(&self, id: BehaviorId) -> Option<&ActiveInfo> {
+        self.active
+            .iter()
+            .find(|a| a.info.id == id)
+            .map(|a| &a.info)
+    }
+
+    /// Creates the behavior from its goal, lets it check the goal now, and starts it.
+    pub fn start(
+        &mut self,
+        name: &str,
+        goal: &serde_json::Value,
+        ctx: &BehaviorContext,
+    ) -> Result<BehaviorId, ServerError> {
+        let spec = self
+            .registry
+            .get(name)
+            .ok_or_else(|| ServerError::UnknownBehavior(name.to_string()))?;
+        let rejected = |reason: String| ServerError::Rejected {
+            behavior: name.to_string(),
+            reason,
+        };
+        let mut behavior = (spec.create)(goal).map_err(rejected)?;
+        behavior.activate(ctx).map_err(rejected)?;
+        let resource = spec.resource;
+        let preempted: Vec<BehaviorId> = self
+            .active
+            .iter()
+            .filter(|a| a.resource == resource)
+            .map(|a| a.info.id)
+            .collect();
+        for id in preempted {
+            self.finish(
+                id,
+                BehaviorResult::Aborted(format!("preempted by {name}")),
+                ctx,
+            );
+        }
+        let id = self.next_id;
+        self.next_id += 1;
+        self.active.push(Active {
+            info: ActiveInfo {
+                id,
+                behavior: name.to_string(),
+                state: RunState::Running,
+                goal: goal.clone(),
+                feedback: serde_json::Value::Null,
+                started_at_s: ctx.now.as_secs_f64(),
+            },
+            resource,
+            behavior,
+            hold: None,
+        });
+        self.events.push(BehaviorEvent::Started {
+            id,
+            behavior: name.to_string(),
+            goal: goal.clone(),
+        });
+        Ok(id)
+    }
+
+    pub fn pause(&mut self, id: BehaviorId, ctx: &BehaviorContext) -> Result<(), ServerError> {
+        let a = self.find(id)?;
+        if a.info.state != RunState::Running {
+            return Err(ServerError::NotRunning(id));
+        }
+        a.info.state = RunState::Paused;
+        a.hold = Some(ctx.hold_here());
+        let behavior = a.info.behavior.clone();
+        self.events.push(BehaviorEvent::Paused { id, behavior });
+        Ok(())
+    }
+
+    pub fn resume(&mut self, id: BehaviorId, ctx: &BehaviorContext) -> Result<(), ServerError> {
+        let a = self.find(id)?;
+        if a.info.state != RunState::Paused {
+            return Err(ServerError::NotPaused(id));
+        }
+        a.behavior.resume(ctx);
+        a.info.state = RunState::Running;
+        a.hold = None;
+        let behavior = a.info.behavior.clone();
+        self.events.push(BehaviorEvent::Resumed { id, behavior });
+        Ok(())
+    }
+
+    pub fn modify(
+        &mut self,
+        id: BehaviorId,
+        goal: &serde_json::Value,
+        ctx: &BehaviorContext,
+    ) -> Result<(), ServerError> {
+        let a = self.find(id)?;
+        let behavior = a.info.behavior.clone();
+        a.behavior
+            .modify(ctx, goal)
+            .map_err(|reason| ServerError::Rejected {
+                behavior: behavior.clone(),
+                reason,
+            })?;
+        a.info.goal = goal.clone();
+        self.events.push(BehaviorEvent::Modified {
+            id,
+            behavior,
+            goal: goal.clone(),
+        });
+        Ok(())
+    }
+
+    /// Stops a behavior; it ends aborted and the vehicle holds where it is.
+    pub fn stop(&mut self, id: BehaviorId, ctx: &BehaviorContext) -> Result<(), ServerError> {
+        self.find(id)?;
+        self.finish(id, BehaviorResult::Aborted("stopped".into()), ctx);
+        Ok(())
+    }
+
+    /// Stops everything (link loss, emergency); each ends aborted with `reason`.
+    pub fn stop_all(&mut self, reason: &str, ctx: &BehaviorContext) {
+        let ids: Vec<BehaviorId> = self.active.iter().map(|a| a.info.id).collect();
+        for id in ids {
+            self.finish(id, BehaviorResult::Aborted(reason.to_string()), ctx);
+        }
+    }
+
+    fn find(&mut self, id: BehaviorId) -> Result<&mut Active, ServerError> {
+        self.active
+            .iter_mut()
+            .find(|a| a.info.id == id)
+            .ok_or(ServerError::NotActive(id))
+    }
+
+    fn finish(&mut self, id: BehaviorId, result: BehaviorResult, ctx: &BehaviorContext) {
+        if let Some(pos) = self.active.iter().position(|a| a.info.id == id) {
+            let a = self.active.remove(pos);
+            if a.resource == Resource::Motion {
+                self.hold = if ctx.is_flying() {
+                    Some(ctx.hold_here())
+                } else {
+                    None
+                };
+            }
+            self.events.push(BehaviorEvent::Finished {
+                id,
+                behavior: a.info.behavior,
+                result,
+            });
+        }
+    }
+
+    /// Runs every active behavior once and picks the motion reference.
+    pub fn tick(&mut self, ctx: &BehaviorContext) -> ServerOutput {
+        let mut out = ServerOutput::default();
+        let mut finished = Vec::new();
+        let mut motion_reference = None;
+        let mut motion_active = false;
+        for a in self.active.iter_mut() {
+            if a.resource == Resource::Motion {
+                motion_active = true;
+            }
+            if a.info.state == RunState::Paused {
+                if a.resource == Resource::Motion {
+                    motion_reference = a.hold;
+                }
+                continue;
+            }
+            match a.behavior.run(ctx, &mut out.requests) {
+                Step::Running {
+                    reference,
+                    feedback,
+                } => {
+                    a.info.feedback = feedback;
+                    if a.resource == Resource::Motion {
+                        motion_reference = reference;
+                    }
+                }
+                Step::Succeeded => finished.push((a.info.id, BehaviorResult::Succeeded)),
+                Step::Failed(reason) => finished.push((a.info.id, BehaviorResult::Failed(reason))),
+            }
+        }
+        for (id, result) in finished {
+            self.finish(id, result, ctx);
+        }
+        let motion_still_active = self.active.iter().any(|a| a.resource == Resource::Motion);
+        if !motion_still_active {
+            if !ctx.is_flying() {
+                self.hold = None;
+            }
+            motion_reference = self.hold;
+        } else if !motion_active {
+            motion_reference = self.hold;
+        }
+        out.reference = motion_reference;
+        out
+    }
+
+    /// Forget the idle hold point (after landing, or when the platform took over).
+    pub fn clear_hold(&mut self) {
+        self.hold = None;
+    }
+}
+
+/// Elapsed seconds between two instants, never negative.
+pub fn seconds_since(now: Duration, then: Duration) -> f64 {
+    now.saturating_sub(then).as_secs_f64()
+}

@@ -1,0 +1,188 @@
+//! `takeoff`: arm, enter offboard, climb `height` metres above the ground at `speed`.
+
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::server::seconds_since;
+use super::{goal::check_positive, Behavior, BehaviorContext, Step};
+use crate::control::MotionReference;
+use crate::platform::PlatformRequest;
+use crate::types::Vec3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TakeoffGoal {
+    /// Height above the takeoff point (m).
+    #[serde(default = "default_height")]
+    pub height: f64,
+    /// Climb speed (m/s).
+    #[serde(default = "default_speed")]
+    pub speed: f64,
+}
+
+fn default_height() -> f64 {
+    1.0
+}
+fn default_speed() -> f64 {
+    0.5
+}
+
+impl Goal for TakeoffGoal {
+    fn check(&self) -> Result<(), String> {
+        check_positive("height", self.height, "metres")?;
+        check_positive("speed", self.speed, "m/s")
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed]
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "takeoff",
+        "Arm, enter offboard and climb to a height above the takeoff point",
+        Resource::Motion,
+        Takeoff::new,
+    )
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase {
+    Arming {
+        since: Option<Duration>,
+        last_request: Option<Duration>,
+    },
+    Climbing,
+}
+
+pub struct Takeoff {
+    goal: TakeoffGoal,
+    phase: Phase,
+    /// Hold point on the ground while arming, then the climb target.
+    target: Vec3,
+    yaw_rad: f64,
+}
+
+/// Re-send arm/offboard requests at this period until the platform shows them.
+const REQUEST_PERIOD: Duration = Duration::from_secs(1);
+
+impl Takeoff {
+    fn new(goal: TakeoffGoal) -> Self {
+        Self {
+            goal,
+            phase: Phase::Arming {
+                since: None,
+                last_request: None,
+            },
+            target: Vec3::zeros(),
+            yaw_rad: 0.0,
+        }
+    }
+}
+
+impl Behavior for Takeoff {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        if ctx.platform.flight.is_airborne() {
+            return Err("already flying".into());
+        }
+        if !ctx.state.valid.position {
+            return Err("no position estimate".into());
+        }
+        let p = ctx.position();
+        self.target = Vec3::new(p.x, p.y, p.z + self.goal.height);
+        self.yaw_rad = ctx.yaw();
+        Ok(())
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        let ground_hold = MotionReference::hold(
+            Vec3::new(self.target.x, self.target.y, ctx.position().z),
+            self.yaw_rad,
+            self.goal.speed,
+        );
+        if let Phase::Arming {
+            since,
+            last_request,
+        } = self.phase
+        {
+            let since = since.unwrap_or(ctx.now);
+            if ctx.platform.armed && (ctx.platform.offboard || ctx.capabilities.native_takeoff) {
+                if ctx.capabilities.native_takeoff {
+                    requests.push(PlatformRequest::Takeoff {
+                        height_m: self.goal.height,
+                    });
+                }
+                self.phase = Phase::Climbing;
+            } else {
+                if seconds_since(ctx.now, since) > ctx.config.arm_timeout_s {
+                    let reason = ctx
+                        .platform
+                        .last_error
+                        .clone()
+                        .unwrap_or_else(|| "no answer from the autopilot".into());
+                    return Step::Failed(format!("could not arm and enter offboard: {reason}"));
+                }
+                if last_request.is_none_or(|t| ctx.now.saturating_sub(t) >= REQUEST_PERIOD) {
+                    if !ctx.platform.armed {
+                        requests.push(PlatformRequest::Arm);
+                    }
+                    if !ctx.platform.offboard {
+                        requests.push(PlatformRequest::StartOffboard);
+                    }
+                    self.phase = Phase::Arming {
+                        since: Some(since),
+                        last_request: Some(ctx.now),
+                    };
+                } else {
+                    self.phase = Phase::Arming {
+                        since: Some(since),
+                        last_request,
+                    };
+                }
+                // Stream a setpoint where the vehicle sits: PX4 needs one before OFFBOARD.
+                return Step::Running {
+                    reference: Some(ground_hold),
+                    feedback: self.feedback(ctx),
+                };
+            }
+        }
+        if !ctx.platform.armed {
+            return Step::Failed(
+                ctx.platform
+                    .last_error
+                    .clone()
+                    .unwrap_or_else(|| "disarmed during takeoff".into()),
+            );
+        }
+        let error = self.target.z - ctx.position().z;
+        if error.abs() < ctx.config.takeoff_threshold_m && ctx.state.velocity_enu_mps.z.abs() < 0.1
+        {
+            return Step::Succeeded;
+        }
+        let reference =
+            if ctx.capabilities.native_takeoff && error > ctx.config.takeoff_threshold_m * 4.0 {
+                None
+            } else {
+                Some(MotionReference::hold(
+                    self.target,
+                    self.yaw_rad,
+                    self.goal.speed,
+                ))
+            };
+        Step::Running {
+            reference,
+            feedback: self.feedback(ctx),
+        }
+    }
+}
+
+impl Takeoff {
+    fn feedback(&self, ctx: &BehaviorContext) -> serde_json::Value {
+        json!({
+            "actual_takeoff_height": ctx.position().z - (self.target.z - self.goal.height),
+            "actual_takeoff_speed": ctx.state.velocity_enu_mps.z,
+        })
+    }
+}

@@ -1,0 +1,147 @@
+//! Three-axis PID with integral anti-windup, filtered derivative and output saturation.
+
+use crate::types::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Gains for one PID; per-axis vectors (x, y, z in the frame of the error).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PidGains {
+    pub kp: Vec3,
+    pub ki: Vec3,
+    pub kd: Vec3,
+    /// Limit of the integral term's accumulated error (error unit x s); 0 disables the clamp.
+    pub integral_limit: Vec3,
+    /// Weight of the newest sample in the derivative low-pass filter (0..=1, 1 = no filter).
+    pub derivative_alpha: f64,
+}
+
+impl PidGains {
+    pub fn uniform(kp: f64, ki: f64, kd: f64, integral_limit: f64) -> Self {
+        Self {
+            kp: Vec3::repeat(kp),
+            ki: Vec3::repeat(ki),
+            kd: Vec3::repeat(kd),
+            integral_limit: Vec3::repeat(integral_limit),
+            derivative_alpha: 0.3,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pid {
+    gains: PidGains,
+    integral: Vec3,
+    derivative: Vec3,
+    previous_error: Option<Vec3>,
+}
+
+impl Pid {
+    pub fn new(gains: PidGains) -> Self {
+        Self {
+            gains,
+            integral: Vec3::zeros(),
+            derivative: Vec3::zeros(),
+            previous_error: None,
+        }
+    }
+
+    pub fn reset(&mut self) {
+        self.integral = Vec3::zeros();
+        self.derivative = Vec3::zeros();
+        self.previous_error = None;
+    }
+
+    /// One step: `error` = reference - measurement, `dt_s` > 0. The output is scaled as a whole
+    /// (keeping its direction) so that no axis exceeds `limit`; a limit axis of 0 means unlimited.
+    pub fn update(&mut self, error: Vec3, dt_s: f64, limit: Vec3) -> Vec3 {
+        if dt_s <= 0.0 {
+            return self.output(error, limit);
+        }
+        self.integral += error * dt_s;
+        for i in 0..3 {
+            let cap = self.gains.integral_limit[i];
+            if cap > 0.0 {
+                self.integral[i] = self.integral[i].clamp(-cap, cap);
+            }
+            // Conditional reset: an integral fighting the error sign is dropped.
+            if cap > 0.0
+                && self.integral[i].abs() >= cap
+                && self.integral[i].signum() != error[i].signum()
+            {
+                self.integral[i] = 0.0;
+            }
+        }
+        if let Some(prev) = self.previous_error {
+            let raw = (error - prev) / dt_s;
+            let a = self.gains.derivative_alpha;
+            self.derivative = raw * a + self.derivative * (1.0 - a);
+        }
+        self.previous_error = Some(error);
+        self.output(error, limit)
+    }
+
+    fn output(&self, error: Vec3, limit: Vec3) -> Vec3 {
+        let g = &self.gains;
+        let raw = g.kp.component_mul(&error)
+            + g.ki.component_mul(&self.integral)
+            + g.kd.component_mul(&self.derivative);
+        saturate_proportionally(raw, limit)
+    }
+}
+
+/// Scales `v` so each axis fits within `limit` (0 = unlimited), keeping its direction.
+pub fn saturate_proportionally(v: Vec3, limit: Vec3) -> Vec3 {
+    let mut scale: f64 = 1.0;
+    for i in 0..3 {
+        if limit[i] > 0.0 && v[i].abs() > limit[i] {
+            scale = scale.min(limit[i] / v[i].abs());
+        }
+    }
+    v * scale
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn proportional_only_matches_kp_times_error() {
+        let mut pid = Pid::new(PidGains::uniform(2.0, 0.0, 0.0, 0.0));
+        let out = pid.update(Vec3::new(1.0, -0.5, 0.25), 0.01, Vec3::zeros());
+        assert!((out - Vec3::new(2.0, -1.0, 0.5)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn integral_is_clamped_by_anti_windup() {
+        let mut pid = Pid::new(PidGains::uniform(0.0, 1.0, 0.0, 0.5));
+        for _ in 0..1000 {
+            pid.update(Vec3::new(1.0, 0.0, 0.0), 0.01, Vec3::zeros());
+        }
+        let out = pid.update(Vec3::new(1.0, 0.0, 0.0), 0.01, Vec3::zeros());
+        assert!(
+            (out.x - 0.5).abs() < 1e-9,
+            "integral output capped at ki * limit, got {}",
+            out.x
+        );
+    }
+
+    #[test]
+    fn saturation_keeps_direction() {
+        let v = saturate_proportionally(Vec3::new(4.0, 2.0, 0.0), Vec3::new(1.0, 1.0, 1.0));
+        assert!((v - Vec3::new(1.0, 0.5, 0.0)).norm() < 1e-12);
+        let free = saturate_proportionally(Vec3::new(4.0, 2.0, 0.0), Vec3::zeros());
+        assert_eq!(free, Vec3::new(4.0, 2.0, 0.0));
+    }
+
+    #[test]
+    fn derivative_reacts_to_error_change() {
+        let mut pid = Pid::new(PidGains {
+            derivative_alpha: 1.0,
+            ..PidGains::uniform(0.0, 0.0, 1.0, 0.0)
+        });
+        pid.update(Vec3::zeros(), 0.1, Vec3::zeros());
+        let out = pid.update(Vec3::new(1.0, 0.0, 0.0), 0.1, Vec3::zeros());
+        assert!((out.x - 10.0).abs() < 1e-9);
+    }
+}
