@@ -48,6 +48,10 @@ pub struct PathTrajectory {
     v_at: Vec<f64>,
     limits: TrajectoryLimits,
     s: f64,
+    /// Reference speed now; rises at most at the acceleration limit.
+    v: f64,
+    /// Acceleration of the last step, along the path.
+    a: f64,
 }
 
 impl PathTrajectory {
@@ -72,6 +76,8 @@ impl PathTrajectory {
             v_at,
             limits,
             s: 0.0,
+            v: 0.0,
+            a: 0.0,
         }
     }
 
@@ -97,26 +103,22 @@ impl PathTrajectory {
     pub fn advance(&mut self, dt_s: f64, vehicle_m: &Vec3) -> TrajectorySample {
         let here = self.position_at(self.s);
         let lag = (here - vehicle_m).norm();
-        let speed = self.speed_at(self.s);
-        let warp = if lag > self.limits.max_lag_m {
-            (2.0 - lag / self.limits.max_lag_m).max(0.0)
-        } else {
-            1.0
-        };
-        self.s = (self.s + speed * warp * dt_s).min(self.length_m());
+        let warp = if lag > self.limits.max_lag_m { (2.0 - lag / self.limits.max_lag_m).max(0.0) } else { 1.0 };
+        let allowed = self.speed_at(self.s) * warp;
+        let v = allowed.min(self.v + self.limits.max_acceleration_mps2 * dt_s);
+        self.a = if dt_s > 0.0 { (v - self.v) / dt_s } else { 0.0 };
+        self.v = v;
+        self.s = (self.s + v * dt_s).min(self.length_m());
         self.sample()
     }
 
     pub fn sample(&self) -> TrajectorySample {
         let seg = self.segment_at(self.s);
         let direction = self.direction(seg);
-        let speed = self.speed_at(self.s);
-        let ds = 1e-3;
-        let accel_along = (self.speed_at((self.s + ds).min(self.length_m())) - speed) / ds * speed;
         TrajectorySample {
             position_enu_m: self.position_at(self.s),
-            velocity_enu_mps: direction * speed,
-            acceleration_enu_mps2: direction * accel_along,
+            velocity_enu_mps: direction * self.v,
+            acceleration_enu_mps2: direction * self.a,
             next_waypoint: seg,
             finished: self.s >= self.length_m() - 1e-9,
         }

@@ -88,6 +88,15 @@ pub fn step(
     disturbance_mps2: &Vec3,
     dt_s: f64,
 ) {
+    let lifting = matches!(drive, Drive::Velocity { velocity_enu_mps, .. } if velocity_enu_mps.z > 0.0);
+    if s.on_ground() && !lifting {
+        // Resting on the ground: no sinking, no sliding, no turning.
+        s.position_m.z = 0.0;
+        s.velocity_mps = Vec3::zeros();
+        s.acceleration_mps2 = Vec3::zeros();
+        s.yaw_rate_radps = 0.0;
+        return;
+    }
     let accel = match drive {
         Drive::Off => {
             Vec3::new(-s.velocity_mps.x, -s.velocity_mps.y, 0.0) * p.drag_per_s
@@ -113,7 +122,8 @@ pub fn step(
             let rate_cmd = yaw_rate_radps.clamp(-p.max_yaw_rate_radps, p.max_yaw_rate_radps);
             s.yaw_rate_radps +=
                 (rate_cmd - s.yaw_rate_radps) * (dt_s / p.yaw_time_constant_s.max(dt_s));
-            a + (wind_mps - s.velocity_mps) * p.drag_per_s + disturbance_mps2
+            // The autopilot's velocity loop cancels drag in still air; wind leaves a steady push.
+            a + wind_mps * p.drag_per_s + disturbance_mps2
         }
     };
     if matches!(drive, Drive::Off) {
@@ -124,15 +134,11 @@ pub fn step(
     s.yaw_rad = wrap_angle_rad(s.yaw_rad + s.yaw_rate_radps * dt_s);
     s.acceleration_mps2 = accel;
     if s.position_m.z <= 0.0 {
-        // Ground contact: no sinking, no sliding.
+        // Touchdown.
         s.position_m.z = 0.0;
-        if s.velocity_mps.z < 0.0 || matches!(drive, Drive::Off) {
+        if s.velocity_mps.z < 0.0 {
             s.velocity_mps = Vec3::zeros();
             s.acceleration_mps2 = Vec3::zeros();
-        }
-        if matches!(drive, Drive::Velocity { velocity_enu_mps, .. } if velocity_enu_mps.z <= 0.0) {
-            s.velocity_mps = Vec3::zeros();
-            s.yaw_rate_radps = 0.0;
         }
     }
 }
