@@ -37,6 +37,7 @@ class Px4Vehicle(Vehicle):
     name = "px4"
     capabilities = 59647        # as captured
     flight_sw_version = 255
+    ack_before_replies = True
 
     def limits(self):
         return Limits(max_speed_xy_mps=12.0, max_speed_up_mps=3.0, max_speed_down_mps=1.5,
@@ -69,6 +70,11 @@ class Px4Vehicle(Vehicle):
         hz = self.opts.attitude_hz
         return {0: 1.0, 1: 0.2, 2: 1.0, 24: 0.125, 30: 1.0 / hz, 31: 2.0 / hz, 32: 1 / 30, 33: 1.0 / hz,
                 331: 1 / 30, 132: 0.1, 245: 0.2, 242: 2.0, 147: 2.0, 436: 2.0, 411: 3.0, 74: 0.2, 85: 0.1}
+
+    def set_message_interval(self, msg_id, interval_us):
+        if msg_id == 0:
+            return M.MAV_RESULT_FAILED  # PX4: HEARTBEAT's rate is fixed (captured)
+        return super().set_message_interval(msg_id, interval_us)
 
     def generators(self):
         g = super().generators()

@@ -140,7 +140,12 @@ class Vehicle:
         self.log.append(entry)
 
     # ------------------------------------------------------------------ I/O
+    ack_before_replies = False  # PX4 emits a command's EVENTs after its COMMAND_ACK
+
     def send(self, msg):
+        if getattr(self, "_deferred", None) is not None:
+            self._deferred.append(msg)
+            return
         data = msg.pack(self.mav)  # advances the sequence number even if the frame is lost
         now = self.clock.now()
         if now < self.rebooting_until or self.faults.link_down(now) or self.faults.lose():
@@ -253,9 +258,16 @@ class Vehicle:
             self.send(self.autopilot_version())
             result = M.MAV_RESULT_ACCEPTED
         else:
-            result = self.handle_command(msg, cmd, p)
+            if self.ack_before_replies:
+                self._deferred = []
+            try:
+                result = self.handle_command(msg, cmd, p)
+            finally:
+                deferred, self._deferred = getattr(self, "_deferred", None) or [], None
         if result is not None:
             self.ack(msg, cmd, result)
+        for m in deferred if 'deferred' in locals() else []:
+            self.send(m)
 
     # ------------------------------------------------------------------ params
     def _param_decode(self, value, ptype):
