@@ -99,12 +99,26 @@ class Link:
         self.fake = fake
         self.ts = m.target_system
         self.tc = 1
+        self.history = []  # every message received through recv(), in order
+
+    def seen_or_recv(self, types, timeout=2.0, cond=None):
+        """First matching message already received (e.g. before a COMMAND_ACK), else wait."""
+        types = [types] if isinstance(types, str) else types
+        for msg in self.history:
+            if msg.get_type() in types and (cond is None or cond(msg)):
+                return msg
+        return self.recv(types, timeout, cond)
 
     def recv(self, types, timeout=5.0, cond=None):
         deadline = time.time() + timeout
         while time.time() < deadline:
-            msg = self.m.recv_match(type=types, blocking=True, timeout=min(0.2, max(0.01, deadline - time.time())))
-            if msg is not None and (cond is None or cond(msg)):
+            msg = self.m.recv_match(blocking=True, timeout=min(0.2, max(0.01, deadline - time.time())))
+            if msg is None:
+                continue
+            self.history.append(msg)
+            if len(self.history) > 20000:
+                del self.history[:10000]
+            if msg.get_type() in ([types] if isinstance(types, str) else types) and (cond is None or cond(msg)):
                 return msg
         return None
 
