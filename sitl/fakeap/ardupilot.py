@@ -3,7 +3,7 @@ import math
 
 from .dynamics import Limits, Target
 from .mav import mavlink as M
-from .vehicle import Vehicle
+from .vehicle import Vehicle, pint
 
 MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
          7: "CIRCLE", 9: "LAND", 16: "POSHOLD", 17: "BRAKE", 21: "SMART_RTL"}
@@ -212,9 +212,9 @@ class ArduPilotVehicle(Vehicle):
     # ------------------------------------------------------------------ commands
     def handle_command(self, msg, cmd, p):
         if cmd == M.MAV_CMD_DO_SET_MODE:
-            if not int(p[1]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            if not pint(p[1]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
                 return M.MAV_RESULT_UNSUPPORTED
-            return M.MAV_RESULT_ACCEPTED if self.set_mode(int(p[2]), "DO_SET_MODE") else M.MAV_RESULT_FAILED
+            return M.MAV_RESULT_ACCEPTED if self.set_mode(pint(p[2]), "DO_SET_MODE") else M.MAV_RESULT_FAILED
         if cmd == M.MAV_CMD_COMPONENT_ARM_DISARM:
             return self.cmd_arm(p)
         if cmd == M.MAV_CMD_NAV_TAKEOFF:
@@ -230,11 +230,11 @@ class ArduPilotVehicle(Vehicle):
             return M.MAV_RESULT_ACCEPTED if self.set_mode(9, "NAV_LAND") else M.MAV_RESULT_FAILED
         if cmd == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             return M.MAV_RESULT_ACCEPTED if self.set_mode(6, "NAV_RTL") else M.MAV_RESULT_FAILED
-        if cmd == M.MAV_CMD_REQUEST_MESSAGE and int(p[1]) == 49:
+        if cmd == M.MAV_CMD_REQUEST_MESSAGE and pint(p[1]) == 49:
             self.send(self.msg_gps_global_origin())
             return M.MAV_RESULT_ACCEPTED
         if cmd == M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
-            if int(p[1]) == 1 and not self.armed:
+            if pint(p[1]) == 1 and not self.armed:
                 self.pending_reboot = True
                 return M.MAV_RESULT_ACCEPTED
             return M.MAV_RESULT_FAILED
@@ -257,8 +257,8 @@ class ArduPilotVehicle(Vehicle):
         return None
 
     def cmd_arm(self, p):
-        force = int(round(p[2] or 0)) in FORCE_MAGICS
-        if int(round(p[1])) == 1:
+        force = pint(p[2]) in FORCE_MAGICS
+        if pint(p[1]) == 1:
             if self.armed:
                 return M.MAV_RESULT_ACCEPTED
             if not force:

@@ -4,7 +4,7 @@ import struct
 
 from .dynamics import Limits, Target
 from .mav import mavlink as M, EventMsg, CurrentModeMsg, CurrentEventSequenceMsg
-from .vehicle import Vehicle
+from .vehicle import Vehicle, pint
 
 MODES = {  # name -> (main, sub)
     "MANUAL": (1, 0), "ALTCTL": (2, 0), "POSCTL": (3, 0), "AUTO.READY": (4, 1),
@@ -221,9 +221,9 @@ class Px4Vehicle(Vehicle):
         if cmd == M.MAV_CMD_COMPONENT_ARM_DISARM:
             return self.cmd_arm(p)
         if cmd == M.MAV_CMD_DO_SET_MODE:
-            if not (int(p[1]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
+            if not (pint(p[1]) & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
                 return M.MAV_RESULT_UNSUPPORTED
-            main, sub = int(p[2]), int(p[3])
+            main, sub = pint(p[2]), pint(p[3])
             if main != 4:
                 sub = 0
             name = BY_NUMBERS.get((main, sub))
@@ -248,7 +248,7 @@ class Px4Vehicle(Vehicle):
         if cmd in (M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_CMD_DO_PAUSE_CONTINUE):
             return self.request_mode("AUTO.LOITER")
         if cmd == M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
-            if int(p[1]) == 1 and not self.armed:
+            if pint(p[1]) == 1 and not self.armed:
                 self.pending_reboot = True
                 return M.MAV_RESULT_ACCEPTED
             return M.MAV_RESULT_DENIED
@@ -262,8 +262,8 @@ class Px4Vehicle(Vehicle):
         return M.MAV_RESULT_ACCEPTED
 
     def cmd_arm(self, p):
-        force = int(round(p[2] or 0)) == FORCE_MAGIC
-        if int(round(p[1])) == 1:
+        force = pint(p[2]) == FORCE_MAGIC
+        if pint(p[1]) == 1:
             if self.armed:
                 return M.MAV_RESULT_ACCEPTED
             if not force:

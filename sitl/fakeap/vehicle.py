@@ -16,6 +16,13 @@ IGNORE_YAW = 0x400
 IGNORE_YAW_RATE = 0x800
 
 
+def pint(value):
+    """Integer value of a float command parameter (NaN/None -> 0)."""
+    if value is None or value != value or value in (float("inf"), float("-inf")):
+        return 0
+    return int(round(value))
+
+
 class Vehicle:
     autopilot = M.MAV_AUTOPILOT_GENERIC
     name = "generic"
@@ -188,6 +195,12 @@ class Vehicle:
         return t in (0, self.sysid)
 
     def dispatch(self, msg, wall):
+        try:
+            self._dispatch(msg, wall)
+        except Exception as exc:  # a malformed request must never kill the fake
+            self.note("error", f"{msg.get_type()}: {type(exc).__name__}: {exc}")
+
+    def _dispatch(self, msg, wall):
         t = msg.get_type()
         if t == "COMMAND_LONG":
             if not self.addressed_to_me(msg):
@@ -241,9 +254,9 @@ class Vehicle:
             self.ack(msg, cmd, forced)
             return
         if cmd == M.MAV_CMD_SET_MESSAGE_INTERVAL:
-            result = self.set_message_interval(int(p[1]), p[2])
+            result = self.set_message_interval(pint(p[1]), p[2])
         elif cmd == M.MAV_CMD_GET_MESSAGE_INTERVAL:
-            mid = int(p[1])
+            mid = pint(p[1])
             iv = self.streams.get(mid)
             us = -1 if not iv else int(iv * 1e6)
             if mid not in self.generators():
@@ -251,7 +264,7 @@ class Vehicle:
             self.send(M.MAVLink_message_interval_message(mid, us))
             result = M.MAV_RESULT_ACCEPTED
         elif cmd == M.MAV_CMD_REQUEST_MESSAGE:
-            result = self.request_message(int(p[1]), msg)
+            result = self.request_message(pint(p[1]), msg)
             if result is None:
                 return
         elif cmd == M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
