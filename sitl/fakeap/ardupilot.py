@@ -67,7 +67,8 @@ class ArduPilotVehicle(Vehicle):
         if self.clock.now() - self.boot_time < BOOT_S:
             return 89, 0, M.MAV_STATE_BOOT  # as captured during the first seconds
         base = 81 | (8 if self.mode in GUIDED_FLAG_MODES else 0) | (128 if self.armed else 0)
-        status = M.MAV_STATE_ACTIVE if (self.armed and self.airborne) else M.MAV_STATE_STANDBY
+        flying = self.armed and self.airborne and self.landed_state != M.MAV_LANDED_STATE_ON_GROUND
+        status = M.MAV_STATE_ACTIVE if flying else M.MAV_STATE_STANDBY
         return base, self.mode, status
 
     def mode_name(self):
