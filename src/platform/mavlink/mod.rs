@@ -12,18 +12,28 @@
 //! - [`setpoint`]: ENU setpoints → SET_POSITION_TARGET_LOCAL_NED, streamed only while fresh;
 //! - [`actions`]: requests as wait/command/confirm sequences;
 //! - [`session`]: all of the above for one autopilot, driven by messages, control ticks and time;
+//! - [`link`], [`router`]: tokio tasks for the connection (with reconnection), reading,
+//!   writing and ground-station forwarding;
+//! - [`facade`]: [`MavlinkPlatform`], the synchronous `Platform` over those tasks;
+//! - [`tlog`]: reading recorded captures for replay tests and benchmarks.
 
 pub mod actions;
 pub mod commands;
+pub mod config;
 pub mod events;
+pub mod facade;
 pub mod frames;
 mod legacy;
+pub mod link;
 pub mod model;
 pub mod profile;
+pub mod router;
 pub mod session;
 pub mod setpoint;
 #[cfg(test)]
 mod testutil;
+pub mod tlog;
 
+pub use facade::{LinkConfig, LinkError, MavlinkPlatform};
 pub use profile::{Profile, ProfileError};
 pub use session::{LinkPolicy, Session, SessionConfig};

@@ -157,6 +157,11 @@ impl Session {
         std::mem::take(&mut self.outgoing)
     }
 
+    /// The transport failed (connect or read error): visible in the status until the link is up.
+    pub fn note_transport_error(&mut self, error: String) {
+        self.model.set_error(format!("connection: {error}"));
+    }
+
     /// One message from the link.
     pub fn on_message(&mut self, now: Duration, header: &MavHeader, msg: &MavMessage) {
         self.stats.messages_in += 1;
