@@ -26,7 +26,11 @@ fn demo_flight(p: Personality, fake_args: &[&str], config: &str) -> (Fake, Kestr
     let takeoff = fake.cmd(json!({"cmd": "setpoint_stats", "reset": true}));
     let status = kestrel.wait(FLIGHT_TIMEOUT);
     let samples = poller.finish();
-    assert!(status.success(), "{p:?} flight failed:\n{}", kestrel.output());
+    assert!(
+        status.success(),
+        "{p:?} flight failed:\n{}",
+        kestrel.output()
+    );
     let approaches = closest_approaches(&samples, &demo_targets());
     for (target, d) in demo_targets().iter().zip(&approaches) {
         assert!(

@@ -104,7 +104,10 @@ impl Fake {
         BufReader::new(child.stdout.take().unwrap())
             .read_line(&mut ready)
             .unwrap();
-        assert!(ready.contains("\"ready\": true"), "fake did not start: {ready}");
+        assert!(
+            ready.contains("\"ready\": true"),
+            "fake did not start: {ready}"
+        );
         Self {
             child,
             control_port,
@@ -240,7 +243,10 @@ impl Kestrel {
             }
             if Instant::now() > deadline {
                 let _ = self.child.kill();
-                panic!("kestrel still running after {timeout:?}:\n{}", self.output());
+                panic!(
+                    "kestrel still running after {timeout:?}:\n{}",
+                    self.output()
+                );
             }
             std::thread::sleep(Duration::from_millis(100));
         }
@@ -258,7 +264,10 @@ impl Kestrel {
     /// When the first line containing `needle` arrived.
     pub fn line_at(&self, needle: &str) -> Option<Instant> {
         let lines = self.lines.lock().unwrap();
-        lines.iter().find(|(_, l)| l.contains(needle)).map(|(t, _)| *t)
+        lines
+            .iter()
+            .find(|(_, l)| l.contains(needle))
+            .map(|(t, _)| *t)
     }
 
     /// When the first line containing `needle` arrived at or after `after`.

@@ -289,7 +289,7 @@ impl VehicleModel {
         self.reset_counter += 1;
     }
 
-    fn from_autopilot(&self, header: &MavHeader) -> bool {
+    fn is_from_autopilot(&self, header: &MavHeader) -> bool {
         self.autopilot.is_some_and(|(sys, comp)| {
             header.system_id == u32::from(sys) && header.component_id == comp
         })
@@ -305,7 +305,7 @@ impl VehicleModel {
         if let MavMessage::HEARTBEAT(hb) = msg {
             return self.heartbeat(now, header, hb);
         }
-        if !self.from_autopilot(header) {
+        if !self.is_from_autopilot(header) {
             return None;
         }
         self.last_seen = Some(now);
