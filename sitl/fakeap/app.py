@@ -45,6 +45,8 @@ def parse_args(argv=None):
     ap.add_argument("--rangers", choices=["none", "cf4", "prox8"], default=None,
                     help="horizontal range beams (default: cf4 for px4, prox8 for ardupilot)")
     ap.add_argument("--attitude-hz", type=float, default=50.0, help="PX4 ATTITUDE/GLOBAL_POSITION_INT default rate")
+    ap.add_argument("--px4-z-offset-m", type=float, default=0.0,
+                    help="PX4: constant offset added to local z (real PX4 sits at -0.2..-1 m on the ground)")
     ap.add_argument("--reboot-gap-s", type=float, default=3.0, help="silence during a simulated reboot")
     ap.add_argument("--no-collisions", dest="collisions", action="store_false")
     ap.add_argument("--seed", type=int, default=1)

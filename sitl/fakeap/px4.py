@@ -143,16 +143,24 @@ class Px4Vehicle(Vehicle):
                               custom_mode_of(self.intended_mode))
 
     def msg_odometry(self):
+        """As captured: frame_id and child_frame_id LOCAL_NED (velocity in NED), estimator 8."""
         b = self.model.body
         n, e, d, vn, ve, vd = self._ned_state()
-        psi = self.yaw_enu_to_ned(b.yaw_rad)
-        # PX4 reports ODOMETRY velocity in the body FRD frame
-        vf = vn * math.cos(psi) + ve * math.sin(psi)
-        vr = -vn * math.sin(psi) + ve * math.cos(psi)
-        nan21 = [float("nan")] * 21
-        return M.MAVLink_odometry_message(self.boot_us(), M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_BODY_FRD,
-                                          n, e, d, self.quaternion(), vf, vr, vd, 0.0, 0.0, -b.yaw_rate_rps,
-                                          nan21, nan21, 0, M.MAV_ESTIMATOR_TYPE_NAIVE, 100)
+        nan = float("nan")
+        pose_cov = [nan] * 21
+        vel_cov = [nan] * 21
+        for i, v in zip((0, 6, 11, 15, 18, 20), (0.04, 0.04, 0.09, 0.0004, 0.0004, 0.036)):
+            pose_cov[i] = v
+        for i, v in zip((0, 6, 11), (0.017, 0.017, 0.014)):
+            vel_cov[i] = v
+        return M.MAVLink_odometry_message(self.boot_us(), M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_LOCAL_NED,
+                                          n, e, d + self.opts.px4_z_offset_m, self.quaternion(), vn, ve, vd,
+                                          0.0, 0.0, -b.yaw_rate_rps, pose_cov, vel_cov, 0,
+                                          M.MAV_ESTIMATOR_TYPE_AUTOPILOT, 0)
+
+    def msg_local_position_ned(self):
+        n, e, d, vn, ve, vd = self._ned_state()
+        return M.MAVLink_local_position_ned_message(self.boot_ms(), n, e, d + self.opts.px4_z_offset_m, vn, ve, vd)
 
     def down_sensor(self):
         return (0, M.MAV_DISTANCE_SENSOR_LASER, 0, 10000)
@@ -304,9 +312,15 @@ class Px4Vehicle(Vehicle):
     def disarm(self, why):
         self.armed = False
         self.armed_time = None
-        self.failsafe = False
         self.model.target = Target("idle")
         self.event("commander_disarmed_by", bytes([why]))
+        # as captured: a failsafe ends with the user's intended mode back (e.g. OFFBOARD);
+        # a user-selected landing/return mode becomes AUTO.LOITER once disarmed
+        if self.failsafe:
+            self.failsafe = False
+            self.set_mode(self.intended_mode, reason="failsafe cleared on disarm")
+        elif self.mode in ("AUTO.LAND", "AUTO.RTL", "AUTO.TAKEOFF"):
+            self.set_mode("AUTO.LOITER", reason="disarmed")
 
     # ------------------------------------------------------------------ setpoints
     def on_setpoint_local(self, msg):
