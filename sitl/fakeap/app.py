@@ -140,7 +140,7 @@ class App:
                     for _ in range(steps):
                         v.tick(now, dt)
                     v.send_streams(now)
-                next_tick += PHYSICS_DT_S / max(1.0, min(self.args.speed_factor, 1.0))
+                next_tick += PHYSICS_DT_S  # wall-clock tick; each covers speed_factor x dt simulated
                 if next_tick < time.monotonic() - 0.1:
                     next_tick = time.monotonic()
 

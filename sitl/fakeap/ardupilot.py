@@ -93,6 +93,9 @@ class ArduPilotVehicle(Vehicle):
         flags = EKF_FLAGS_GPS if self.pos_ok else EKF_FLAGS_NO_POSITION
         return M.MAVLink_ekf_status_report_message(flags, 0.01, 0.01, 0.01, 0.01, 0.0, 0.0)
 
+    def msg_extended_sys_state(self):
+        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_MC, self.landed_state)  # as captured
+
     def down_sensor(self):
         return (0, M.MAV_DISTANCE_SENSOR_UNKNOWN, 20, 4000)
 
