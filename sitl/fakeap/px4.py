@@ -25,6 +25,8 @@ EVENTS = {
     "commander_failsafe_enter_generic": (31382480, 0x42),
 }
 FORCE_MAGIC = 21196
+SPOOLUP_S = 2.0        # arming to leaving the ground (takeoff detected ~1.7-1.9 s after arming)
+LAND_DETECT_S = 2.5    # touchdown to "Landing detected"
 
 
 def custom_mode_of(name):
@@ -40,9 +42,10 @@ class Px4Vehicle(Vehicle):
     ack_before_replies = True
 
     def limits(self):
+        # tuned so offboard takeoff to 5 m, the 11 m go-to and AUTO.LAND take about as long as captured
         return Limits(max_speed_xy_mps=12.0, max_speed_up_mps=3.0, max_speed_down_mps=1.5,
-                      max_accel_mps2=4.5, velocity_tau_s=0.3, pos_gain_xy=0.95, pos_gain_z=1.0,
-                      max_yaw_rate_rps=math.radians(60))
+                      max_accel_mps2=4.5, max_accel_z_mps2=1.5, velocity_tau_s=0.6, pos_gain_xy=0.8,
+                      pos_gain_z=0.9, max_yaw_rate_rps=math.radians(60))
 
     def default_params(self):
         f, i = M.MAV_PARAM_TYPE_REAL32, M.MAV_PARAM_TYPE_INT32
@@ -292,6 +295,7 @@ class Px4Vehicle(Vehicle):
                     return M.MAV_RESULT_TEMPORARILY_REJECTED
             self.armed = True
             self.armed_time = self.clock.now()
+            self.model.liftoff_delay_s = SPOOLUP_S
             self.airborne = False
             self.landing_detected_at = None
             self.landed_since = None
@@ -412,7 +416,7 @@ class Px4Vehicle(Vehicle):
         if self.airborne:
             if b.on_ground:
                 self.landed_since = self.landed_since or now
-                if now - self.landed_since >= 1.0 and self.landing_detected_at is None:
+                if now - self.landed_since >= LAND_DETECT_S and self.landing_detected_at is None:
                     self.landing_detected_at = now
                     self.event("commander_landing_detected")
                     self.landed_state = M.MAV_LANDED_STATE_ON_GROUND
