@@ -4,10 +4,14 @@
 //! the octile heuristic, and the budget. Out: the cell path (start and goal included) and its
 //! cost in metres weighted by the multipliers. Binary heap with lazy deletion; closed cells are
 //! never reopened (the octile heuristic is consistent because multipliers are >= 1).
+//!
+//! Costs are fixed-point integers (a cell edge is 1 000 000 units, a diagonal 1 414 214, the
+//! heuristic's diagonal excess rounded down so it stays consistent). Exact ties matter: with
+//! floating-point `f` values the many equal-cost paths of a grid differ by rounding noise, the
+//! larger-`g` tie-break stops working and A* expands far more cells.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
-use std::f64::consts::SQRT_2;
 
 use crate::mapping::grid::GridSpec;
 
@@ -16,10 +20,17 @@ use super::{PlanBudget, PlanError};
 /// How often (in expansions) the cancel and deadline flags are read.
 const FLAG_CHECK_PERIOD: usize = 1024;
 
+/// Cost units per cell edge.
+const UNIT: u64 = 1_000_000;
+/// Diagonal step in units, rounded up (>= the heuristic's diagonal).
+const DIAG_UNITS: f64 = 1_414_214.0;
+/// The heuristic's extra cost of a diagonal over a straight step, rounded down.
+const H_DIAG_EXCESS: u64 = 414_213;
+
 #[derive(Debug, Clone, Copy)]
 struct Entry {
-    f: f64,
-    g: f64,
+    f: u64,
+    g: u64,
     idx: u32,
 }
 
@@ -37,10 +48,7 @@ impl PartialOrd for Entry {
 impl Ord for Entry {
     /// Max-heap order: smallest `f` first, then largest `g` (deeper nodes break ties).
     fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .f
-            .total_cmp(&self.f)
-            .then_with(|| self.g.total_cmp(&other.g))
+        other.f.cmp(&self.f).then_with(|| self.g.cmp(&other.g))
     }
 }
 
@@ -50,7 +58,7 @@ pub(crate) struct SearchScratch {
     /// `generation << 1` = seen this search, `| 1` = closed.
     stamp: Vec<u32>,
     generation: u32,
-    g: Vec<f64>,
+    g: Vec<u64>,
     parent: Vec<u32>,
     heap: BinaryHeap<Entry>,
 }
@@ -59,7 +67,7 @@ impl SearchScratch {
     fn reset(&mut self, cells: usize) {
         if self.stamp.len() != cells {
             self.stamp = vec![0; cells];
-            self.g = vec![0.0; cells];
+            self.g = vec![0; cells];
             self.parent = vec![0; cells];
             self.generation = 0;
         }
@@ -78,15 +86,6 @@ pub(crate) struct SearchPath {
     pub cells: Vec<usize>,
     pub cost: f64,
     pub expansions: usize,
-}
-
-/// Octile distance in metres between two flat indices.
-pub(crate) fn octile_m(spec: &GridSpec, a: usize, b: usize) -> f64 {
-    let w = spec.width_cells as usize;
-    let dx = (a % w).abs_diff(b % w) as f64;
-    let dy = (a / w).abs_diff(b / w) as f64;
-    let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
-    (hi + (SQRT_2 - 1.0) * lo) * spec.resolution_m
 }
 
 /// Searches from `start` to `goal`. `step(from, to)` returns the cost multiplier (>= 1) of
@@ -108,17 +107,18 @@ pub(crate) fn search(
     budget.check_flags(0)?;
     scratch.reset(n);
     let gen = scratch.generation;
-    let res = spec.resolution_m;
-    let diag = res * SQRT_2;
     let w = spec.width_cells as usize;
     let h = spec.height_cells as usize;
-    let heuristic = |i: usize| {
-        if use_heuristic {
-            octile_m(spec, i, goal)
-        } else {
-            0.0
+    let (goal_x, goal_y) = (goal % w, goal / w);
+    let heuristic = |x: usize, y: usize| -> u64 {
+        if !use_heuristic {
+            return 0;
         }
+        let dx = x.abs_diff(goal_x) as u64;
+        let dy = y.abs_diff(goal_y) as u64;
+        dx.max(dy) * UNIT + dx.min(dy) * H_DIAG_EXCESS
     };
+    let units = |multiplier: f64, base: f64| (multiplier * base).round() as u64;
 
     let SearchScratch {
         stamp,
@@ -131,13 +131,13 @@ pub(crate) fn search(
         return Err(PlanError::NoPath);
     };
     *s = gen << 1;
-    *gs = 0.0;
+    *gs = 0;
     if let Some(p) = parent.get_mut(start) {
         *p = start as u32;
     }
     heap.push(Entry {
-        f: heuristic(start),
-        g: 0.0,
+        f: heuristic(start % w, start / w),
+        g: 0,
         idx: start as u32,
     });
 
@@ -154,7 +154,7 @@ pub(crate) fn search(
         if cur == goal {
             return Ok(SearchPath {
                 cells: walk_back(parent, start, goal),
-                cost: g_cur,
+                cost: g_cur as f64 / UNIT as f64 * spec.resolution_m,
                 expansions,
             });
         }
@@ -168,27 +168,27 @@ pub(crate) fn search(
 
         let x = cur % w;
         let y = cur / w;
-        // Orthogonal neighbours: north, east, south, west.
+        // Orthogonal neighbours: north, east, south, west, with their coordinates.
         let ortho = [
-            (y + 1 < h).then(|| cur + w),
-            (x + 1 < w).then(|| cur + 1),
-            (y > 0).then(|| cur - w),
-            (x > 0).then(|| cur - 1),
+            (y + 1 < h).then(|| (cur + w, x, y + 1)),
+            (x + 1 < w).then(|| (cur + 1, x + 1, y)),
+            (y > 0).then(|| (cur - w, x, y - 1)),
+            (x > 0).then(|| (cur - 1, x - 1, y)),
         ];
-        let mult = ortho.map(|o| o.and_then(|j| step(cur, j).map(|m| (j, m))));
+        let open = ortho.map(|o| o.and_then(|(j, jx, jy)| step(cur, j).map(|m| (j, jx, jy, m))));
         // Diagonals: NE (N, E), SE (S, E), SW (S, W), NW (N, W).
         let diagonal = [(0, 1), (2, 1), (2, 3), (0, 3)].map(|(a, b)| {
-            let (Some((ja, _)), Some((jb, _))) = (mult[a], mult[b]) else {
+            let (Some((ja, _, ya, _)), Some((jb, xb, _, _))) = (open[a], open[b]) else {
                 return None;
             };
             let j = ja + jb - cur;
-            step(cur, j).map(|m| (j, m * diag))
+            step(cur, j).map(|m| (j, xb, ya, units(m, DIAG_UNITS)))
         });
-        let moves = mult
+        let moves = open
             .into_iter()
-            .map(|o| o.map(|(j, m)| (j, m * res)))
+            .map(|o| o.map(|(j, jx, jy, m)| (j, jx, jy, units(m, UNIT as f64))))
             .chain(diagonal);
-        for (j, cost) in moves.flatten() {
+        for (j, jx, jy, cost) in moves.flatten() {
             let g_new = g_cur + cost;
             let (Some(sj), Some(gj)) = (stamp.get_mut(j), g.get_mut(j)) else {
                 continue;
@@ -205,7 +205,7 @@ pub(crate) fn search(
                 *p = cur as u32;
             }
             heap.push(Entry {
-                f: g_new + heuristic(j),
+                f: g_new + heuristic(jx, jy),
                 g: g_new,
                 idx: j as u32,
             });
