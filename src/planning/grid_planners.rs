@@ -8,7 +8,7 @@
 //!   jump point search: same moves, same optimal cost, far fewer heap operations; the expansion
 //!   budget then counts jump points.
 //! * Dijkstra: no heuristic, same optimal cost.
-//! * Voronoi: no heuristic; entering a cell off the generalised Voronoi diagram costs
+//! * Voronoi: the octile heuristic (still admissible: every multiplier is >= 1); entering a cell off the generalised Voronoi diagram costs
 //!   `1 + VORONOI_OFF_DIAGRAM_PENALTY` times its length, so the path joins the diagram (the
 //!   ridge of maximal clearance), follows it and leaves it near the goal; pruning keeps the
 //!   raw path's clearance. (Aerostack2 instead adds `300 - distance` per cell and ignores the
@@ -142,7 +142,15 @@ fn plan_on_grid(
             };
             jump_point_search(s, &spec, start, goal, budget, walkable)?
         } else {
-            search(s, &spec, start, goal, method == Method::AStar, budget, step)?
+            search(
+                s,
+                &spec,
+                start,
+                goal,
+                method != Method::Dijkstra,
+                budget,
+                step,
+            )?
         }
     };
 
