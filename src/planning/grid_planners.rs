@@ -442,6 +442,27 @@ mod tests {
     }
 
     #[test]
+    fn voronoi_costs_on_hand_made_grids() {
+        // Corridor 12 x 7, walls on rows 0 and 6: the diagram is rows 3 and 4 (row 3 is
+        // equidistant and keeps the first wall as its site). Row 3 end to end is all on the
+        // diagram: cost = 9 straight steps, no penalty.
+        let occ: Vec<(u32, u32)> = (0..12).flat_map(|x| [(x, 0), (x, 6)]).collect();
+        let m = PlanningMap::new(grid(12, 7, 1.0, &occ), 50);
+        let p = plan(&req(1.0, (1, 3), (10, 3), PlannerKind::Voronoi), &m).unwrap();
+        assert!((p.cost - 9.0).abs() < 1e-4, "{}", p.cost);
+        assert_eq!(p.waypoints_enu_m, vec![Vector3::new(10.5, 3.5, 1.0)]);
+        assert!((p.min_clearance_m - 3.0).abs() < 1e-6);
+        // Row 1 is off the diagram: from (1,1) to (10,1) the cheapest is to climb to row 3
+        // (2 diagonals, the first into row 2 penalised x2, the second onto row 3 not), run
+        // along it (5 steps) and come down (2 diagonals, both off the diagram: x2).
+        // Cost = 2 sqrt2 + sqrt2 + 5 + 2 * 2 sqrt2 = 7 sqrt2 + 5.
+        let p = plan(&req(1.0, (1, 1), (10, 1), PlannerKind::Voronoi), &m).unwrap();
+        assert!((p.cost - (7.0 * SQRT_2 + 5.0)).abs() < 1e-4, "{}", p.cost);
+        // Staying on row 1 would cost 9 x 2 = 18 > 14.9.
+        assert!(p.cost < 18.0);
+    }
+
+    #[test]
     fn unknown_policy_blocks_or_charges() {
         let spec = GridSpec {
             resolution_m: 1.0,

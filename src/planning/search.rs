@@ -52,7 +52,7 @@ impl OpenList {
 
 fn heap_key(g: u64, h: u64) -> u64 {
     let tie = (h >> TIE_SHIFT).min((1 << TIE_BITS) - 1);
-    (g + h).saturating_mul(1 << TIE_BITS) | tie
+    g.saturating_add(h).saturating_mul(1 << TIE_BITS) | tie
 }
 
 /// Per-cell search state, kept together for locality.
@@ -188,7 +188,7 @@ pub(crate) fn search(
             .map(|o| o.map(|(j, jx, jy, m)| (j, jx, jy, units(m, UNIT as f64))))
             .chain(diagonal);
         for (j, jx, jy, cost) in moves.flatten() {
-            let g_new = g_cur + cost;
+            let g_new = g_cur.saturating_add(cost);
             let Some(nj) = nodes.get_mut(j) else {
                 continue;
             };
@@ -416,7 +416,7 @@ pub(crate) fn jump_point_search(
             } else {
                 steps * UNIT
             };
-            let g_new = g_cur + cost;
+            let g_new = g_cur.saturating_add(cost);
             let j = index(jx, jy);
             let Some(nj) = nodes.get_mut(j) else {
                 continue;
