@@ -18,7 +18,11 @@ fn takeoff_reaches_the_height_and_stays_there() {
     let done_at = h.finished_at(0, id).unwrap();
     // 3 m at 1 m/s, plus arming and the final approach.
     assert!(done_at > 3.0 && done_at < 8.0, "took {done_at} s");
-    assert!((h.position(0).z - 3.0).abs() < 0.1, "z = {}", h.position(0).z);
+    assert!(
+        (h.position(0).z - 3.0).abs() < 0.1,
+        "z = {}",
+        h.position(0).z
+    );
     // The climb is vertical and never faster than asked.
     let climb = h.samples_between(0, 0.0, done_at);
     let max_vz = climb.iter().map(|s| s.velocity_mps.z).fold(0.0, f64::max);
@@ -158,7 +162,11 @@ fn pause_holds_position_and_resume_finishes_the_goal() {
     let mut h = Harness::one_drone();
     h.take_off(0, 2.0);
     let goal = Vec3::new(10.0, 0.0, 2.0);
-    let id = h.start(0, "go_to", json!({ "x": 10.0, "y": 0.0, "z": 2.0, "speed": 1.5 }));
+    let id = h.start(
+        0,
+        "go_to",
+        json!({ "x": 10.0, "y": 0.0, "z": 2.0, "speed": 1.5 }),
+    );
     h.run_for(3.0);
     let paused_at = h.position(0);
     assert!(paused_at.x > 1.5 && paused_at.x < 8.0, "{paused_at}");
@@ -194,7 +202,11 @@ fn modify_redirects_a_running_go_to() {
     h.take_off(0, 2.0);
     let first = Vec3::new(10.0, 0.0, 2.0);
     let second = Vec3::new(0.0, 6.0, 3.0);
-    let id = h.start(0, "go_to", json!({ "x": first.x, "y": first.y, "z": first.z, "speed": 1.5 }));
+    let id = h.start(
+        0,
+        "go_to",
+        json!({ "x": first.x, "y": first.y, "z": first.z, "speed": 1.5 }),
+    );
     h.run_for(2.0);
     let modified_at = h.now_s();
     h.command(
@@ -225,7 +237,11 @@ fn modify_redirects_a_running_go_to() {
 fn stop_leaves_the_drone_hovering() {
     let mut h = Harness::one_drone();
     h.take_off(0, 2.0);
-    let id = h.start(0, "go_to", json!({ "x": 10.0, "y": 0.0, "z": 2.0, "speed": 2.0 }));
+    let id = h.start(
+        0,
+        "go_to",
+        json!({ "x": 10.0, "y": 0.0, "z": 2.0, "speed": 2.0 }),
+    );
     h.run_for(3.0);
     h.command(0, BehaviorCommand::Stop(id));
     h.step();
@@ -259,7 +275,12 @@ fn stop_leaves_the_drone_hovering() {
 fn land_touches_down_and_disarms() {
     let mut h = Harness::one_drone();
     h.take_off(0, 3.0);
-    h.fly(0, "go_to", json!({ "x": 2.0, "y": 1.0, "z": 3.0, "speed": 1.0 }), 20.0);
+    h.fly(
+        0,
+        "go_to",
+        json!({ "x": 2.0, "y": 1.0, "z": 3.0, "speed": 1.0 }),
+        20.0,
+    );
     let start = h.now_s();
     let id = h.fly(0, "land", json!({ "speed": 0.5 }), 30.0);
     let took = h.finished_at(0, id).unwrap() - start;
@@ -282,7 +303,12 @@ fn rotate_turns_in_place() {
     let mut h = Harness::one_drone();
     h.take_off(0, 2.0);
     let here = h.position(0);
-    h.fly(0, "rotate", json!({ "by_angle": 2.0, "yaw_speed": 1.0 }), 10.0);
+    h.fly(
+        0,
+        "rotate",
+        json!({ "by_angle": 2.0, "yaw_speed": 1.0 }),
+        10.0,
+    );
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - 2.0).abs() < 0.05, "{yaw}");
     assert!((h.position(0) - here).norm() < 0.1);

@@ -186,7 +186,11 @@ impl Harness {
     pub fn fly(&mut self, drone: usize, behavior: &str, goal: Value, limit_s: f64) -> BehaviorId {
         let id = self.start(drone, behavior, goal);
         let result = self.wait_for(drone, id, limit_s);
-        assert_eq!(result, BehaviorResult::Succeeded, "{behavior} did not succeed");
+        assert_eq!(
+            result,
+            BehaviorResult::Succeeded,
+            "{behavior} did not succeed"
+        );
         id
     }
 
