@@ -51,10 +51,17 @@ fn go_to_ends_within_0_2_m_of_the_goal() {
     // 7.3 m at up to 2 m/s: a few seconds, not a crawl.
     let took = h.finished_at(0, id).unwrap() - h.finished_at(0, 1).unwrap();
     assert!(took < 8.0, "go_to took {took} s");
-    // And it stays there.
+    // And it stays there, without overshooting on the way in.
     let t = h.now_s();
     h.run_for(5.0);
     assert!(max_distance(&h.samples_between(0, t, h.now_s()), &goal) < 0.2);
+    let start = Vec3::new(0.0, 0.0, 2.0);
+    let along = (goal - start).normalize();
+    let overshoot = h.samples[0]
+        .iter()
+        .map(|s| (s.position_m - goal).dot(&along))
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(overshoot < 0.1, "overshot the goal by {overshoot} m");
     h.assert_log(
         0,
         &[

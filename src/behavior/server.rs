@@ -247,9 +247,18 @@ impl BehaviorServer {
 
     /// Stops everything (link loss, emergency); each ends aborted with `reason`.
     pub fn stop_all(&mut self, reason: &str, ctx: &BehaviorContext) {
+        self.end_all(&BehaviorResult::Aborted(reason.to_string()), ctx);
+    }
+
+    /// Ends everything because the flight itself failed (a crash); each ends failed with `reason`.
+    pub fn fail_all(&mut self, reason: &str, ctx: &BehaviorContext) {
+        self.end_all(&BehaviorResult::Failed(reason.to_string()), ctx);
+    }
+
+    fn end_all(&mut self, result: &BehaviorResult, ctx: &BehaviorContext) {
         let ids: Vec<BehaviorId> = self.active.iter().map(|a| a.info.id).collect();
         for id in ids {
-            self.finish(id, BehaviorResult::Aborted(reason.to_string()), ctx);
+            self.finish(id, result.clone(), ctx);
         }
     }
 

@@ -5,7 +5,7 @@ use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
-use crate::types::Vec3;
+use crate::types::{FlightStatus, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -86,6 +86,10 @@ impl Behavior for Takeoff {
     fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
         if ctx.platform.flight.is_airborne() {
             return Err("already flying".into());
+        }
+        if ctx.platform.flight == FlightStatus::Crashed {
+            let reason = ctx.platform.last_error.as_deref().unwrap_or("crashed");
+            return Err(format!("the vehicle crashed ({reason}) and must be reset"));
         }
         if !ctx.state.valid.position {
             return Err("no position estimate".into());
