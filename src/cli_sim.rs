@@ -7,7 +7,7 @@ use kestrel::config::Config;
 use kestrel::core::CoreConfig;
 use kestrel::flightlog::FlightLog;
 use kestrel::sim::runner::{SimConfig, SimRunner};
-use kestrel::sim::script::{demo_plan, Script, ScriptState};
+use kestrel::sim::script::{demo_plans, Script, ScriptState};
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::Vec3;
@@ -109,7 +109,10 @@ pub fn run(args: SimArgs) -> Result<()> {
         log_path.display()
     );
 
-    let mut scripts: Vec<Script> = (0..args.drones).map(|_| Script::new(demo_plan())).collect();
+    let mut scripts: Vec<Script> = demo_plans(&runner.world)
+        .into_iter()
+        .map(Script::new)
+        .collect();
     let wall_start = Instant::now();
     let limit = Duration::from_secs_f64(args.max_sim_time_s);
     loop {
