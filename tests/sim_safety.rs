@@ -156,6 +156,22 @@ fn a_go_to_against_an_overwhelming_wind_fails_with_a_reason() {
 }
 
 #[test]
+fn a_follow_path_the_vehicle_cannot_fly_fails_with_a_reason() {
+    let mut h = Harness::one_drone();
+    h.take_off(0, 5.0);
+    h.runner.world.environment.wind_mps = Vec3::new(30.0, 0.0, 0.0);
+    let id = h.start(
+        0,
+        "follow_path",
+        json!({ "path": [[-5.0, 0.0, 5.0], [-10.0, 5.0, 5.0]], "speed": 2.0 }),
+    );
+    let result = h.wait_for(0, id, 60.0);
+    assert!(failed_with(&result, "no progress"), "{result:?}");
+    let took = h.finished_at(0, id).unwrap() - h.finished_at(0, 1).unwrap();
+    assert!(took < 25.0, "gave up after {took} s");
+}
+
+#[test]
 fn hover_holds_position_in_a_steady_wind_with_gusts() {
     let config = SimConfig {
         seed: 3,
