@@ -114,6 +114,23 @@ fn go_to_yaw_modes_turn_the_vehicle() {
 }
 
 #[test]
+fn a_short_go_to_still_ends_at_its_fixed_heading() {
+    let mut h = Harness::one_drone();
+    h.take_off(0, 2.0);
+    // 0.3 m takes far less time than turning by 3 rad at the yaw-rate limit.
+    h.fly(
+        0,
+        "go_to",
+        json!({ "x": 0.3, "y": 0.0, "z": 2.0, "speed": 1.0, "yaw_mode": "fixed", "yaw_angle": 3.0 }),
+        20.0,
+    );
+    h.run_for(3.0);
+    let yaw = h.runner.world.vehicles[0].state.yaw_rad;
+    assert!((yaw - 3.0).abs() < 0.05, "stopped turning at {yaw} rad");
+    assert!((h.position(0) - Vec3::new(0.3, 0.0, 2.0)).norm() < 0.2);
+}
+
+#[test]
 fn follow_path_passes_every_waypoint_without_stopping() {
     let mut h = Harness::one_drone();
     h.take_off(0, 2.0);

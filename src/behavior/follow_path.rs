@@ -5,7 +5,7 @@ use super::goal::{
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{yaw_target, Behavior, BehaviorContext, Step};
+use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Step};
 use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
@@ -178,7 +178,10 @@ impl Behavior for FollowPath {
             .copied()
             .unwrap_or_else(|| ctx.position());
         let distance_to_end = (last - ctx.position()).norm();
-        if sample.finished && distance_to_end < ctx.config.goal_threshold_m {
+        if sample.finished
+            && distance_to_end < ctx.config.goal_threshold_m
+            && heading_reached(&self.yaw, ctx)
+        {
             return Step::Succeeded;
         }
         let next_point = self.waypoints.get(self.next).copied().unwrap_or(last);
