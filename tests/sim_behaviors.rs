@@ -232,6 +232,20 @@ fn modify_redirects_a_running_go_to() {
         json!({ "x": first.x, "y": first.y, "z": first.z, "speed": 1.5 }),
     );
     h.run_for(2.0);
+    // A goal that cannot be resolved is refused and the flight goes on unchanged.
+    let refused = h.try_command(
+        0,
+        BehaviorCommand::Modify {
+            id,
+            goal: json!({ "x": 1.0, "y": 1.0, "z": 2.0, "speed": 1.0, "frame_id": "nowhere" }),
+        },
+    );
+    assert!(
+        refused
+            .as_ref()
+            .is_err_and(|e| e.to_string().contains("nowhere")),
+        "{refused:?}"
+    );
     let modified_at = h.now_s();
     h.command(
         0,
@@ -371,4 +385,29 @@ fn goals_that_cannot_be_flown_are_rejected_with_a_reason() {
         )
         .unwrap_err();
     assert!(err.to_string().contains("height"), "{err}");
+}
+
+#[test]
+fn a_landed_drone_takes_off_again_and_rtl_goes_to_the_new_home() {
+    let mut h = Harness::one_drone();
+    h.take_off(0, 2.0);
+    h.fly(
+        0,
+        "go_to",
+        json!({ "x": 4.0, "y": 3.0, "z": 2.0, "speed": 2.0 }),
+        20.0,
+    );
+    h.fly(0, "land", json!({ "speed": 1.0 }), 20.0);
+    h.take_off(0, 2.5);
+    assert!((h.position(0) - Vec3::new(4.0, 3.0, 2.5)).norm() < 0.1);
+    h.fly(
+        0,
+        "go_to",
+        json!({ "x": 0.0, "y": 0.0, "z": 2.5, "speed": 2.0 }),
+        20.0,
+    );
+    h.fly(0, "rtl", json!({ "height": 2.0, "speed": 2.0 }), 40.0);
+    let p = h.position(0);
+    assert!((p.xy() - Vec3::new(4.0, 3.0, 0.0).xy()).norm() < 0.2, "{p}");
+    assert_eq!(h.log_sequence(0).len(), 12);
 }
