@@ -20,6 +20,8 @@ mod rotate;
 mod sequence;
 mod server;
 mod takeoff;
+#[cfg(test)]
+mod testing;
 
 pub use goal::{FramedPoint, YawMode};
 pub use registry::{BehaviorSpec, Registry, Resource};

@@ -348,11 +348,8 @@ pub fn seconds_since(now: Duration, then: Duration) -> f64 {
 mod tests {
     use super::*;
     use crate::behavior::registry::{BehaviorSpec, Goal};
-    use crate::behavior::BehaviorConfig;
-    use crate::estimator::frames::FrameTree;
-    use crate::estimator::geodetic::GeodeticOrigin;
-    use crate::platform::Capabilities;
-    use crate::types::{EstimatedState, FlightStatus, PlatformStatus, Validity};
+    use crate::behavior::testing::Scene as World;
+    use crate::types::FlightStatus;
     use serde_json::json;
 
     /// Succeeds after `ticks` runs; counts how often it ran.
@@ -382,53 +379,6 @@ mod tests {
                     reference: Some(MotionReference::hold(ctx.position(), 0.0, 1.0)),
                     feedback: json!({ "runs": self.runs }),
                 }
-            }
-        }
-    }
-
-    struct World {
-        state: EstimatedState,
-        platform: PlatformStatus,
-        frames: FrameTree,
-        origin: GeodeticOrigin,
-        config: BehaviorConfig,
-    }
-
-    impl World {
-        fn flying() -> Self {
-            Self {
-                state: EstimatedState {
-                    valid: Validity::ALL,
-                    ..EstimatedState::default()
-                },
-                platform: PlatformStatus {
-                    armed: true,
-                    flight: FlightStatus::Flying,
-                    ..PlatformStatus::default()
-                },
-                frames: FrameTree::new(),
-                origin: GeodeticOrigin::default(),
-                config: BehaviorConfig::default(),
-            }
-        }
-        fn ctx(&self, now_s: u64) -> BehaviorContext<'_> {
-            BehaviorContext {
-                now: Duration::from_secs(now_s),
-                dt_s: 1.0,
-                state: &self.state,
-                platform: &self.platform,
-                capabilities: Capabilities {
-                    setpoints: crate::control::AcceptedSetpoints {
-                        velocity: true,
-                        position: true,
-                    },
-                    native_takeoff: false,
-                    native_land: false,
-                },
-                frames: &self.frames,
-                geo_origin: &self.origin,
-                home_enu_m: None,
-                config: &self.config,
             }
         }
     }
