@@ -5,6 +5,7 @@ use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
+use crate::sim::world::SensorConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -55,6 +56,9 @@ pub struct SimSection {
     pub wind_enu_mps: [f64; 3],
     /// Random acceleration standard deviation per axis (m/s^2).
     pub turbulence_mps2: f64,
+    /// Range sensor of every simulated drone (`kind` = `multiranger`, `lidar360` or `none`);
+    /// replaces the world file's. Absent: the world file's, else the multi-ranger.
+    pub sensor: Option<SensorConfig>,
 }
 
 impl Default for SimSection {
@@ -62,6 +66,7 @@ impl Default for SimSection {
         Self {
             wind_enu_mps: [0.0; 3],
             turbulence_mps2: 0.0,
+            sensor: None,
         }
     }
 }
@@ -147,6 +152,12 @@ mod tests {
     fn empty_config_gives_defaults() {
         let c = Config::parse("", "test").unwrap();
         assert_eq!(c.drone.id, "drone_0");
+    }
+
+    #[test]
+    fn sim_sensor_is_chosen_by_kind() {
+        let c = Config::parse("[sim.sensor]\nkind = \"lidar360\"\n", "test").unwrap();
+        assert_eq!(c.sim.sensor, Some(SensorConfig::lidar()));
     }
 
     #[test]
