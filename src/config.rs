@@ -1,5 +1,6 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
-//! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`.
+//! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
+//! `[mavlink]`.
 
 use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
@@ -17,6 +18,7 @@ pub struct Config {
     pub controller: ControllerConfig,
     pub behaviors: BehaviorConfig,
     pub sim: SimSection,
+    pub mavlink: crate::platform::mavlink::config::MavlinkSection,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -137,6 +139,7 @@ impl Config {
             o.validate()
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;
         }
+        self.mavlink.validate()?;
         if self.drone.id.is_empty() {
             return Err(("drone.id".into(), "must not be empty".into()));
         }

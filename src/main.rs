@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_run;
 mod cli_sim;
 
 #[derive(Parser)]
@@ -21,6 +22,8 @@ struct Cli {
 enum Command {
     /// Fly in the built-in simulator (no hardware needed). Without options: the demo flight.
     Sim(cli_sim::SimArgs),
+    /// Fly a PX4 or ArduPilot autopilot over MAVLink (`--platform`, `--connection`).
+    Run(cli_run::RunArgs),
     /// Check a config file and print the validated result.
     CheckConfig {
         /// Config file (TOML).
@@ -39,6 +42,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Sim(args) => cli_sim::run(args),
+        Command::Run(args) => cli_run::run(args),
         Command::CheckConfig { config } => {
             let c = kestrel::config::Config::load(&config)
                 .with_context(|| format!("checking {}", config.display()))?;
