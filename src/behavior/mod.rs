@@ -21,8 +21,8 @@ mod sequence;
 mod server;
 mod takeoff;
 
-pub use goal::{FramedPoint, YawMode};
-pub use registry::{BehaviorSpec, Registry, Resource};
+pub use goal::{FramedPoint, YawMode, WGS84};
+pub use registry::{BehaviorSpec, Goal, GoalSummary, Registry, Resource};
 pub use server::{
     ActiveInfo, BehaviorEvent, BehaviorId, BehaviorResult, BehaviorServer, RunState, ServerError,
 };

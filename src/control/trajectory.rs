@@ -103,7 +103,11 @@ impl PathTrajectory {
     pub fn advance(&mut self, dt_s: f64, vehicle_m: &Vec3) -> TrajectorySample {
         let here = self.position_at(self.s);
         let lag = (here - vehicle_m).norm();
-        let warp = if lag > self.limits.max_lag_m { (2.0 - lag / self.limits.max_lag_m).max(0.0) } else { 1.0 };
+        let warp = if lag > self.limits.max_lag_m {
+            (2.0 - lag / self.limits.max_lag_m).max(0.0)
+        } else {
+            1.0
+        };
         let allowed = self.speed_at(self.s) * warp;
         let v = allowed.min(self.v + self.limits.max_acceleration_mps2 * dt_s);
         self.a = if dt_s > 0.0 { (v - self.v) / dt_s } else { 0.0 };

@@ -88,7 +88,8 @@ pub fn step(
     disturbance_mps2: &Vec3,
     dt_s: f64,
 ) {
-    let lifting = matches!(drive, Drive::Velocity { velocity_enu_mps, .. } if velocity_enu_mps.z > 0.0);
+    let lifting =
+        matches!(drive, Drive::Velocity { velocity_enu_mps, .. } if velocity_enu_mps.z > 0.0);
     if s.on_ground() && !lifting {
         // Resting on the ground: no sinking, no sliding, no turning.
         s.position_m.z = 0.0;
