@@ -4,7 +4,7 @@
 
 mod mission_rig;
 
-use kestrel::mission::{Action, ExecState, ItemResult};
+use kestrel::mission::{ExecState, ItemResult};
 use mission_rig::*;
 
 #[test]

@@ -34,18 +34,28 @@ pub const OPTION_KEYS: [&str; 3] = ["wait", "on_failure", "run_for_s"];
 pub struct Canonical {
     pub goal: Map<String, Value>,
     pub options: ItemOptions,
-    /// Goal key → path below `args` as written (`x` → `point/0` for `go_to_point`).
+    /// Goal key → JSON pointer below `args` as written (`x` → `point/0` for `go_to_point`).
     pub origins: Vec<(String, String)>,
 }
 
 impl Canonical {
-    /// Where a goal key was written, as a path below `args`.
+    /// Where a goal key was written: a JSON pointer (escaped tokens) below `args`.
     pub fn origin_of(&self, key: &str) -> String {
         self.origins
             .iter()
             .find(|(k, _)| k == key)
-            .map_or_else(|| key.to_string(), |(_, o)| o.clone())
+            .map_or_else(|| escape_token(key), |(_, o)| o.clone())
     }
+}
+
+/// Escapes one JSON pointer reference token (RFC 6901).
+pub fn escape_token(s: &str) -> String {
+    s.replace('~', "~0").replace('/', "~1")
+}
+
+/// Undoes [`escape_token`].
+pub fn unescape_token(s: &str) -> String {
+    s.replace("~1", "/").replace("~0", "~")
 }
 
 #[derive(Clone, Copy)]

@@ -6,7 +6,7 @@
 //! (located with the behavior's JSON Schema), the behavior's own range checks, speeds against
 //! the vehicle's limit, heights against the ceiling, known frames, and the geofence.
 
-use super::methods::{canonicalize, Canonical};
+use super::methods::{canonicalize, escape_token, unescape_token, Canonical};
 use super::model::{MissionItem, PlanItem, ValidMission, CALL};
 use crate::behavior::{GoalSummary, Registry};
 use crate::config::{Config, GeofenceSection};
@@ -85,11 +85,6 @@ const SPEED_KEYS: [&str; 6] = [
     "speed_z",
     "max_speed",
 ];
-
-/// Escapes one reference token (RFC 6901).
-fn token(s: &str) -> String {
-    s.replace('~', "~0").replace('/', "~1")
-}
 
 fn at(pointer: &str, message: impl Into<String>) -> ValidationError {
     ValidationError {
@@ -274,7 +269,7 @@ fn validate_item(
                 if e.message.starts_with("unknown method") {
                     at(&format!("{pointer}/method"), e.message)
                 } else {
-                    at(&join(&args_pointer, &e.key), e.message)
+                    at(&join(&args_pointer, &escape_token(&e.key)), e.message)
                 }
             })
             .collect::<Vec<_>>()
@@ -293,17 +288,13 @@ fn validate_item(
     })
 }
 
-/// `base` + `/key/sub` with each token of `path` (a `/`-separated path below args) escaped.
-fn join(base: &str, path: &str) -> String {
-    if path.is_empty() {
-        return base.to_string();
+/// `base` + `/` + `suffix`, where `suffix` is already a JSON pointer below `base`.
+fn join(base: &str, suffix: &str) -> String {
+    if suffix.is_empty() {
+        base.to_string()
+    } else {
+        format!("{base}/{suffix}")
     }
-    let mut out = base.to_string();
-    for t in path.split('/') {
-        out.push('/');
-        out.push_str(&token(t));
-    }
-    out
 }
 
 /// Runs the behavior's own parsing and checks; on failure, locates each problem.
@@ -325,11 +316,11 @@ fn check_goal(
     if !located.is_empty() {
         return Err(located);
     }
-    let key = leading_key(&message, goal);
-    let pointer = key.map_or_else(
-        || args_pointer.to_string(),
-        |k| join(args_pointer, &canonical.origin_of(&k)),
-    );
+    let pointer = match leading_key(&message, goal) {
+        Some((name, Some(i))) => join(args_pointer, &format!("{}/{i}", canonical.origin_of(&name))),
+        Some((name, None)) => join(args_pointer, &canonical.origin_of(&name)),
+        None => args_pointer.to_string(),
+    };
     Err(vec![at(&pointer, message)])
 }
 
@@ -348,7 +339,7 @@ fn schema_errors(
         let path = e.instance_path.as_str().trim_start_matches('/').to_string();
         let located = |key: &str| {
             let (first, rest) = key.split_once('/').unwrap_or((key, ""));
-            let origin = canonical.origin_of(first);
+            let origin = canonical.origin_of(&unescape_token(first));
             let origin = if rest.is_empty() {
                 origin
             } else {
@@ -359,11 +350,17 @@ fn schema_errors(
         match &e.kind {
             jsonschema::error::ValidationErrorKind::Required { property } => {
                 let name = property.as_str().unwrap_or_default();
-                out.push(at(&located(name), format!("missing argument `{name}`")));
+                out.push(at(
+                    &located(&escape_token(name)),
+                    format!("missing argument `{name}`"),
+                ));
             }
             jsonschema::error::ValidationErrorKind::AdditionalProperties { unexpected } => {
                 for name in unexpected {
-                    out.push(at(&located(name), format!("unknown argument `{name}`")));
+                    out.push(at(
+                        &located(&escape_token(name)),
+                        format!("unknown argument `{name}`"),
+                    ));
                 }
             }
             _ => out.push(at(&located(&path), e.to_string())),
@@ -372,8 +369,9 @@ fn schema_errors(
     out
 }
 
-/// The argument a behavior's message starts with (`speed must be ..`, `path[2] must ..`).
-fn leading_key(message: &str, goal: &Value) -> Option<String> {
+/// The argument a behavior's message starts with (`speed must be ..`, `path[2] must ..`),
+/// with its index when it has one.
+fn leading_key(message: &str, goal: &Value) -> Option<(String, Option<usize>)> {
     let word: String = message
         .chars()
         .take_while(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == '[' || *c == ']')
@@ -386,10 +384,7 @@ fn leading_key(message: &str, goal: &Value) -> Option<String> {
         None => (word, None),
     };
     goal.get(&name)?;
-    Some(match index {
-        Some(i) => format!("{name}/{i}"),
-        None => name,
-    })
+    Some((name, index))
 }
 
 /// Speeds, heights, frames and the geofence.
@@ -466,7 +461,7 @@ fn check_limits(
     for (k, target) in summary.targets.iter().enumerate() {
         let (horizontal, vertical) = match path_len {
             Some(n) if n == summary.targets.len() => {
-                let p = join(&pointer_of("path"), &k.to_string());
+                let p = format!("{}/{k}", pointer_of("path"));
                 (p.clone(), p)
             }
             _ => (pointer_of("x"), pointer_of("z")),
@@ -587,7 +582,8 @@ mod tests {
 
     #[test]
     fn pointer_tokens_are_escaped() {
-        assert_eq!(join("/plan/0/args", "a/b"), "/plan/0/args/a~1b");
+        assert_eq!(escape_token("a/b~c"), "a~1b~0c");
+        assert_eq!(unescape_token("a~1b~0c"), "a/b~c");
         assert_eq!(join("/plan/0/args", ""), "/plan/0/args");
     }
 
@@ -595,12 +591,12 @@ mod tests {
     fn leading_key_finds_indexed_arguments() {
         let goal = serde_json::json!({"path": [[0, 0, 0]], "speed": 1});
         assert_eq!(
-            leading_key("path[0] must be finite", &goal).as_deref(),
-            Some("path/0")
+            leading_key("path[0] must be finite", &goal),
+            Some(("path".into(), Some(0)))
         );
         assert_eq!(
-            leading_key("speed must be positive", &goal).as_deref(),
-            Some("speed")
+            leading_key("speed must be positive", &goal),
+            Some(("speed".into(), None))
         );
         assert_eq!(leading_key("give yaw_angle", &goal), None);
     }
