@@ -464,7 +464,9 @@ fn check_limits(
                 let p = format!("{}/{k}", pointer_of("path"));
                 (p.clone(), p)
             }
-            _ => (pointer_of("x"), pointer_of("z")),
+            _ if goal.get("x").is_some() => (pointer_of("x"), pointer_of("z")),
+            _ if goal.get("lat").is_some() => (pointer_of("lat"), pointer_of("alt")),
+            _ => (args_pointer.to_string(), args_pointer.to_string()),
         };
         let earth = if target.frame_id == crate::behavior::WGS84 {
             let geo = GeoPoint {
