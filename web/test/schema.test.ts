@@ -77,3 +77,19 @@ describe('occupancy grid', () => {
     expect(mergePatch(grid, outside)).toBe(false);
   });
 });
+
+import { enuToGeo, geoToEnu, originFrom } from '../src/lib/geo';
+
+describe('local tangent plane', () => {
+  it('round-trips ENU through lat/lon and finds the origin from a drone', () => {
+    const o = { lat_deg: 40.44, lon_deg: -3.69 };
+    const [lat, lon] = enuToGeo(o, 120, -80);
+    const [x, y] = geoToEnu(o, lat, lon);
+    expect(x).toBeCloseTo(120, 6);
+    expect(y).toBeCloseTo(-80, 6);
+    const back = originFrom([120, -80, 5], { lat_deg: lat, lon_deg: lon })!;
+    expect(back.lat_deg).toBeCloseTo(40.44, 7);
+    expect(back.lon_deg).toBeCloseTo(-3.69, 7);
+    expect(originFrom([0, 0, 0], null)).toBeNull();
+  });
+});

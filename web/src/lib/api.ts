@@ -116,6 +116,11 @@ export class ApiClient {
     return this.json('POST', '/api/missions', mission);
   }
 
+  /** A stored mission with its progress (`plan` among its fields). */
+  mission(id: number): Promise<Partial<Mission> & { mission_id: number }> {
+    return this.json('GET', `/api/missions/${id}`);
+  }
+
   /** The executor's answer; a refusal (HTTP 409) is an answer too, not an exception. */
   async missionUpdate(update: MissionUpdate): Promise<MissionUpdateAnswer> {
     const res = await this.request('POST', '/api/mission_update', update);
