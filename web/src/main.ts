@@ -123,7 +123,8 @@ function toolState(tool: Tool, points: Vec2[]): void {
 function drawOverlays(): void {
   const target = plan.targetRef();
   const start: Vec3 = target ? (app.view(target).status?.position_enu_m ?? [0, 0, 0]) : [0, 0, 0];
-  mapView.setDraft(plannedPath(plan.draft, [start[0], start[1], 0]).points);
+  const draft = plannedPath(plan.draft, [start[0], start[1], 0]);
+  mapView.setDraft(draft.points, draft.items);
   const paths: { color: string; points: Vec3[]; label: string }[] = [];
   app.drones().forEach((ref, i) => {
     const p = app.planOf(ref);

@@ -78,7 +78,8 @@ describe('planned path', () => {
         landItem(1),
       ],
     };
-    const { points, framed } = plannedPath(m, [1, 1, 0]);
+    const { points, items, framed } = plannedPath(m, [1, 1, 0]);
+    expect(items).toEqual([-1, 0, 1, 2, 2, 4]);
     expect(points).toEqual([[1, 1, 0], [1, 1, 3], [5, 0, 3], [5, 5, 3], [0, 5, 3], [0, 5, 0]]);
     expect(framed).toEqual(['panel_3']);
   });

@@ -23,6 +23,9 @@ describe('MissionUpdate construction', () => {
     expect(buildUpdate('INSERT', 'd', { missionId: 1, itemId: 1, item: it1 })).toEqual({
       update: { drone_id: 'd', mission_id: 1, item_id: 1, action: 8, mission: { target: 'd', plan: [it1] } },
     });
+    expect(buildUpdate('INSERT', 'd', { missionId: 1, item: it1 })).toMatchObject({ update: { item_id: null } });
+    expect(buildUpdate('INSERT', 'd', { missionId: 1, itemId: -1, item: it1 })).toMatchObject({ update: { item_id: -1 } });
+    expect(buildUpdate('INSERT', 'd', { missionId: 1, itemId: -2, item: it1 })).toHaveProperty('error');
     expect(buildUpdate('LOAD', 'd', {})).toHaveProperty('error');
   });
 

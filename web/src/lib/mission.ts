@@ -108,17 +108,19 @@ function asPoint(v: unknown): Vec3 | null {
 }
 
 /**
- * The ENU points the plan visits from `start`, for drawing it. Only earth-frame targets are drawn;
+ * The ENU points the plan visits from `start`, for drawing it, with the index of the item that
+ * reaches each point (-1 for the start). Only earth-frame targets are drawn;
  * items in another frame (a panel, the nacelle) are listed in `framed` for the frames layer.
  */
 export function plannedPath(
   mission: Mission,
   start: Vec3 = [0, 0, 0],
-): { points: Vec3[]; framed: string[] } {
+): { points: Vec3[]; items: number[]; framed: string[] } {
   let here: Vec3 = start;
   const points: Vec3[] = [start];
+  const items: number[] = [-1];
   const framed: string[] = [];
-  for (const it of mission.plan) {
+  for (const [index, it] of mission.plan.entries()) {
     const a = it.args ?? {};
     const frame = typeof a.frame_id === 'string' ? a.frame_id : 'earth';
     if (frame !== 'earth') {
@@ -140,7 +142,11 @@ export function plannedPath(
       }
       case 'follow_path': {
         const path = Array.isArray(a.path) ? a.path.map(asPoint) : [];
-        for (const p of path) if (p) points.push((here = p));
+        for (const p of path) {
+          if (!p) continue;
+          points.push((here = p));
+          items.push(index);
+        }
         continue;
       }
       case 'land':
@@ -153,8 +159,9 @@ export function plannedPath(
         continue;
     }
     points.push(here);
+    items.push(index);
   }
-  return { points, framed };
+  return { points, items, framed };
 }
 
 /** Validation errors keyed by item index and argument name, plus those about the whole mission. */

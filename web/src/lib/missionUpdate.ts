@@ -3,8 +3,12 @@
 import { item, takeoffItem } from './mission';
 import { ACTIONS, type ActionName, type Mission, type MissionItem, type MissionUpdate } from './types';
 
-/** Actions that need an item index, and those that carry a mission (or one item as a mission). */
-export const NEEDS_ITEM: ReadonlySet<ActionName> = new Set(['JUMP_TO', 'INSERT', 'MODIFY', 'REMOVE']);
+/**
+ * Actions that need an item index, and those that carry a mission (or one item as a mission).
+ * INSERT's index is the item it goes after (-1: at the start; absent: at the end).
+ */
+export const NEEDS_ITEM: ReadonlySet<ActionName> = new Set(['JUMP_TO', 'MODIFY', 'REMOVE']);
+const TAKES_ITEM: ReadonlySet<ActionName> = new Set([...NEEDS_ITEM, 'INSERT']);
 export const NEEDS_MISSION: ReadonlySet<ActionName> = new Set(['EXECUTE', 'LOAD', 'INSERT', 'MODIFY']);
 
 /** Control buttons in the order the panel shows them. */
@@ -40,6 +44,9 @@ export function buildUpdate(
   if (NEEDS_ITEM.has(action) && (itemId === null || !Number.isInteger(itemId) || itemId < 0)) {
     return { error: `${action} needs an item index (0, 1, ...)` };
   }
+  if (action === 'INSERT' && itemId !== null && (!Number.isInteger(itemId) || itemId < -1)) {
+    return { error: 'INSERT goes after item N (-1: at the start, empty: at the end)' };
+  }
   let mission: Mission | null = null;
   if (action === 'INSERT' || action === 'MODIFY') {
     if (!args.item) return { error: `${action} needs an item: select one in the plan editor` };
@@ -52,7 +59,7 @@ export function buildUpdate(
     update: {
       drone_id: drone,
       mission_id: args.missionId ?? null,
-      item_id: NEEDS_ITEM.has(action) ? itemId : null,
+      item_id: TAKES_ITEM.has(action) ? itemId : null,
       action: ACTIONS[action],
       mission,
     },

@@ -39,7 +39,7 @@ export class ControlView {
       h('h2', {}, 'Mission control'),
       h('div', { className: 'row' }, h('label', {}, 'Drone ', this.drone), h('label', {}, 'Mission # ', this.missionId), h('label', {}, 'Item ', this.itemId)),
       h('div', { className: 'buttons', id: 'ctl-buttons' }, buttons),
-      h('p', { className: 'hint' }, `LOAD sends the plan editor's mission; INSERT and MODIFY send the plan item marked "use"; JUMP TO, INSERT, MODIFY and REMOVE act at the item index.`),
+      h('p', { className: 'hint' }, `LOAD sends the plan editor's mission; INSERT and MODIFY send the plan item marked "use"; JUMP TO, MODIFY and REMOVE act at the item index; INSERT goes after it (-1: at the start, empty: at the end).`),
       this.answer,
       h('h3', {}, 'On-demand task'),
       h('p', { className: 'hint' }, 'Inspect a registered frame (a panel) now: the drone flies above it, descends, takes a photo where the behaviors exist, and climbs back. It replaces the drone\'s current mission.'),

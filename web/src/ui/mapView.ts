@@ -233,18 +233,19 @@ export class MapView {
   }
 
   /** The plan being edited: dashed black line with numbered go_to points. */
-  setDraft(points: Vec3[]): void {
+  setDraft(points: Vec3[], items: number[]): void {
     const g = this.layers.draft;
     g.clearLayers();
     if (points.length < 2) return;
     const lls = points.map(([x, y]) => this.ll(x, y));
     L.polyline(lls, { color: '#111', weight: 3, dashArray: '8 6', interactive: false }).addTo(g);
-    lls.slice(1).forEach((ll, i) =>
+    lls.forEach((ll, i) => {
+      if (items[i] < 0 || items[i] === items[i + 1]) return;
       L.marker(ll, {
         interactive: false,
-        icon: L.divIcon({ className: 'wp-icon', html: `<span>${i + 1}</span>`, iconSize: [22, 22], iconAnchor: [11, 11] }),
-      }).addTo(g),
-    );
+        icon: L.divIcon({ className: 'wp-icon', html: `<span>${items[i]}</span>`, iconSize: [22, 22], iconAnchor: [11, 11] }),
+      }).addTo(g);
+    });
   }
 
   /** Missions loaded on drones, and coverage sweeps, in each drone's colour. */
