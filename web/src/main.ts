@@ -90,7 +90,11 @@ function makeMap(origin: GeoOrigin | null): void {
     el,
     {
       waypoint: (p) => plan.addWaypoint(p),
-      finish: (tool, points) => (tool === 'path' ? plan.addPath(points) : plan.setPolygon(points)),
+      finish: (tool, points) => {
+        setTool('pan');
+        if (tool === 'path') plan.addPath(points);
+        else plan.setPolygon(points);
+      },
       drawingChanged: (tool, points) => toolState(tool, points),
       frameClicked: (f) => {
         control.selectFrame(f);
@@ -101,7 +105,7 @@ function makeMap(origin: GeoOrigin | null): void {
     origin ? localStorage.getItem(BASEMAP_KEY) : null,
   );
   if (centerEnu) mapView.fitTo([centerEnu]);
-  document.querySelectorAll<HTMLButtonElement>('#map-tools .tool').forEach((b) => b.classList.toggle('active', b.dataset.tool === 'pan'));
+  setTool('pan');
   byId('btn-geo').textContent = origin ? 'Local ENU view' : 'Geographic view';
   mapView.setGrid(grid);
   drawOverlays();
@@ -113,6 +117,11 @@ const HINTS: Record<Tool, string> = {
   path: 'click points, then Finish (or double-click)',
   polygon: 'click 3+ vertices, then Finish (or double-click)',
 };
+
+function setTool(tool: Tool): void {
+  document.querySelectorAll<HTMLElement>('#map-tools .tool').forEach((x) => x.classList.toggle('active', x.dataset.tool === tool));
+  mapView.setTool(tool);
+}
 
 function toolState(tool: Tool, points: Vec2[]): void {
   byId<HTMLButtonElement>('tool-finish').disabled = !(tool === 'path' || tool === 'polygon') || points.length < (tool === 'path' ? 1 : 3);
@@ -208,8 +217,7 @@ function wireHeader(): void {
   document.querySelectorAll<HTMLButtonElement>('#map-tools .tool').forEach((b) =>
     b.addEventListener('click', () => {
       const tool = (b.dataset.tool ?? 'pan') as Tool;
-      document.querySelectorAll('#map-tools .tool').forEach((x) => x.classList.toggle('active', x === b));
-      mapView.setTool(tool);
+      setTool(tool);
       if (tool !== 'pan') showTab('plan');
     }),
   );
@@ -259,6 +267,16 @@ function choicesChanged(): void {
   renderHeader();
   renderLegend();
 }
+
+/** Page coordinates of an ENU point, panning to it first: lets the browser tests click the map. */
+function mapPoint(x: number, y: number): { x: number; y: number } {
+  const ll = mapView.ll(x, y);
+  if (!mapView.map.getBounds().pad(-0.1).contains(ll)) mapView.map.setView(ll, mapView.map.getZoom(), { animate: false });
+  const p = mapView.map.latLngToContainerPoint(ll);
+  const r = mapView.map.getContainer().getBoundingClientRect();
+  return { x: r.left + p.x, y: r.top + p.y };
+}
+(window as unknown as { __kestrel: unknown }).__kestrel = { mapPoint };
 
 async function main(): Promise<void> {
   wireHeader();
