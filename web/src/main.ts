@@ -149,6 +149,7 @@ function drawOverlays(): void {
   if (plan.coverage) paths.push({ color: '#0050d0', points: [...plan.coverage.polygon, plan.coverage.polygon[0]].map(([x, y]) => [x, y, 0]), label: 'coverage area' });
   mapView.setPlanned(paths);
   mapView.setFrames(app.instances.flatMap((i) => i.frames));
+  mapView.setGeofence(app.instances[0]?.geofence?.polygon_enu_m ?? null);
 }
 
 async function refreshGrid(): Promise<void> {
@@ -250,7 +251,14 @@ function renderHeader(): void {
 function renderLegend(): void {
   const names = new Set<string>(['takeoff', 'go_to', 'follow_path', 'land']);
   app.instances.forEach((i) => i.behaviors.forEach((b) => names.add(b.name)));
-  byId('legend').replaceChildren(...[...names].map((n) => h('span', {}, h('span', { className: 'swatch', style: `background:${behaviorColor(n)}` }), n)));
+  const fence = app.instances[0]?.geofence;
+  const limits = fence
+    ? [fence.max_altitude_m !== null ? `ceiling ${fence.max_altitude_m} m` : '', fence.radius_m !== null ? `radius ${fence.radius_m} m from home` : ''].filter(Boolean).join(', ')
+    : '';
+  byId('legend').replaceChildren(
+    ...[...names].map((n) => h('span', {}, h('span', { className: 'swatch', style: `background:${behaviorColor(n)}` }), n)),
+    limits ? h('span', { className: 'fence' }, `geofence: ${limits}`) : '',
+  );
 }
 
 // ---- start -----------------------------------------------------------------------------------

@@ -78,7 +78,7 @@ describe('occupancy grid', () => {
   });
 });
 
-import { enuToGeo, geoToEnu, originFrom } from '../src/lib/geo';
+import { enuToGeo, geoToEnu, originFrom, readGeofence } from '../src/lib/geo';
 
 describe('local tangent plane', () => {
   it('round-trips ENU through lat/lon and finds the origin from a drone', () => {
@@ -91,5 +91,17 @@ describe('local tangent plane', () => {
     expect(back.lat_deg).toBeCloseTo(40.44, 7);
     expect(back.lon_deg).toBeCloseTo(-3.69, 7);
     expect(originFrom([0, 0, 0], null)).toBeNull();
+  });
+});
+
+describe('geofence', () => {
+  it('reads the [geofence] section and ignores what is not one', () => {
+    expect(readGeofence({ max_altitude_m: 120, min_altitude_m: 0, radius_m: null, polygon_enu_m: [[0, 0], [10, 0], [10, 10]] })).toEqual({
+      polygon_enu_m: [[0, 0], [10, 0], [10, 10]],
+      max_altitude_m: 120,
+      radius_m: null,
+    });
+    expect(readGeofence({ polygon_enu_m: [[0, 0]] })).toBeNull();
+    expect(readGeofence(null)).toBeNull();
   });
 });

@@ -107,6 +107,11 @@ export class ApiClient {
     return this.json('GET', '/api/behaviors');
   }
 
+  /** The geofence (the config's `[geofence]`); older servers answer 404. */
+  geofence(): Promise<unknown> {
+    return this.json('GET', '/api/geofence');
+  }
+
   frames(): Promise<FrameInfo[]> {
     return this.json('GET', '/api/frames');
   }

@@ -27,3 +27,21 @@ export function originFrom(
   const lon_deg = geo.lon_deg - position_enu_m[0] / (R_M * Math.cos(lat_deg * RAD)) / RAD;
   return { lat_deg, lon_deg };
 }
+
+export interface Geofence {
+  polygon_enu_m: [number, number][] | null;
+  max_altitude_m: number | null;
+  radius_m: number | null;
+}
+
+/** Reads the config's `[geofence]` section as the API returns it; null when there is none. */
+export function readGeofence(raw: unknown): Geofence | null {
+  if (!raw || typeof raw !== 'object') return null;
+  const g = raw as Record<string, unknown>;
+  const n = (v: unknown) => (typeof v === 'number' && Number.isFinite(v) ? v : null);
+  const poly = Array.isArray(g.polygon_enu_m)
+    ? g.polygon_enu_m.filter((p): p is [number, number] => Array.isArray(p) && n(p[0]) !== null && n(p[1]) !== null)
+    : null;
+  const fence = { polygon_enu_m: poly && poly.length >= 3 ? poly : null, max_altitude_m: n(g.max_altitude_m), radius_m: n(g.radius_m) };
+  return fence.polygon_enu_m || fence.max_altitude_m !== null || fence.radius_m !== null ? fence : null;
+}

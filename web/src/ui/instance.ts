@@ -3,6 +3,7 @@
 
 import { ApiClient, ApiError, wsUrl } from '../lib/api';
 import { applyMessage, applyStatus, newInstanceState, type InstanceState } from '../lib/fleet';
+import { readGeofence, type Geofence } from '../lib/geo';
 import type { BehaviorInfo, FrameInfo, ServerMessage } from '../lib/types';
 
 export type InstanceListener = (inst: Instance, msg: ServerMessage | null) => void;
@@ -12,6 +13,7 @@ export class Instance {
   readonly state: InstanceState = newInstanceState();
   behaviors: BehaviorInfo[] = [];
   frames: FrameInfo[] = [];
+  geofence: Geofence | null = null;
   socketOpen = false;
   /** Why the last connection attempt failed (shown in the header), null when connected. */
   problem: string | null = 'connecting';
@@ -35,6 +37,7 @@ export class Instance {
     applyStatus(this.state, drones, Date.now());
     this.problem = null;
     this.behaviors = await this.client.behaviors().catch(() => []);
+    this.geofence = readGeofence(await this.client.geofence().catch(() => null));
     await this.refreshFrames();
     this.connect();
     this.listener(this, null);
