@@ -107,6 +107,7 @@ function makeMap(origin: GeoOrigin | null): void {
   if (centerEnu) mapView.fitTo([centerEnu]);
   setTool('pan');
   byId('btn-geo').textContent = origin ? 'Local ENU view' : 'Geographic view';
+  plan.geoOrigin = origin;
   mapView.setGrid(grid);
   drawOverlays();
 }
@@ -132,14 +133,17 @@ function toolState(tool: Tool, points: Vec2[]): void {
 function drawOverlays(): void {
   const target = plan.targetRef();
   const start: Vec3 = target ? (app.view(target).status?.position_enu_m ?? [0, 0, 0]) : [0, 0, 0];
-  const draft = plannedPath(plan.draft, [start[0], start[1], 0]);
+  const draft = plannedPath(plan.draft, [start[0], start[1], 0], mapView.origin);
   mapView.setDraft(draft.points, draft.items);
   const paths: { color: string; points: Vec3[]; label: string }[] = [];
   app.drones().forEach((ref, i) => {
     const p = app.planOf(ref);
     const ms = app.view(ref).mission;
     if (p && ms && (ms.state !== 0 || ms.pending_items > 0)) {
-      paths.push({ color: droneColor(i), points: plannedPath({ target: ref.drone, plan: p }).points.slice(1), label: `${ref.name} mission #${ms.mission_id}` });
+      const v = app.view(ref);
+      const t0 = v.trail[0];
+      const from: Vec3 = t0 ? [t0.x, t0.y, t0.z] : (v.status?.position_enu_m ?? [0, 0, 0]);
+      paths.push({ color: droneColor(i), points: plannedPath({ target: ref.drone, plan: p }, from, mapView.origin).points, label: `${ref.name} mission #${ms.mission_id}` });
     }
   });
   for (const [drone, pts] of Object.entries(plan.coverage?.answer?.per_drone ?? {})) {

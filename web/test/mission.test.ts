@@ -1,5 +1,7 @@
 import { describe, expect, it } from 'vitest';
+import { enuToGeo } from '../src/lib/geo';
 import {
+  addGpsWaypoint,
   addPath,
   addWaypoint,
   coverageMissions,
@@ -114,5 +116,20 @@ describe('mission files', () => {
     expect(parseMission('{', 'x')).toHaveProperty('error');
     expect(parseMission('{"plan": 3}', 'x')).toHaveProperty('error');
     expect(parseMission('{"plan": [{"args": {}}]}', 'x')).toEqual({ error: 'plan[0] has no "behavior"' });
+  });
+});
+
+describe('geographic missions', () => {
+  it('a click in the geographic view adds a go_to_gps that is drawn back at the same ENU point', () => {
+    const origin = { lat_deg: 40.44, lon_deg: -3.69, alt_m: 650 };
+    const [lat, lon] = enuToGeo(origin, 30, -20);
+    const m = addGpsWaypoint({ target: 'd', plan: [takeoffItem(5, 1), landItem(1)] }, [lat, lon], 650, d);
+    expect(m.plan.map((i) => i.behavior)).toEqual(['takeoff', 'go_to_gps', 'land']);
+    expect(m.plan[1].args.alt).toBe(654);
+    const { points } = plannedPath(m, [0, 0, 0], origin);
+    expect(points[2][0]).toBeCloseTo(30, 1);
+    expect(points[2][1]).toBeCloseTo(-20, 1);
+    expect(points[2][2]).toBeCloseTo(4, 6);
+    expect(plannedPath(m).points).toHaveLength(3); // without the origin the lat/lon point is left out
   });
 });

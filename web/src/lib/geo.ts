@@ -7,6 +7,8 @@ const RAD = Math.PI / 180;
 export interface GeoOrigin {
   lat_deg: number;
   lon_deg: number;
+  /** Altitude (m AMSL) of the ENU origin, when known. */
+  alt_m?: number;
 }
 
 export function enuToGeo(o: GeoOrigin, x_m: number, y_m: number): [number, number] {
@@ -20,12 +22,13 @@ export function geoToEnu(o: GeoOrigin, lat_deg: number, lon_deg: number): [numbe
 /** The ENU origin in lat/lon, from a drone that reports both its ENU position and its fix. */
 export function originFrom(
   position_enu_m: [number, number, number],
-  geo: { lat_deg: number; lon_deg: number } | null,
+  geo: { lat_deg: number; lon_deg: number; alt_m?: number } | null,
 ): GeoOrigin | null {
   if (!geo || !Number.isFinite(geo.lat_deg) || !Number.isFinite(geo.lon_deg)) return null;
   const lat_deg = geo.lat_deg - position_enu_m[1] / R_M / RAD;
   const lon_deg = geo.lon_deg - position_enu_m[0] / (R_M * Math.cos(lat_deg * RAD)) / RAD;
-  return { lat_deg, lon_deg };
+  const alt_m = typeof geo.alt_m === 'number' ? geo.alt_m - position_enu_m[2] : undefined;
+  return alt_m === undefined ? { lat_deg, lon_deg } : { lat_deg, lon_deg, alt_m };
 }
 
 export interface Geofence {

@@ -1,6 +1,7 @@
 // Mission building: items from map clicks, paths and coverage answers; the path a mission will
 // fly (for the map); the API's validation errors sorted by item and argument.
 
+import { geoToEnu, type GeoOrigin } from './geo';
 import type { CoverageAnswer, ErrorDetail, Mission, MissionItem, Vec2, Vec3 } from './types';
 
 export const CALL = '__call__';
@@ -52,6 +53,18 @@ export function appendBeforeLanding(mission: Mission, it: MissionItem): Mission 
 /** A map click in waypoint mode: a go_to at the clicked point and the planning height. */
 export function addWaypoint(mission: Mission, [x, y]: Vec2, d: PlanDefaults = DEFAULTS): Mission {
   return appendBeforeLanding(mission, goToItem([x, y, d.height_m], d.speed_mps));
+}
+
+/** A map click in the geographic view: a go_to_gps at the clicked lat/lon, `height_m` above the origin. */
+export function addGpsWaypoint(
+  mission: Mission,
+  [lat_deg, lon_deg]: Vec2,
+  originAlt_m: number,
+  d: PlanDefaults = DEFAULTS,
+): Mission {
+  const r7 = (v: number) => Math.round(v * 1e7) / 1e7;
+  const it = item('go_to_gps', { lat: r7(lat_deg), lon: r7(lon_deg), alt: round(originAlt_m + d.height_m), speed: d.speed_mps });
+  return appendBeforeLanding(mission, it);
 }
 
 /** A drawn path: one follow_path item through the clicked points at the planning height. */
@@ -109,12 +122,14 @@ function asPoint(v: unknown): Vec3 | null {
 
 /**
  * The ENU points the plan visits from `start`, for drawing it, with the index of the item that
- * reaches each point (-1 for the start). Only earth-frame targets are drawn;
+ * reaches each point (-1 for the start). go_to_gps targets are drawn when the ENU origin's
+ * lat/lon is known. Only earth-frame targets are drawn;
  * items in another frame (a panel, the nacelle) are listed in `framed` for the frames layer.
  */
 export function plannedPath(
   mission: Mission,
   start: Vec3 = [0, 0, 0],
+  origin: GeoOrigin | null = null,
 ): { points: Vec3[]; items: number[]; framed: string[] } {
   let here: Vec3 = start;
   const points: Vec3[] = [start];
@@ -148,6 +163,15 @@ export function plannedPath(
           items.push(index);
         }
         continue;
+      }
+      case 'go_to_gps': {
+        const lat = num(a.lat);
+        const lon = num(a.lon);
+        if (lat === null || lon === null || !origin) continue;
+        const [x, y] = geoToEnu(origin, lat, lon);
+        const alt = num(a.alt);
+        here = [x, y, alt !== null && origin.alt_m !== undefined ? alt - origin.alt_m : here[2]];
+        break;
       }
       case 'land':
         here = [here[0], here[1], 0];

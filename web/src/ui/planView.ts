@@ -2,7 +2,9 @@
 // validation errors beside them), the JSON view/editor, import/export, upload, and coverage.
 
 import { ApiError } from '../lib/api';
+import { enuToGeo, type GeoOrigin } from '../lib/geo';
 import {
+  addGpsWaypoint,
   addPath,
   addWaypoint,
   appendBeforeLanding,
@@ -40,6 +42,8 @@ export class PlanView {
   /** Index of the item the control panel sends with INSERT / MODIFY. */
   chosenItem: number | null = null;
   onChange: () => void = () => {};
+  /** Set in the geographic view: clicks then add go_to_gps items (when the drone offers it). */
+  geoOrigin: GeoOrigin | null = null;
 
   private target = h('select', { id: 'plan-target', 'aria-label': 'mission target drone' });
   private height = h('input', { id: 'plan-height', type: 'number', step: '0.5', value: '3', 'aria-label': 'height (m)' });
@@ -138,6 +142,11 @@ export class PlanView {
   }
 
   addWaypoint(p: Vec2): void {
+    const o = this.geoOrigin;
+    if (o && o.alt_m !== undefined && this.behaviors().some((b) => b.name === 'go_to_gps')) {
+      this.setDraft(addGpsWaypoint(this.draft, enuToGeo(o, p[0], p[1]), o.alt_m, this.defaults()));
+      return;
+    }
     this.setDraft(addWaypoint(this.draft, p, this.defaults()));
   }
 
