@@ -13,7 +13,7 @@ import { App } from './ui/app';
 import { ControlView } from './ui/controlView';
 import { byId, h, setOptions } from './ui/dom';
 import { act, onRejected, toast } from './ui/feedback';
-import { FleetView } from './ui/fleetView';
+import { FleetView, restoreInstances } from './ui/fleetView';
 import { describeError } from './ui/instance';
 import { droneColor, MapView, type Tool } from './ui/mapView';
 import { MonitorView } from './ui/monitorView';
@@ -305,6 +305,7 @@ async function main(): Promise<void> {
     dirty = true;
   });
   await connect();
+  await restoreInstances(app);
   choicesChanged();
   void refreshGrid();
   const first = app.drones().map((r) => app.view(r).status?.position_enu_m).filter((p): p is Vec3 => !!p);

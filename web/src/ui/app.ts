@@ -174,9 +174,11 @@ export class App {
     return this.send(ref, built.update, action);
   }
 
-  hold(ref: DroneRef): Promise<Outcome> {
-    const id = this.view(ref).mission?.mission_id ?? this.missionIds.get(ref.key) ?? null;
-    return this.send(ref, holdUpdate(ref.drone, id), 'HOLD');
+  /** Pauses the running mission; a drone with no mission running is already holding. */
+  async hold(ref: DroneRef): Promise<Outcome> {
+    const ms = this.view(ref).mission;
+    if (ms && ms.state !== 1) return { ok: true, text: `${ref.name}: no mission running, nothing to hold` };
+    return this.send(ref, holdUpdate(ref.drone, ms?.mission_id ?? null), 'HOLD');
   }
 
   land(ref: DroneRef): Promise<Outcome> {

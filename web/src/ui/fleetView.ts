@@ -8,6 +8,33 @@ import { byId, fmt, h } from './dom';
 import { act } from './feedback';
 import { describeError } from './instance';
 
+const INSTANCES_KEY = 'kestrel.instances';
+
+function savedInstances(): { base: string; token: string }[] {
+  try {
+    const list = JSON.parse(sessionStorage.getItem(INSTANCES_KEY) ?? '[]') as unknown;
+    return Array.isArray(list) ? list.filter((i) => typeof i?.base === 'string' && typeof i?.token === 'string') : [];
+  } catch {
+    return [];
+  }
+}
+
+function saveInstance(base: string, token: string): void {
+  const list = savedInstances().filter((i) => i.base !== base);
+  sessionStorage.setItem(INSTANCES_KEY, JSON.stringify([...list, { base, token }]));
+}
+
+/** Reconnects the instances added earlier in this browser session (tokens kept per session only). */
+export async function restoreInstances(app: App): Promise<void> {
+  for (const { base, token } of savedInstances()) {
+    try {
+      await app.addInstance(new URL(base).host, base, token);
+    } catch (e) {
+      app.log({ t: null, drone: null, kind: 'instance', level: 'error', text: `${base}: ${describeError(e)}` });
+    }
+  }
+}
+
 interface Card {
   root: HTMLElement;
   fields: Record<string, HTMLElement>;
@@ -32,6 +59,7 @@ export class FleetView {
         if (!/^https?:\/\//.test(base)) return { ok: false, text: 'address as http://host:port' };
         try {
           const inst = await this.app.addInstance(new URL(base).host, base, token.value.trim());
+          saveInstance(base, token.value.trim());
           return { ok: true, text: `${inst.label}: ${inst.state.drones.size} drone(s)` };
         } catch (e) {
           return { ok: false, text: describeError(e) };
