@@ -6,6 +6,7 @@ import { ApiError } from './lib/api';
 import { behaviorColor } from './lib/colors';
 import { originFrom, type GeoOrigin } from './lib/geo';
 import { mergePatch, readGrid, type Grid } from './lib/grid';
+import { feedbackPaths } from './lib/fleet';
 import { SHORTCUT_HELP, shortcutFor } from './lib/keyboard';
 import { plannedPath } from './lib/mission';
 import type { Vec2, Vec3 } from './lib/types';
@@ -145,6 +146,9 @@ function drawOverlays(): void {
       const from: Vec3 = t0 ? [t0.x, t0.y, t0.z] : (v.status?.position_enu_m ?? [0, 0, 0]);
       paths.push({ color: droneColor(i), points: plannedPath({ target: ref.drone, plan: p }, from, mapView.origin).points, label: `${ref.name} mission #${ms.mission_id}` });
     }
+  });
+  app.drones().forEach((ref, i) => {
+    for (const f of feedbackPaths(app.view(ref).status)) paths.push({ color: droneColor(i), points: f.points, label: `${ref.name} ${f.behavior} planned path` });
   });
   for (const [drone, pts] of Object.entries(plan.coverage?.answer?.per_drone ?? {})) {
     const i = app.drones().findIndex((d) => d.drone === drone);

@@ -1,6 +1,7 @@
 import { describe, expect, it } from 'vitest';
 import {
   applyMessage,
+  feedbackPaths,
   itemRows,
   linkView,
   missionProgress,
@@ -112,5 +113,18 @@ describe('mission progress', () => {
     expect(itemRows(status(), null).map((r) => r.behavior)).toEqual(['takeoff', 'go_to', '?', '?']);
     const finished = status({ state: 0, pending_items: 0, done_items: 4, current_item: null, item_index: null });
     expect(itemRows(finished, plan).every((r) => r.state === 'done')).toBe(true);
+  });
+});
+
+describe('planned paths in feedback', () => {
+  it("reads a planner's path from a running behavior's feedback", () => {
+    const s = drone('d', {
+      active_behaviors: [
+        { id: 1, behavior: 'navigate_to', state: 'running', feedback: { planned_path_m: [[0, 0], [1, 2, 3]], distance: 4 } },
+        { id: 2, behavior: 'go_to', state: 'running', feedback: { path: 'none' } },
+      ],
+    });
+    expect(feedbackPaths(s)).toEqual([{ behavior: 'navigate_to', points: [[0, 0, 0], [1, 2, 3]] }]);
+    expect(feedbackPaths(null)).toEqual([]);
   });
 });

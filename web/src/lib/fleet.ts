@@ -170,3 +170,21 @@ export function itemRows(ms: MissionStatus | null, plan: MissionItem[] | null): 
   }
   return rows;
 }
+
+/**
+ * Paths a running behavior reports in its feedback (a planner's route for navigate_to): any
+ * feedback value named like `path` holding [x, y(, z)] points.
+ */
+export function feedbackPaths(status: DroneStatus | null): { behavior: string; points: [number, number, number][] }[] {
+  const out: { behavior: string; points: [number, number, number][] }[] = [];
+  for (const b of status?.active_behaviors ?? []) {
+    for (const [key, value] of Object.entries(b.feedback ?? {})) {
+      if (!/path/i.test(key) || !Array.isArray(value)) continue;
+      const points = value
+        .filter((p): p is number[] => Array.isArray(p) && p.length >= 2 && p.every((v) => typeof v === 'number'))
+        .map((p) => [p[0], p[1], p[2] ?? 0] as [number, number, number]);
+      if (points.length >= 2) out.push({ behavior: b.behavior, points });
+    }
+  }
+  return out;
+}
