@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { describeEvent, parseFlightLog, resultText } from '../src/lib/events';
+import { describeEvent, parseFlightLog, resultText, updateMarker } from '../src/lib/events';
 import { buildTimeline, tickStep } from '../src/lib/timeline';
 import { trailRuns } from '../src/lib/colors';
 import { shortcutFor } from '../src/lib/keyboard';
@@ -64,6 +64,16 @@ describe('event log lines', () => {
     const rej = describeEvent(3, 'd', { type: 'rejected_command', action: 2, reason: 'no mission loaded' });
     expect(rej).toMatchObject({ level: 'error', text: 'START: no mission loaded' });
     expect(resultText({ result: 'aborted', reason: 'stop' })).toBe('aborted: stop');
+    const refused = { kind: 'mission_update', action: 3, mission_id: 2, accepted: false, reason: 'no mission is running' };
+    expect(describeEvent(4, 'd', refused)).toMatchObject({ level: 'error', text: 'PAUSE mission #2 refused: no mission is running' });
+    expect(describeEvent(5, 'd', { kind: 'alert', message: 'link lost' })).toMatchObject({ kind: 'alert', level: 'error', text: 'link lost' });
+    expect(describeEvent(6, 'd', { kind: 'autopilot', text: 'Takeoff detected' })).toMatchObject({ kind: 'autopilot', level: 'info' });
+  });
+
+  it('accepted mission updates become timeline markers', () => {
+    expect(updateMarker(7, 'd', { kind: 'mission_update', action: 1, accepted: true })).toEqual({ t: 7, drone: 'd', label: 'LOAD' });
+    expect(updateMarker(7, 'd', { kind: 'mission_update', action: 2, accepted: false })).toBeNull();
+    expect(updateMarker(7, 'd', { kind: 'behavior', event: 'started' })).toBeNull();
   });
 });
 

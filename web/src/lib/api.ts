@@ -116,14 +116,14 @@ export class ApiClient {
     return this.json('GET', '/api/frames');
   }
 
-  /** Stores a mission; a `422` carries the validation errors with JSON pointers. */
+  /** Validates and loads a mission on its target; a `422` carries the errors with JSON pointers. */
   postMission(mission: Mission): Promise<{ mission_id: number; warnings: string[] }> {
     return this.json('POST', '/api/missions', mission);
   }
 
-  /** A stored mission with its progress (`plan` among its fields). */
-  mission(id: number): Promise<Partial<Mission> & { mission_id: number }> {
-    return this.json('GET', `/api/missions/${id}`);
+  /** A drone's loaded mission with its progress; `plan` is the mission as written. */
+  mission(id: number, drone: string): Promise<{ mission_id: number; plan?: Mission | Mission['plan'] }> {
+    return this.json('GET', `/api/missions/${id}?drone=${encodeURIComponent(drone)}`);
   }
 
   /** The executor's answer; a refusal (HTTP 409) is an answer too, not an exception. */

@@ -98,8 +98,20 @@ export function describeEvent(t: number | null, drone: string | null, e: Obj): L
   const kind = str(e.type) ?? str(e.kind) ?? 'event';
   const said = str(e.text) ?? str(e.message) ?? str(e.reason);
   const action = e.action !== undefined ? actionName(e.action) : null;
+  if (action && typeof e.accepted === 'boolean') {
+    const mission = typeof e.mission_id === 'number' ? ` mission #${e.mission_id}` : '';
+    const text = `${action}${mission} ${e.accepted ? 'accepted' : 'refused'}${said ? `: ${said}` : ''}`;
+    return { t, drone, kind, level: e.accepted ? 'info' : 'error', text };
+  }
   const text = action ? `${action}${said ? `: ${said}` : ''}` : (said ?? JSON.stringify(e));
   return { t, drone, kind, level: levelOf(e, kind), text };
+}
+
+/** An accepted MissionUpdate event (`kind: mission_update`) as a timeline marker, else null. */
+export function updateMarker(t: number, drone: string | null, e: Obj): Marker | null {
+  if (e.kind !== 'mission_update' || e.accepted !== true || !drone) return null;
+  const label = actionName(e.action);
+  return label ? { t, drone, label } : null;
 }
 
 export interface Marker {

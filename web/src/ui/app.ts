@@ -1,7 +1,7 @@
 // The page's state: the instances it talks to, the drone the operator selected, the event log and
 // live behavior records, and the commands every view sends (mission updates, upload, hold, land).
 
-import { behaviorRecord, describeEvent, type BehaviorRecord, type LogLine, type Marker } from '../lib/events';
+import { behaviorRecord, describeEvent, updateMarker, type BehaviorRecord, type LogLine, type Marker } from '../lib/events';
 import { linkView, missionStateName, type DroneView, type LinkView } from '../lib/fleet';
 import { buildUpdate, holdUpdate, landUpdate, type UpdateArgs } from '../lib/missionUpdate';
 import type { ActionName, Mission, MissionItem, MissionUpdate, ServerMessage } from '../lib/types';
@@ -30,7 +30,7 @@ export class App {
   missionIds = new Map<string, number>();
   /** The last occupancy-grid patch from the merged map. */
   lastMapUpdate: Extract<ServerMessage, { type: 'map_update' }> | null = null;
-  /** Plans by `instanceId/missionId`, to name pending items. */
+  /** Plans by `droneKey/missionId` (ids are per drone), to name pending items. */
   plans = new Map<string, MissionItem[]>();
   private listeners = new Set<(topic: Topic) => void>();
   private fetchingPlans = new Set<string>();
@@ -86,7 +86,7 @@ export class App {
 
   planOf(ref: DroneRef): MissionItem[] | null {
     const id = this.view(ref).mission?.mission_id ?? this.missionIds.get(ref.key);
-    return id == null ? null : (this.plans.get(`${ref.inst.id}/${id}`) ?? null);
+    return id == null ? null : (this.plans.get(`${ref.key}/${id}`) ?? null);
   }
 
   log(line: LogLine): void {
@@ -106,7 +106,7 @@ export class App {
         break;
       case 'mission_status': {
         const id = msg.status.mission_id;
-        if (id != null) this.ensurePlan(inst, id);
+        if (id != null) this.ensurePlan(inst, msg.drone, id);
         this.emit('mission');
         break;
       }
@@ -114,6 +114,8 @@ export class App {
         const drone = msg.drone ? this.nameOf(inst, msg.drone) : null;
         const rec = behaviorRecord(msg.t, drone, msg.event);
         if (rec) this.records.push(rec);
+        const marker = updateMarker(msg.t, drone, msg.event);
+        if (marker) this.markers.push(marker);
         this.log(describeEvent(msg.t, drone, msg.event));
         break;
       }
@@ -131,14 +133,15 @@ export class App {
     return this.instances.length > 1 ? `${inst.label}:${drone}` : drone;
   }
 
-  private ensurePlan(inst: Instance, id: number): void {
-    const k = `${inst.id}/${id}`;
+  private ensurePlan(inst: Instance, drone: string, id: number): void {
+    const k = `${inst.id}/${drone}/${id}`;
     if (this.plans.has(k) || this.fetchingPlans.has(k)) return;
     this.fetchingPlans.add(k);
     inst.client
-      .mission(id)
+      .mission(id, drone)
       .then((m) => {
-        if (Array.isArray(m.plan)) this.plans.set(k, m.plan);
+        const plan = Array.isArray(m.plan) ? m.plan : m.plan?.plan;
+        if (Array.isArray(plan)) this.plans.set(k, plan);
         this.emit('mission');
       })
       .catch(() => {})
@@ -148,7 +151,6 @@ export class App {
   /** Sends a MissionUpdate and says what the executor answered. */
   async send(ref: DroneRef, update: MissionUpdate, label: string): Promise<Outcome> {
     const action = label;
-    this.markers.push({ t: ref.inst.state.serverT ?? 0, drone: ref.name, label: action });
     this.log({ t: ref.inst.state.serverT, drone: ref.name, kind: 'command', level: 'info', text: `sent ${action}` });
     try {
       const answer = await ref.inst.client.missionUpdate(update);
@@ -194,13 +196,20 @@ export class App {
     return { ok: true, text: outcomes.map((o) => o.text).join('; ') };
   }
 
-  /** Stores the mission (the API validates it) and loads it on the drone. Throws ApiError on 422. */
+  /**
+   * Loads the mission on the drone through `POST /api/missions` (validated, then loaded as a
+   * LOAD would). Throws ApiError with the validation details on 422.
+   */
   async upload(ref: DroneRef, mission: Mission): Promise<{ missionId: number; outcome: Outcome; warnings: string[] }> {
     const m = { ...mission, target: ref.drone };
+    const t = ref.inst.state.serverT;
+    this.log({ t, drone: ref.name, kind: 'command', level: 'info', text: 'sent LOAD (upload)' });
     const { mission_id, warnings } = await ref.inst.client.postMission(m);
-    this.plans.set(`${ref.inst.id}/${mission_id}`, m.plan);
+    // The server reports MissionUpdates as events; an upload is not one, so mark it here.
+    this.markers.push({ t: ref.inst.state.serverT ?? t ?? 0, drone: ref.name, label: 'LOAD' });
+    this.plans.set(`${ref.key}/${mission_id}`, m.plan);
     this.missionIds.set(ref.key, mission_id);
-    const outcome = await this.action(ref, 'LOAD', { missionId: mission_id, mission: m });
+    const outcome: Outcome = { ok: true, text: `${ref.name} LOAD mission #${mission_id}` };
     return { missionId: mission_id, outcome, warnings: warnings ?? [] };
   }
 }
