@@ -185,6 +185,14 @@ export class PlanView {
       b.addEventListener('click', fn);
       return b;
     };
+    const methods = this.behaviors().find((b) => b.name === it.behavior)?.methods ?? [];
+    const method = h('select', { className: 'item-method', 'aria-label': `item ${index} method`, title: 'method (argument fields follow __call__)' });
+    setOptions(method, [...new Set([it.method ?? '__call__', ...methods])].map((m) => ({ value: m, label: m })));
+    method.value = it.method ?? '__call__';
+    method.addEventListener('change', () => {
+      this.draft = replaceItem(this.draft, index, { ...this.draft.plan[index], method: method.value });
+      this.changed(false);
+    });
     const choose = h('input', { type: 'radio', name: 'chosen-item', title: 'item sent by INSERT / MODIFY' });
     choose.checked = this.chosenItem === index;
     choose.addEventListener('change', () => (this.chosenItem = index));
@@ -202,6 +210,7 @@ export class PlanView {
         { className: 'item-head' },
         h('span', { className: 'idx' }, `#${index}`),
         behavior,
+        method.options.length > 1 ? method : '',
         h('label', { className: 'choose' }, choose, 'use'),
         small('↑', 'move up', () => this.setDraft(moveItem(this.draft, index, -1))),
         small('↓', 'move down', () => this.setDraft(moveItem(this.draft, index, 1))),
