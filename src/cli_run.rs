@@ -131,7 +131,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
     let limit = Duration::from_secs_f64(args.max_time_s.max(1.0));
     let mut plan = args
         .mission_demo
-        .then(|| Plan::new(demo_plan(), ready_timeout));
+        .then(|| Plan::new(demo_plan(kestrel::types::Vec3::zeros(), 0.0), ready_timeout));
     let mut watch = StatusWatch::default();
     let policy = config.mavlink.on_link_regained;
     let ctrl_c = tokio::signal::ctrl_c();

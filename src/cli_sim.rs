@@ -7,8 +7,8 @@ use kestrel::config::Config;
 use kestrel::core::CoreConfig;
 use kestrel::flightlog::FlightLog;
 use kestrel::sim::runner::{SimConfig, SimRunner};
-use kestrel::sim::script::{demo_plan, Script, ScriptState};
-use kestrel::sim::world::World;
+use kestrel::sim::script::{demo_plans, Script, ScriptState};
+use kestrel::sim::world::{SensorConfig, World};
 use kestrel::sim::Environment;
 use kestrel::types::Vec3;
 use std::path::PathBuf;
@@ -37,6 +37,9 @@ pub struct SimArgs {
     /// Config file (TOML) for controller, behaviors and simulator settings.
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Range sensor of every drone: `multiranger`, `lidar` or `none` (overrides the world file).
+    #[arg(long)]
+    sensor: Option<String>,
     /// Give up after this many simulated seconds.
     #[arg(long, default_value_t = 600.0)]
     max_sim_time_s: f64,
@@ -69,10 +72,17 @@ pub fn run(args: SimArgs) -> Result<()> {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
-    let world = match &args.world {
+    let mut world = match &args.world {
         Some(p) => World::load(p)?,
         None => World::empty(),
     };
+    if let Some(sensor) = config.sim.sensor {
+        world.sensor = sensor;
+    }
+    if let Some(name) = &args.sensor {
+        world.sensor = SensorConfig::by_name(name)
+            .with_context(|| format!("--sensor takes multiranger, lidar or none, got `{name}`"))?;
+    }
     let sim_config = SimConfig {
         drones: args.drones,
         seed: args.seed,
@@ -109,7 +119,10 @@ pub fn run(args: SimArgs) -> Result<()> {
         log_path.display()
     );
 
-    let mut scripts: Vec<Script> = (0..args.drones).map(|_| Script::new(demo_plan())).collect();
+    let mut scripts: Vec<Script> = demo_plans(&runner.world)
+        .into_iter()
+        .map(Script::new)
+        .collect();
     let wall_start = Instant::now();
     let limit = Duration::from_secs_f64(args.max_sim_time_s);
     loop {

@@ -45,6 +45,8 @@ def parse_args(argv=None):
     ap.add_argument("--rangers", choices=["none", "cf4", "prox8"], default=None,
                     help="horizontal range beams (default: cf4 for px4, prox8 for ardupilot)")
     ap.add_argument("--attitude-hz", type=float, default=50.0, help="PX4 ATTITUDE/GLOBAL_POSITION_INT default rate")
+    ap.add_argument("--px4-z-offset-m", type=float, default=0.0,
+                    help="PX4: constant offset added to local z (real PX4 sits at -0.2..-1 m on the ground)")
     ap.add_argument("--reboot-gap-s", type=float, default=3.0, help="silence during a simulated reboot")
     ap.add_argument("--no-collisions", dest="collisions", action="store_false")
     ap.add_argument("--seed", type=int, default=1)
@@ -138,7 +140,7 @@ class App:
                     for _ in range(steps):
                         v.tick(now, dt)
                     v.send_streams(now)
-                next_tick += PHYSICS_DT_S / max(1.0, min(self.args.speed_factor, 1.0))
+                next_tick += PHYSICS_DT_S  # wall-clock tick; each covers speed_factor x dt simulated
                 if next_tick < time.monotonic() - 0.1:
                     next_tick = time.monotonic()
 

@@ -16,6 +16,7 @@ DATA_STREAMS = {1: [], 2: [1, 24, 245], 3: [], 4: [], 6: [33, 32], 10: [30], 11:
 EKF_FLAGS_NO_POSITION = 0xA7   # attitude, velocities, vertical abs, const-pos mode (captured 167)
 EKF_FLAGS_GPS = 0x33F          # + horizontal rel/abs position, predicted positions (captured 831)
 BOOT_S = 2.0
+TAKEOFF_SPOOL_S = 2.0   # NAV_TAKEOFF to leaving the ground (captured takeoff: 7.1 s to 4.76 m)
 
 
 class ArduPilotVehicle(Vehicle):
@@ -26,7 +27,7 @@ class ArduPilotVehicle(Vehicle):
 
     def limits(self):
         return Limits(max_speed_xy_mps=5.0, max_speed_up_mps=2.5, max_speed_down_mps=1.5,
-                      max_accel_mps2=2.5, velocity_tau_s=0.8, pos_gain_xy=1.0, pos_gain_z=1.0,
+                      max_accel_mps2=2.5, max_accel_z_mps2=0.8, velocity_tau_s=0.8, pos_gain_xy=1.0, pos_gain_z=1.0,
                       max_yaw_rate_rps=math.radians(90))
 
     def default_params(self):
@@ -92,6 +93,9 @@ class ArduPilotVehicle(Vehicle):
     def msg_ekf_status(self):
         flags = EKF_FLAGS_GPS if self.pos_ok else EKF_FLAGS_NO_POSITION
         return M.MAVLink_ekf_status_report_message(flags, 0.01, 0.01, 0.01, 0.01, 0.0, 0.0)
+
+    def msg_extended_sys_state(self):
+        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_MC, self.landed_state)  # as captured
 
     def down_sensor(self):
         return (0, M.MAV_DISTANCE_SENSOR_UNKNOWN, 20, 4000)
@@ -224,6 +228,7 @@ class ArduPilotVehicle(Vehicle):
             b = self.model.body
             self.takeoff_alt_m = self.model.ground_z_m + max(0.0, p[7])
             self.taking_off = True
+            self.model.liftoff_delay_s = TAKEOFF_SPOOL_S
             self.model.target = Target("position", (b.pos[0], b.pos[1], self.takeoff_alt_m),
                                        speed_up_mps=self.param("WPNAV_SPEED_UP") / 100)
             return M.MAV_RESULT_ACCEPTED

@@ -18,6 +18,7 @@ class Limits:
     max_speed_up_mps: float = 3.0
     max_speed_down_mps: float = 1.5
     max_accel_mps2: float = 4.5
+    max_accel_z_mps2: float = 4.5          # vertical cap (takeoff ramps / jerk limits)
     velocity_tau_s: float = 0.3
     pos_gain_xy: float = 1.0
     pos_gain_z: float = 1.0
@@ -63,6 +64,7 @@ class Multirotor:
         self.limits = limits or Limits()
         self.ground_z_m = ground_z_m
         self.target = Target(kind="idle")
+        self.liftoff_delay_s = 0.0   # motors spooling up: stay on the ground this long more
 
     def step(self, dt, armed):
         b, lim, t = self.body, self.limits, self.target
@@ -95,6 +97,10 @@ class Multirotor:
         an = math.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
         if an > lim.max_accel_mps2:
             a = [ai * lim.max_accel_mps2 / an for ai in a]
+        a[2] = _clip(a[2], -lim.max_accel_z_mps2, lim.max_accel_z_mps2)
+        if b.on_ground and self.liftoff_delay_s > 0:
+            self.liftoff_delay_s -= dt
+            a = [0.0, 0.0, 0.0]
         b.acc = a
         b.vel = [b.vel[i] + a[i] * dt for i in range(3)]
         self._integrate(dt)

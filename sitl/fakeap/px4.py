@@ -25,6 +25,8 @@ EVENTS = {
     "commander_failsafe_enter_generic": (31382480, 0x42),
 }
 FORCE_MAGIC = 21196
+SPOOLUP_S = 2.0        # arming to leaving the ground (takeoff detected ~1.7-1.9 s after arming)
+LAND_DETECT_S = 2.5    # touchdown to "Landing detected"
 
 
 def custom_mode_of(name):
@@ -40,9 +42,10 @@ class Px4Vehicle(Vehicle):
     ack_before_replies = True
 
     def limits(self):
+        # tuned so offboard takeoff to 5 m, the 11 m go-to and AUTO.LAND take about as long as captured
         return Limits(max_speed_xy_mps=12.0, max_speed_up_mps=3.0, max_speed_down_mps=1.5,
-                      max_accel_mps2=4.5, velocity_tau_s=0.3, pos_gain_xy=0.95, pos_gain_z=1.0,
-                      max_yaw_rate_rps=math.radians(60))
+                      max_accel_mps2=4.5, max_accel_z_mps2=1.5, velocity_tau_s=0.6, pos_gain_xy=0.8,
+                      pos_gain_z=0.9, max_yaw_rate_rps=math.radians(60))
 
     def default_params(self):
         f, i = M.MAV_PARAM_TYPE_REAL32, M.MAV_PARAM_TYPE_INT32
@@ -143,16 +146,24 @@ class Px4Vehicle(Vehicle):
                               custom_mode_of(self.intended_mode))
 
     def msg_odometry(self):
+        """As captured: frame_id and child_frame_id LOCAL_NED (velocity in NED), estimator 8."""
         b = self.model.body
         n, e, d, vn, ve, vd = self._ned_state()
-        psi = self.yaw_enu_to_ned(b.yaw_rad)
-        # PX4 reports ODOMETRY velocity in the body FRD frame
-        vf = vn * math.cos(psi) + ve * math.sin(psi)
-        vr = -vn * math.sin(psi) + ve * math.cos(psi)
-        nan21 = [float("nan")] * 21
-        return M.MAVLink_odometry_message(self.boot_us(), M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_BODY_FRD,
-                                          n, e, d, self.quaternion(), vf, vr, vd, 0.0, 0.0, -b.yaw_rate_rps,
-                                          nan21, nan21, 0, M.MAV_ESTIMATOR_TYPE_NAIVE, 100)
+        nan = float("nan")
+        pose_cov = [nan] * 21
+        vel_cov = [nan] * 21
+        for i, v in zip((0, 6, 11, 15, 18, 20), (0.04, 0.04, 0.09, 0.0004, 0.0004, 0.036)):
+            pose_cov[i] = v
+        for i, v in zip((0, 6, 11), (0.017, 0.017, 0.014)):
+            vel_cov[i] = v
+        return M.MAVLink_odometry_message(self.boot_us(), M.MAV_FRAME_LOCAL_NED, M.MAV_FRAME_LOCAL_NED,
+                                          n, e, d + self.opts.px4_z_offset_m, self.quaternion(), vn, ve, vd,
+                                          0.0, 0.0, -b.yaw_rate_rps, pose_cov, vel_cov, 0,
+                                          M.MAV_ESTIMATOR_TYPE_AUTOPILOT, 0)
+
+    def msg_local_position_ned(self):
+        n, e, d, vn, ve, vd = self._ned_state()
+        return M.MAVLink_local_position_ned_message(self.boot_ms(), n, e, d + self.opts.px4_z_offset_m, vn, ve, vd)
 
     def down_sensor(self):
         return (0, M.MAV_DISTANCE_SENSOR_LASER, 0, 10000)
@@ -284,6 +295,7 @@ class Px4Vehicle(Vehicle):
                     return M.MAV_RESULT_TEMPORARILY_REJECTED
             self.armed = True
             self.armed_time = self.clock.now()
+            self.model.liftoff_delay_s = SPOOLUP_S
             self.airborne = False
             self.landing_detected_at = None
             self.landed_since = None
@@ -304,9 +316,15 @@ class Px4Vehicle(Vehicle):
     def disarm(self, why):
         self.armed = False
         self.armed_time = None
-        self.failsafe = False
         self.model.target = Target("idle")
         self.event("commander_disarmed_by", bytes([why]))
+        # as captured: a failsafe ends with the user's intended mode back (e.g. OFFBOARD);
+        # a user-selected landing/return mode becomes AUTO.LOITER once disarmed
+        if self.failsafe:
+            self.failsafe = False
+            self.set_mode(self.intended_mode, reason="failsafe cleared on disarm")
+        elif self.mode in ("AUTO.LAND", "AUTO.RTL", "AUTO.TAKEOFF"):
+            self.set_mode("AUTO.LOITER", reason="disarmed")
 
     # ------------------------------------------------------------------ setpoints
     def on_setpoint_local(self, msg):
@@ -398,7 +416,7 @@ class Px4Vehicle(Vehicle):
         if self.airborne:
             if b.on_ground:
                 self.landed_since = self.landed_since or now
-                if now - self.landed_since >= 1.0 and self.landing_detected_at is None:
+                if now - self.landed_since >= LAND_DETECT_S and self.landing_detected_at is None:
                     self.landing_detected_at = now
                     self.event("commander_landing_detected")
                     self.landed_state = M.MAV_LANDED_STATE_ON_GROUND

@@ -248,6 +248,7 @@ class Vehicle:
             self.handle_other(msg)
 
     def _command(self, msg, cmd, p):
+        deferred = []
         forced = self.faults.take_reject(cmd)
         if forced is not None:
             self.note("fault", f"rejected command {cmd} with {forced}")
@@ -271,6 +272,7 @@ class Vehicle:
             self.send(self.autopilot_version())
             result = M.MAV_RESULT_ACCEPTED
         else:
+            deferred = []
             if self.ack_before_replies:
                 self._deferred = []
             try:
@@ -279,7 +281,7 @@ class Vehicle:
                 deferred, self._deferred = getattr(self, "_deferred", None) or [], None
         if result is not None:
             self.ack(msg, cmd, result)
-        for m in deferred if 'deferred' in locals() else []:
+        for m in deferred:
             self.send(m)
 
     # ------------------------------------------------------------------ params

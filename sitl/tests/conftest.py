@@ -13,16 +13,18 @@ sys.path.insert(0, SITL)
 
 from fakeap.mav import mavutil, mavlink  # noqa: E402
 
-_port_counter = [20000 + (os.getpid() % 200) * 100]
+_port_counter = [20000 + (os.getpid() % 400) * 100]
+# layout of one block: control base, PX4 listen base+1.., PX4 remote base+11.., ArduPilot TCP base+21, +31..
+PORT_OFFSETS = (0, 1, 2, 3, 11, 12, 13, 21, 31, 41)
 
 
 def free_port_block():
-    """A base port with a few free ports above it (for listen/remote/control)."""
+    """A base port whose block (see PORT_OFFSETS) is free."""
     while True:
-        _port_counter[0] += 7
+        _port_counter[0] += 50
         base = _port_counter[0]
         ok = True
-        for off in range(4):
+        for off in PORT_OFFSETS:
             for kind in (socket.SOCK_DGRAM, socket.SOCK_STREAM):
                 s = socket.socket(socket.AF_INET, kind)
                 try:
@@ -41,10 +43,10 @@ class Fake:
         self.control_port = base
         self.personality = personality
         if personality == "px4":
-            self.listen, self.remote = base + 1, base + 2
+            self.listen, self.remote = base + 1, base + 11
             ports = ["--px4-listen-base", str(self.listen), "--px4-remote-base", str(self.remote)]
         else:
-            self.tcp = base + 3
+            self.tcp = base + 21
             ports = ["--ardupilot-tcp-base", str(self.tcp)]
         cmd = [sys.executable, os.path.join(SITL, "fake_autopilot.py"), "--personality", personality,
                "--control-port", str(self.control_port), "--speed-factor", str(speed), "--quiet"] + ports + extra

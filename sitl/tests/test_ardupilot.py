@@ -102,3 +102,29 @@ def test_deny_arm_reason_statustext(fake_factory):
     assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_FAILED
     st = link.seen_or_recv("STATUSTEXT", 2, lambda m: m.text.startswith("Arm:"))
     assert st.text == "Arm: Battery below minimum" and st.severity == M.MAV_SEVERITY_CRITICAL
+
+
+def test_guided_setpoint_stats_link_drop_and_reconnect(fake_factory):
+    f = fake_factory("ardupilot", "--ekf-delay", "0.5")
+    link = f.connect()
+    link.recv("HEARTBEAT", 3, lambda h: h.system_status == 3)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, GUIDED) == M.MAV_RESULT_ACCEPTED
+    for _ in range(25):  # 25 Hz for 1 s while in GUIDED
+        link.send_local(vx=0.0, mask=3527)
+        time.sleep(0.04)
+    stats = f.control(cmd="setpoint_stats", reset=True)
+    assert stats["count"] == 25 and stats["gaps"] == 24
+    assert 35 < stats["p50_ms"] < 50 and stats["max_ms"] < 150 and stats["p99_ms"] <= stats["max_ms"]
+    assert f.control(cmd="setpoint_stats")["count"] == 0
+    # link drop: silence both ways, then the same TCP connection carries traffic again
+    f.control(cmd="link_drop", duration_s=1.5)
+    time.sleep(0.1)
+    while link.m.recv_match(blocking=False):
+        pass
+    assert link.recv("HEARTBEAT", 1.2) is None
+    assert link.recv("HEARTBEAT", 2.5) is not None
+    # a second client replaces the first (one TCP client per SERIAL0)
+    link.close()
+    link2 = f.connect()
+    assert link2.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+    assert link2.seen_or_recv("AUTOPILOT_VERSION", 2).flight_sw_version == 67567616

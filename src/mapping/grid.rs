@@ -344,7 +344,6 @@ impl OccupancyGrid {
                 _ => (limit_m, false),
             };
             let end = origin + scan.beam_direction_enu(beam) * range_m;
-            let mut last = None;
             let traced = trace_segment(&self.spec, origin, end, |i| {
                 if let Some(m) = mark.get_mut(i) {
                     if *m >> 1 != gen {
@@ -352,11 +351,11 @@ impl OccupancyGrid {
                         touched.push(i as u32);
                     }
                 }
-                last = Some(i);
                 true
             });
             if hit && traced == TraceEnd::EndInside {
-                if let Some(m) = last.and_then(|i| mark.get_mut(i)) {
+                let end_index = self.spec.cell_at(end).and_then(|c| self.spec.index_of(c));
+                if let Some(m) = end_index.and_then(|i| mark.get_mut(i)) {
                     *m |= 1;
                 }
             }

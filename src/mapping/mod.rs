@@ -4,6 +4,7 @@
 //!   image rows, point clouds, a binary wire message) is adapted to one [`RangeScan`].
 //! * [`grid`]: a 2D [`OccupancyGrid`] updated by ray casting a [`RangeScan`] (the
 //!   `scan2occ_grid` plugin); returns the changed cell box so callers can publish only what moved.
+//! * [`raycast`]: the cell walk along a segment, shared by scan insertion and line-of-sight checks.
 //! * [`export`]: the grid as PNG and in the ROS `map_server` format (PGM + YAML), both ways.
 //! * [`layers`]: a [`LayeredMap`], one layer per drone fused into one global grid.
 //! * [`graph`]: a [`TopoGraph`] (nodes + weighted edges), built from an indoor-farm description

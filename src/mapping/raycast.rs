@@ -29,40 +29,44 @@ pub fn trace_segment(
     b: Vector2<f64>,
     mut visit: impl FnMut(usize) -> bool,
 ) -> TraceEnd {
-    let res = spec.resolution_m;
+    let inv_res = 1.0 / spec.resolution_m;
     let w = f64::from(spec.width_cells);
     let h = f64::from(spec.height_cells);
-    let p0 = (a - spec.origin_enu_m) / res;
-    let p1 = (b - spec.origin_enu_m) / res;
+    let p0 = (a - spec.origin_enu_m) * inv_res;
+    let p1 = (b - spec.origin_enu_m) * inv_res;
     let d = p1 - p0;
     if !(p0.x.is_finite() && p0.y.is_finite() && p1.x.is_finite() && p1.y.is_finite()) {
         return TraceEnd::Outside;
     }
+    let inside = |p: &Vector2<f64>| p.x >= 0.0 && p.y >= 0.0 && p.x < w && p.y < h;
 
-    // Liang–Barsky clip of the parametric segment p0 + t d, t in [0, 1], to [0, w] x [0, h].
+    // Liang–Barsky clip of the parametric segment p0 + t d, t in [0, 1], to [0, w] x [0, h],
+    // skipped in the common case of both ends inside.
     let mut t0 = 0.0_f64;
     let mut t1 = 1.0_f64;
-    for (p, q) in [(-d.x, p0.x), (d.x, w - p0.x), (-d.y, p0.y), (d.y, h - p0.y)] {
-        if p == 0.0 {
-            if q < 0.0 {
-                return TraceEnd::Outside;
-            }
-        } else {
-            let r = q / p;
-            if p < 0.0 {
-                if r > t1 {
+    let end_inside = inside(&p1);
+    if !(inside(&p0) && end_inside) {
+        for (p, q) in [(-d.x, p0.x), (d.x, w - p0.x), (-d.y, p0.y), (d.y, h - p0.y)] {
+            if p == 0.0 {
+                if q < 0.0 {
                     return TraceEnd::Outside;
                 }
-                t0 = t0.max(r);
             } else {
-                if r < t0 {
-                    return TraceEnd::Outside;
+                let r = q / p;
+                if p < 0.0 {
+                    if r > t1 {
+                        return TraceEnd::Outside;
+                    }
+                    t0 = t0.max(r);
+                } else {
+                    if r < t0 {
+                        return TraceEnd::Outside;
+                    }
+                    t1 = t1.min(r);
                 }
-                t1 = t1.min(r);
             }
         }
     }
-    let end_inside = t1 >= 1.0 && spec.cell_at(b).is_some();
 
     let wi = i64::from(spec.width_cells);
     let hi = i64::from(spec.height_cells);
@@ -88,43 +92,42 @@ pub fn trace_segment(
         f64::INFINITY
     };
     let mut t_max_x = if d.x > 0.0 {
-        ((cx + 1) as f64 - p0.x) / d.x
+        ((cx + 1) as f64 - p0.x) * t_delta_x
     } else if d.x < 0.0 {
-        (cx as f64 - p0.x) / d.x
+        (p0.x - cx as f64) * t_delta_x
     } else {
         f64::INFINITY
     };
     let mut t_max_y = if d.y > 0.0 {
-        ((cy + 1) as f64 - p0.y) / d.y
+        ((cy + 1) as f64 - p0.y) * t_delta_y
     } else if d.y < 0.0 {
-        (cy as f64 - p0.y) / d.y
+        (p0.y - cy as f64) * t_delta_y
     } else {
         f64::INFINITY
     };
 
-    // Each step moves one cell closer (Manhattan) to the end cell, so the loop terminates even
-    // when rounding makes the t comparisons disagree with the clamped end cell.
-    loop {
-        if !visit((cy * wi + cx) as usize) {
+    // Each step moves one cell closer (Manhattan) to the end cell, so exactly `steps` steps are
+    // taken and the walk ends on the end cell even when rounding makes the t comparisons
+    // disagree with it. The flat index is stepped along with the coordinates.
+    let steps = (ex - cx).abs() + (ey - cy).abs();
+    let row_step = step_y * wi;
+    let mut idx = cy * wi + cx;
+    for _ in 0..steps {
+        if !visit(idx as usize) {
             return TraceEnd::Stopped;
         }
-        if cx == ex && cy == ey {
-            break;
-        }
-        let go_x = if cx == ex {
-            false
-        } else if cy == ey {
-            true
-        } else {
-            t_max_x < t_max_y
-        };
-        if go_x {
+        if cx != ex && (cy == ey || t_max_x < t_max_y) {
             cx += step_x;
+            idx += step_x;
             t_max_x += t_delta_x;
         } else {
             cy += step_y;
+            idx += row_step;
             t_max_y += t_delta_y;
         }
+    }
+    if !visit(idx as usize) {
+        return TraceEnd::Stopped;
     }
     if end_inside {
         TraceEnd::EndInside

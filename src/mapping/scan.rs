@@ -73,8 +73,8 @@ impl RangeScan {
 
     /// Unit vector of a beam in the world ENU xy plane.
     pub fn beam_direction_enu(&self, beam: &Beam) -> Vector2<f64> {
-        let a = self.yaw_rad + beam.angle_rad;
-        Vector2::new(a.cos(), a.sin())
+        let (sin, cos) = (self.yaw_rad + beam.angle_rad).sin_cos();
+        Vector2::new(cos, sin)
     }
 
     /// Decodes the binary `KSC1` message described in the module docs.

@@ -42,67 +42,74 @@ impl DistanceField {
         let w = spec.width_cells as usize;
         let h = spec.height_cells as usize;
         let n = w * h;
-        let is_obstacle = |i: usize| obstacle.get(i).copied().unwrap_or(false);
+        let mut mask = obstacle
+            .get(..n)
+            .map_or_else(|| obstacle.to_vec(), <[bool]>::to_vec);
+        mask.resize(n, false);
 
-        // Column pass: vertical distance (cells) and row of the nearest obstacle in the column.
-        let far = (w + h) as u32 + 1;
-        let mut col_dist = vec![far; n];
+        // Column pass, row by row for locality: nearest obstacle row above and below per column.
+        let mut col_dist = vec![u32::MAX; n];
         let mut col_site_y = vec![NO_SITE; n];
-        for x in 0..w {
-            let mut last: Option<usize> = None;
-            for y in 0..h {
-                let i = y * w + x;
-                if is_obstacle(i) {
-                    last = Some(y);
+        let mut last = vec![NO_SITE; w];
+        let rows = mask
+            .chunks_exact(w)
+            .zip(col_dist.chunks_exact_mut(w))
+            .zip(col_site_y.chunks_exact_mut(w))
+            .enumerate();
+        for (y, ((obs, dist), site)) in rows {
+            let y = y as u32;
+            for (((&o, d), s), l) in obs.iter().zip(dist).zip(site).zip(last.iter_mut()) {
+                if o {
+                    *l = y;
                 }
-                if let (Some(ly), Some(d), Some(s)) =
-                    (last, col_dist.get_mut(i), col_site_y.get_mut(i))
-                {
-                    *d = (y - ly) as u32;
-                    *s = ly as u32;
+                if *l != NO_SITE {
+                    *d = y - *l;
+                    *s = *l;
                 }
             }
-            let mut last: Option<usize> = None;
-            for y in (0..h).rev() {
-                let i = y * w + x;
-                if is_obstacle(i) {
-                    last = Some(y);
+        }
+        last.fill(NO_SITE);
+        let rows = mask
+            .chunks_exact(w)
+            .zip(col_dist.chunks_exact_mut(w))
+            .zip(col_site_y.chunks_exact_mut(w))
+            .enumerate()
+            .rev();
+        for (y, ((obs, dist), site)) in rows {
+            let y = y as u32;
+            for (((&o, d), s), l) in obs.iter().zip(dist).zip(site).zip(last.iter_mut()) {
+                if o {
+                    *l = y;
                 }
-                if let (Some(ly), Some(d), Some(s)) =
-                    (last, col_dist.get_mut(i), col_site_y.get_mut(i))
-                {
-                    let dy = (ly - y) as u32;
-                    if dy < *d {
-                        *d = dy;
-                        *s = ly as u32;
-                    }
+                if *l != NO_SITE && *l - y < *d {
+                    *d = *l - y;
+                    *s = *l;
                 }
             }
         }
 
-        // Row pass: lower envelope of parabolas rooted at columns that see an obstacle.
-        let mut dist_m = vec![0.0f32; n];
-        let mut site = vec![NO_SITE; n];
-        let mut roots: Vec<usize> = Vec::with_capacity(w);
-        let mut bounds: Vec<f64> = Vec::with_capacity(w + 1);
+        // Row pass: lower envelope of the parabolas (x - q)^2 + f(q) rooted at columns q that
+        // see an obstacle; `bounds[k]` separates `roots[k]` and `roots[k + 1]`.
         let res = spec.resolution_m;
         let max_distance_m = ((w * w + h * h) as f64).sqrt() * res;
-        for y in 0..h {
-            let row = y * w;
-            let f = |q: usize| -> Option<f64> {
-                let i = row + q;
-                let s = *col_site_y.get(i)?;
-                (s != NO_SITE).then(|| f64::from(*col_dist.get(i).unwrap_or(&far)).powi(2))
-            };
+        let mut dist_m = vec![max_distance_m as f32; n];
+        let mut site = vec![NO_SITE; n];
+        let mut roots: Vec<(f64, f64, u32)> = Vec::with_capacity(w); // (q, f(q), site y)
+        let mut bounds: Vec<f64> = Vec::with_capacity(w);
+        let rows = col_dist
+            .chunks_exact(w)
+            .zip(col_site_y.chunks_exact(w))
+            .zip(dist_m.chunks_exact_mut(w))
+            .zip(site.chunks_exact_mut(w));
+        for (((cdist, csite), out_d), out_s) in rows {
             roots.clear();
             bounds.clear();
-            for q in 0..w {
-                let Some(fq) = f(q) else { continue };
-                // Pop parabolas hidden by the new one.
-                while let Some(&v) = roots.last() {
-                    let fv = f(v).unwrap_or(f64::INFINITY);
-                    let qf = q as f64;
-                    let vf = v as f64;
+            for (q, (&d, &sy)) in cdist.iter().zip(csite).enumerate() {
+                if sy == NO_SITE {
+                    continue;
+                }
+                let (qf, fq) = (q as f64, f64::from(d) * f64::from(d));
+                while let Some(&(vf, fv, _)) = roots.last() {
                     let s = ((fq + qf * qf) - (fv + vf * vf)) / (2.0 * (qf - vf));
                     if bounds.last().is_some_and(|&b| s <= b) {
                         roots.pop();
@@ -112,30 +119,23 @@ impl DistanceField {
                         break;
                     }
                 }
-                roots.push(q);
-            }
-            // bounds[k] separates roots[k] and roots[k + 1].
-            let mut k = 0;
-            for x in 0..w {
-                let i = row + x;
-                while bounds.get(k).is_some_and(|&b| b < x as f64) {
-                    k += 1;
-                }
-                let Some(&q) = roots.get(k) else { break };
-                let Some(fq) = f(q) else { break };
-                let dx = x as f64 - q as f64;
-                let d2 = dx * dx + fq;
-                if let (Some(d), Some(s), Some(&sy)) =
-                    (dist_m.get_mut(i), site.get_mut(i), col_site_y.get(row + q))
-                {
-                    *d = (d2.sqrt() * res).min(max_distance_m) as f32;
-                    *s = sy * w as u32 + q as u32;
-                }
+                roots.push((qf, fq, sy));
             }
             if roots.is_empty() {
-                for d in dist_m.get_mut(row..row + w).into_iter().flatten() {
-                    *d = max_distance_m as f32;
+                continue;
+            }
+            let mut k = 0;
+            for (x, (d, s)) in out_d.iter_mut().zip(out_s.iter_mut()).enumerate() {
+                let xf = x as f64;
+                while bounds.get(k).is_some_and(|&b| b < xf) {
+                    k += 1;
                 }
+                let Some(&(qf, fq, sy)) = roots.get(k) else {
+                    break;
+                };
+                let dx = xf - qf;
+                *d = ((dx * dx + fq).sqrt() * res).min(max_distance_m) as f32;
+                *s = sy * w as u32 + qf as u32;
             }
         }
         DistanceField {

@@ -133,7 +133,11 @@ impl PathPlanner for GraphAStarPlanner {
         }
         chain.reverse();
 
-        let mut waypoints_enu_m: Vec<Vector3<f64>> = chain.iter().filter_map(|&i| pos(i)).collect();
+        let mut waypoints_enu_m: Vec<Vector3<f64>> = chain
+            .iter()
+            .filter_map(|&i| pos(i))
+            .skip_while(|p| (p - req.start_enu_m).norm() < 1e-6)
+            .collect();
         let goal_point = Vector3::new(req.goal_enu_m.x, req.goal_enu_m.y, req.flight_height_m);
         if waypoints_enu_m
             .last()
@@ -161,5 +165,91 @@ impl PathPlanner for GraphAStarPlanner {
             cost,
             min_clearance_m: min_clearance,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector2;
+
+    use super::*;
+    use crate::mapping::graph::{FarmSpec, TopoGraph};
+    use crate::mapping::grid::{GridSpec, OccupancyGrid};
+    use crate::planning::{PlannerKind, UnknownPolicy};
+
+    fn farm_map(levels: Vec<f64>) -> PlanningMap {
+        let farm = FarmSpec {
+            rows: 2,
+            beds_per_row: 3,
+            bed_length_m: 2.0,
+            bed_width_m: 1.0,
+            aisle_width_m: 1.0,
+            origin_enu_m: Vector2::zeros(),
+            level_heights_m: levels,
+        };
+        let spec = GridSpec {
+            resolution_m: 0.5,
+            width_cells: 16,
+            height_cells: 10,
+            origin_enu_m: Vector2::zeros(),
+        };
+        PlanningMap::new(OccupancyGrid::new(spec).unwrap(), 50)
+            .with_graph(TopoGraph::from_indoor_farm(&farm).unwrap())
+    }
+
+    fn req(start: Vector3<f64>, goal: Vector3<f64>) -> PlanRequest {
+        PlanRequest {
+            start_enu_m: start,
+            goal_enu_m: goal,
+            flight_height_m: goal.z,
+            safety_distance_m: 0.0,
+            unknown: UnknownPolicy::Blocked,
+            kind: PlannerKind::GraphAStar,
+            max_map_age_s: None,
+        }
+    }
+
+    #[test]
+    fn farm_route_goes_round_the_west_head_corridor() {
+        // Aisles at y 0.5, 2.5, 4.5; bed 0 centre x 2, west ends x 0.5. Bed 0 of aisle 0 to bed
+        // 0 of aisle 2: 1.5 + 2 + 2 + 1.5 = 7 m (the east way is 5.5 + 4 + 5.5).
+        let m = farm_map(vec![1.0]);
+        let r = req(Vector3::new(2.0, 0.5, 1.0), Vector3::new(2.0, 4.5, 1.0));
+        let p = GraphAStarPlanner
+            .plan(&r, &m, &PlanBudget::expansions(1000))
+            .unwrap();
+        assert!((p.cost - 7.0).abs() < 1e-9);
+        assert_eq!(p.raw_cells, 5);
+        assert_eq!(
+            p.waypoints_enu_m,
+            vec![
+                Vector3::new(0.5, 0.5, 1.0),
+                Vector3::new(0.5, 2.5, 1.0),
+                Vector3::new(0.5, 4.5, 1.0),
+                Vector3::new(2.0, 4.5, 1.0),
+            ]
+        );
+        assert!((p.length_m - 7.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn level_change_uses_a_vertical_edge_at_an_aisle_end() {
+        let m = farm_map(vec![1.0, 3.0]);
+        // Bed 2 of aisle 1 (x 6) on level 0 to the same bed on level 1: via the east end
+        // (x 7.5): 1.5 + 2 + 1.5.
+        let r = req(Vector3::new(6.0, 2.5, 1.0), Vector3::new(6.0, 2.5, 3.0));
+        let p = GraphAStarPlanner
+            .plan(&r, &m, &PlanBudget::expansions(1000))
+            .unwrap();
+        assert!((p.cost - 5.0).abs() < 1e-9);
+        assert_eq!(
+            p.waypoints_enu_m.first(),
+            Some(&Vector3::new(7.5, 2.5, 1.0))
+        );
+        let tiny = PlanBudget::expansions(1);
+        assert!(matches!(
+            GraphAStarPlanner.plan(&r, &m, &tiny),
+            Err(PlanError::Timeout { .. })
+        ));
     }
 }

@@ -63,12 +63,16 @@ pub enum PlannerKind {
     GraphAStar,
 }
 
+/// Largest `extra` of [`UnknownPolicy::AllowedWithCost`] (keeps fixed-point costs in range).
+pub const MAX_UNKNOWN_EXTRA_COST: f64 = 1000.0;
+
 /// How unknown (`-1`) cells are treated.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum UnknownPolicy {
     Blocked,
-    /// Traversable; entering one costs `1 + extra` times a known free cell (`extra >= 0`).
+    /// Traversable; entering one costs `1 + extra` times a known free cell
+    /// (`0 <= extra <= MAX_UNKNOWN_EXTRA_COST`).
     AllowedWithCost(f64),
 }
 
@@ -189,10 +193,10 @@ impl PlanRequest {
             ));
         }
         if let UnknownPolicy::AllowedWithCost(c) = self.unknown {
-            if !(c.is_finite() && c >= 0.0) {
-                return Err(PlanError::InvalidRequest(
-                    "unknown cell cost must be >= 0".into(),
-                ));
+            if !(c.is_finite() && (0.0..=MAX_UNKNOWN_EXTRA_COST).contains(&c)) {
+                return Err(PlanError::InvalidRequest(format!(
+                    "unknown cell cost must be in 0..={MAX_UNKNOWN_EXTRA_COST}"
+                )));
             }
         }
         if let (Some(max_age_s), Some(now), Some(stamp)) =

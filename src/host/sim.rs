@@ -1,0 +1,53 @@
+//! A host flying the built-in simulator: N drones (`drone_0` ...) in one world.
+//!
+//! In: a world, the number of drones, a seed and the config. Out: a [`Host`] whose vehicles
+//! are the simulator's, stepped in simulated time (deterministic for a seed).
+
+use super::engine::{Host, HostConfig};
+use super::fleet::SimFleet;
+use super::payload;
+use crate::config::Config;
+use crate::core::{CoreConfig, DroneCore};
+use crate::estimator::geodetic::GeodeticOrigin;
+use crate::mission::Limits;
+use crate::platform::Platform;
+use crate::sim::world::World;
+use crate::sim::{Environment, SimWorld};
+use crate::types::Vec3;
+use std::time::Duration;
+
+/// Physics steps per control tick, as the simulator's own runner does.
+const PHYSICS_SUBSTEPS: u32 = 2;
+
+pub fn simulated_host(world: World, drones: usize, seed: u64, config: &Config) -> Host {
+    let environment = Environment {
+        wind_mps: Vec3::from(config.sim.wind_enu_mps),
+        turbulence_mps2: config.sim.turbulence_mps2,
+    };
+    let sim = SimWorld::new(world, drones, seed, environment);
+    let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
+    let registry = payload::registry();
+    let cores = sim
+        .vehicles
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let mut c = CoreConfig::new(&format!("drone_{i}"));
+            c.controller = config.controller;
+            c.behaviors = config.behaviors;
+            if let Some(o) = origin {
+                c.geo_origin = GeodeticOrigin(o);
+            }
+            DroneCore::new(c, v.capabilities(), registry.clone())
+        })
+        .collect();
+    Host::new(
+        cores,
+        Box::new(SimFleet::new(sim, PHYSICS_SUBSTEPS)),
+        HostConfig {
+            limits: Limits::from_config(config),
+            switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
+            tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
+        },
+    )
+}
