@@ -129,9 +129,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
     interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let start = Instant::now();
     let limit = Duration::from_secs_f64(args.max_time_s.max(1.0));
-    let mut plan = args
-        .mission_demo
-        .then(|| Plan::new(demo_plan(kestrel::types::Vec3::zeros(), 0.0), ready_timeout));
+    let mut plan = args.mission_demo.then(|| Plan::new(ready_timeout));
     let mut watch = StatusWatch::default();
     let policy = config.mavlink.on_link_regained;
     let ctrl_c = tokio::signal::ctrl_c();
@@ -228,8 +226,9 @@ impl StatusWatch {
     }
 }
 
-/// A list of behaviors flown in order once the autopilot is ready, restarting the interrupted
-/// one after a link loss when the policy is `resume`, and landing after a failure.
+/// The demo plan, placed at the vehicle's pose once the autopilot is ready and flown in order;
+/// the interrupted item restarts after a link loss when the policy is `resume`, and a failure
+/// ends with a landing.
 struct Plan {
     items: Vec<(String, Value)>,
     ready_timeout: Duration,
@@ -252,9 +251,9 @@ const LINK_WAIT: Duration = Duration::from_secs(30);
 const LANDING_WAIT: Duration = Duration::from_secs(120);
 
 impl Plan {
-    fn new(items: Vec<(String, Value)>, ready_timeout: Duration) -> Self {
+    fn new(ready_timeout: Duration) -> Self {
         Self {
-            items,
+            items: Vec::new(),
             ready_timeout,
             phase: Phase::WaitReady,
             started_at: None,
@@ -298,6 +297,8 @@ impl Plan {
             Phase::WaitReady => {
                 let since = *self.started_at.get_or_insert(now);
                 if link_ok && state.platform.ready_to_fly && state.estimate.valid.position {
+                    let pose = &state.estimate.pose;
+                    self.items = demo_plan(pose.position_m, pose.yaw_rad());
                     if let Some(e) = self.start(now, core, 0) {
                         self.fail(now, e);
                     }

@@ -217,7 +217,7 @@ impl Session {
         for r in requests {
             self.request(now, *r);
         }
-        self.stream_setpoint(now);
+        self.stream_setpoint(now, true);
     }
 
     /// Timers: link health, heartbeat, retries, actions, stream re-sends.
@@ -245,7 +245,7 @@ impl Session {
                 }
             }
         }
-        self.stream_setpoint(now);
+        self.stream_setpoint(now, false);
     }
 
     /// Status, the latest odometry, scans and finished requests since the last call.
@@ -258,14 +258,14 @@ impl Session {
         }
     }
 
-    fn stream_setpoint(&mut self, now: Duration) {
+    fn stream_setpoint(&mut self, now: Duration, from_control: bool) {
         if self.model.link(now) != LinkHealth::Ok {
             return;
         }
         let Some((system, component)) = self.model.autopilot() else {
             return;
         };
-        if let Some(sp) = self.streamer.poll(now) {
+        if let Some(sp) = self.streamer.poll(now, from_control) {
             let boot_ms = u32::try_from(now.as_millis()).unwrap_or(u32::MAX);
             self.stats.setpoints_sent += 1;
             let msg = setpoint::encode(&sp, boot_ms, system, component);
