@@ -222,3 +222,36 @@ fn px4_reboot_is_detected_and_the_link_comes_back() {
         "{out}"
     );
 }
+
+/// The autopilot process goes away and comes back on the same port: Kestrel reconnects (TCP:
+/// a new connection; UDP: the new peer is answered) and sees a fresh boot.
+fn reconnects_after_the_autopilot_restarts(p: Personality) {
+    let _one = serial();
+    let mut fake = Fake::start(p, &[]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--max-time-s", "14"]);
+    kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
+    std::thread::sleep(Duration::from_secs(2));
+    fake.restart(Duration::from_secs(2));
+    let lost = kestrel.wait_line("link: lost", Duration::from_secs(5));
+    kestrel.wait(Duration::from_secs(30));
+    let out = kestrel.output();
+    assert!(kestrel.line_after("link: ok", lost).is_some(), "{out}");
+    // ArduPilot streams only what this connection asked for: telemetry again means the
+    // message rates were requested again after reconnecting.
+    let ready_again = kestrel.line_after("ready to fly: true", lost);
+    assert!(
+        ready_again.is_some(),
+        "no telemetry after reconnecting:\n{out}"
+    );
+    assert_eq!(fake.state()["boot_count"], 1, "a new process");
+}
+
+#[test]
+fn px4_reconnects_after_the_autopilot_restarts() {
+    reconnects_after_the_autopilot_restarts(Personality::Px4);
+}
+
+#[test]
+fn ardupilot_reconnects_after_the_autopilot_restarts() {
+    reconnects_after_the_autopilot_restarts(Personality::Ardupilot);
+}
