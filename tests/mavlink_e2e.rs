@@ -255,3 +255,59 @@ fn px4_reconnects_after_the_autopilot_restarts() {
 fn ardupilot_reconnects_after_the_autopilot_restarts() {
     reconnects_after_the_autopilot_restarts(Personality::Ardupilot);
 }
+
+/// Kestrel between the autopilot and a ground station: the GCS gets the autopilot's own frames
+/// and its commands reach the autopilot, whose answer comes back to it.
+#[test]
+fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
+    use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
+    use mavlink::{MavHeader, MavlinkReader};
+    let _one = serial();
+    let p = Personality::Px4;
+    let fake = Fake::start(p, &[]);
+    let gcs = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    let port = gcs.local_addr().unwrap().port();
+    let config = format!("[mavlink]\nforward = [\"udpout:127.0.0.1:{port}\"]\n");
+    let _kestrel = Kestrel::run(p, &fake.connection, &config, &["--max-time-s", "20"]);
+    let mut buf = [0u8; 2048];
+    let recv = |buf: &mut [u8]| -> Option<(std::net::SocketAddr, MavHeader, MavMessage)> {
+        let (n, from) = gcs.recv_from(buf).ok()?;
+        let (h, m) = MavlinkReader::new(&buf[..n])
+            .read_any_message::<MavMessage>()
+            .ok()?;
+        Some((from, h, m))
+    };
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let kestrel_addr = loop {
+        assert!(std::time::Instant::now() < deadline, "no autopilot HEARTBEAT forwarded");
+        if let Some((from, h, MavMessage::HEARTBEAT(_))) = recv(&mut buf) {
+            if h.system_id == 1 && h.component_id == 1 {
+                break from;
+            }
+        }
+    };
+    let request = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: 148.0, // AUTOPILOT_VERSION
+        command: MavCmd::MAV_CMD_REQUEST_MESSAGE,
+        target_system: 1,
+        target_component: 1,
+        ..COMMAND_LONG_DATA::DEFAULT
+    });
+    let gcs_header = MavHeader {
+        system_id: 255,
+        component_id: 190,
+        sequence: 0,
+    };
+    let mut frame = Vec::new();
+    mavlink::write_v2_msg(&mut frame, gcs_header, &request).unwrap();
+    gcs.send_to(&frame, kestrel_addr).unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        assert!(std::time::Instant::now() < deadline, "no answer to the GCS command");
+        if let Some((_, _, MavMessage::AUTOPILOT_VERSION(v))) = recv(&mut buf) {
+            assert_eq!(v.uid, 0x4B45_5354_5245_4C00 + 1, "the fake's version record");
+            break;
+        }
+    }
+}
