@@ -266,7 +266,8 @@ fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
     let p = Personality::Px4;
     let fake = Fake::start(p, &[]);
     let gcs = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-    gcs.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
     let port = gcs.local_addr().unwrap().port();
     let config = format!("[mavlink]\nforward = [\"udpout:127.0.0.1:{port}\"]\n");
     let _kestrel = Kestrel::run(p, &fake.connection, &config, &["--max-time-s", "20"]);
@@ -280,7 +281,10 @@ fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
     };
     let deadline = std::time::Instant::now() + Duration::from_secs(10);
     let kestrel_addr = loop {
-        assert!(std::time::Instant::now() < deadline, "no autopilot HEARTBEAT forwarded");
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no autopilot HEARTBEAT forwarded"
+        );
         if let Some((from, h, MavMessage::HEARTBEAT(_))) = recv(&mut buf) {
             if h.system_id == 1 && h.component_id == 1 {
                 break from;
@@ -304,9 +308,16 @@ fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
     gcs.send_to(&frame, kestrel_addr).unwrap();
     let deadline = std::time::Instant::now() + Duration::from_secs(5);
     loop {
-        assert!(std::time::Instant::now() < deadline, "no answer to the GCS command");
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no answer to the GCS command"
+        );
         if let Some((_, _, MavMessage::AUTOPILOT_VERSION(v))) = recv(&mut buf) {
-            assert_eq!(v.uid, 0x4B45_5354_5245_4C00 + 1, "the fake's version record");
+            assert_eq!(
+                v.uid,
+                0x4B45_5354_5245_4C00 + 1,
+                "the fake's version record"
+            );
             break;
         }
     }
