@@ -322,3 +322,18 @@ fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
         }
     }
 }
+
+/// `platforms/sim.toml`: the same `kestrel run` loop over the built-in simulator in real time.
+#[test]
+fn run_flies_the_demo_on_the_simulator_platform() {
+    let _one = serial();
+    let mut kestrel = Kestrel::run_with_platform("platforms/sim.toml", "udpin:0.0.0.0:0", "", DEMO);
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    assert!(status.success(), "{}", kestrel.output());
+    let log = kestrel.flight_log();
+    let finished = log
+        .iter()
+        .filter(|r| r["type"] == "behavior" && r["event"] == "finished")
+        .count();
+    assert_eq!(finished, 4, "takeoff, go_to, follow_path, land");
+}

@@ -210,6 +210,16 @@ pub struct Kestrel {
 impl Kestrel {
     /// `kestrel run --platform P --connection C --log L <extra>`; `config` is written to a file.
     pub fn run(personality: Personality, connection: &str, config: &str, extra: &[&str]) -> Self {
+        Self::run_with_platform(personality.profile(), connection, config, extra)
+    }
+
+    /// `kestrel run` with any platform file.
+    pub fn run_with_platform(
+        platform: &str,
+        connection: &str,
+        config: &str,
+        extra: &[&str],
+    ) -> Self {
         let dir = tempfile::tempdir().unwrap();
         let config_path = dir.path().join("kestrel.toml");
         std::fs::write(&config_path, config).unwrap();
@@ -220,7 +230,7 @@ impl Kestrel {
             .env("RUST_BACKTRACE", "0")
             .arg("run")
             .args(["--config", config_path.to_str().unwrap()])
-            .args(["--platform", personality.profile()])
+            .args(["--platform", platform])
             .args(["--connection", connection])
             .args(["--log", log.to_str().unwrap()])
             .args(extra)
