@@ -75,6 +75,9 @@ class ArduPilotVehicle(Vehicle):
     def mode_name(self):
         return MODES.get(self.mode, str(self.mode))
 
+    def extra_state(self):
+        return {"ekf_position_ok": self.pos_ok, "origin_set": self.origin_set}
+
     def in_external_control(self):
         return self.mode == 4
 

@@ -128,6 +128,10 @@ class Px4Vehicle(Vehicle):
     def mode_name(self):
         return self.mode
 
+    def extra_state(self):
+        return {"offboard_signal": self.offboard_signal(), "failsafe": self.failsafe,
+                "intended_mode": self.intended_mode}
+
     def in_external_control(self):
         return self.mode == "OFFBOARD"
 

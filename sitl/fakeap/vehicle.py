@@ -636,4 +636,10 @@ class Vehicle:
                        "vel_enu_mps": [round(v, 3) for v in self.model.target.vel_enu]},
             "faults": self.faults.describe(self.clock.now()),
             "collision": bool(getattr(self, "_colliding", False)),
+            "last_setpoint_age_s": None if self.last_setpoint_sim is None
+            else round(self.clock.now() - self.last_setpoint_sim, 3),
+            **self.extra_state(),
         }
+
+    def extra_state(self):
+        return {}

@@ -129,9 +129,7 @@ def test_link_drop_and_reboot(fake_factory):
     assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
     f.control(cmd="link_drop", duration_s=2.0)
     time.sleep(0.2)
-    link.m.recv_match(blocking=False)
-    while link.m.recv_match(blocking=False):
-        pass
+    link.drain()
     t0 = time.time()
     # nothing arrives and commands are ignored while the link is down
     link.m.mav.command_long_send(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
@@ -142,11 +140,59 @@ def test_link_drop_and_reboot(fake_factory):
     before = link.recv("ATTITUDE", 2).time_boot_ms
     f.control(cmd="reboot", gap_s=2.0)
     time.sleep(0.3)
-    while link.m.recv_match(blocking=False):
-        pass
+    link.drain()
     assert link.recv("HEARTBEAT", 1.2) is None
     hb = link.recv("HEARTBEAT", 4)
     assert hb is not None and hb.base_mode == 29
     assert link.recv("ATTITUDE", 2).time_boot_ms < before
     st = f.control(cmd="state")
     assert st["boot_count"] == 2 and st["armed"] is False
+
+
+def test_latency_fault_and_control_errors(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    t0 = time.time()
+    link.command(M.MAV_CMD_REQUEST_MESSAGE, 148)
+    fast = time.time() - t0
+    f.control(cmd="latency", latency_ms=150)
+    t0 = time.time()
+    assert link.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+    slow = time.time() - t0
+    assert fast < 0.1 and 0.29 < slow < 0.6  # 150 ms each way
+    f.control(cmd="clear_faults")
+    # errors are reported, the channel keeps working
+    f.ctl.sendall(b'{"cmd": "nope"}\n')
+    import json
+    reply = json.loads(f.ctl_file.readline())
+    assert reply["ok"] is False and "unknown cmd" in reply["error"]
+    f.ctl.sendall(b'{"cmd": "state", "vehicle": 5}\n')
+    assert json.loads(f.ctl_file.readline())["ok"] is False
+    assert f.control(cmd="ping")["ok"] is True
+
+
+def test_attitude_target_offboard(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    import math as _m
+
+    def att(thrust, pitch=0.0):
+        q = [_m.cos(pitch / 2), 0.0, _m.sin(pitch / 2), 0.0]
+        link.m.mav.set_attitude_target_send(0, link.ts, link.tc, 0b00000111, q, 0, 0, 0, thrust)
+
+    for _ in range(15):
+        att(0.5)
+        time.sleep(0.1)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    for _ in range(40):  # climb
+        att(0.8)
+        time.sleep(0.1)
+    z1 = f.control(cmd="state")["position_enu_m"][2]
+    assert z1 > 1.0
+    for _ in range(20):  # nose down, NED yaw 0 (north): move north
+        att(0.5, pitch=-0.2)
+        time.sleep(0.1)
+    st = f.control(cmd="state")
+    assert abs(st["yaw_enu_rad"] - _m.pi / 2) < 0.05
+    assert st["velocity_enu_mps"][1] > 1.0 and abs(st["velocity_enu_mps"][0]) < 0.2 and st["mode"] == "OFFBOARD"
