@@ -389,8 +389,8 @@ class Px4Vehicle(Vehicle):
             self.failsafe = True
             self.note("failsafe", "offboard signal lost")
             self.event("check_modes_offboard_signal", bytes([0, 0x40, 0, 0, 0x14]))
-            action = self.opts.offboard_loss_action
-            target_mode = "AUTO.LAND" if action == "land" else "POSCTL"
+            # COM_OBL_RC_ACT 4 = land; otherwise (0 = position mode) POSCTL, descending without RC
+            target_mode = "AUTO.LAND" if self.param("COM_OBL_RC_ACT") == 4 else "POSCTL"
             self.event("commander_failsafe_enter_generic", bytes([0, 0, 6, 0, 2]))
             self.set_mode(target_mode, reason="failsafe")
             self.failsafe = True

@@ -1,4 +1,5 @@
 """PX4 personality behaviour over MAVLink (pymavlink as the companion)."""
+import math
 import time
 
 from conftest import mavlink as M
@@ -196,3 +197,28 @@ def test_attitude_target_offboard(fake_factory):
     st = f.control(cmd="state")
     assert abs(st["yaw_enu_rad"] - _m.pi / 2) < 0.05
     assert st["velocity_enu_mps"][1] > 1.0 and abs(st["velocity_enu_mps"][0]) < 0.2 and st["mode"] == "OFFBOARD"
+
+
+def test_offboard_yaw_and_frames(fake_factory):
+    f = fake_factory("px4", speed=2.0)
+    link = f.connect()
+    yaw_mask = 3576 & ~0x400  # position + yaw
+    stream(link, 0.8, x=2, y=-3, z=-4, mask=yaw_mask, rate_hz=20)
+    link.m.mav.set_position_target_local_ned_send(0, 1, 1, 1, yaw_mask, 2, -3, -4, 0, 0, 0, 0, 0, 0, math.pi / 2, 0)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    end = time.time() + 5
+    while time.time() < end:
+        link.m.mav.set_position_target_local_ned_send(0, 1, 1, 1, yaw_mask, 2, -3, -4, 0, 0, 0, 0, 0, 0, math.pi / 2, 0)
+        time.sleep(0.05)
+    st = f.control(cmd="state")
+    # NED (north 2, east -3, down -4) == ENU (x -3, y 2, z 4); NED yaw +90 deg (east) == ENU yaw 0
+    assert abs(st["position_enu_m"][0] + 3) < 0.3 and abs(st["position_enu_m"][1] - 2) < 0.3
+    assert abs(st["position_enu_m"][2] - 4) < 0.3 and abs(st["yaw_enu_rad"]) < 0.05
+    link.drain()
+    att = link.recv("ATTITUDE", 2)
+    assert abs(att.yaw - math.pi / 2) < 0.05
+    gp = link.recv("GLOBAL_POSITION_INT", 2)
+    assert abs(gp.hdg - 9000) < 300 and abs(gp.relative_alt - 4000) < 300
+    lp = link.recv("LOCAL_POSITION_NED", 2)
+    assert abs(lp.x - 2) < 0.3 and abs(lp.y + 3) < 0.3 and abs(lp.z + 4) < 0.3
