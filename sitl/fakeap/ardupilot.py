@@ -24,6 +24,8 @@ class ArduPilotVehicle(Vehicle):
     name = "ardupilot"
     capabilities = 64495        # as captured (4.7.0-dev)
     flight_sw_version = 67567616
+    sensors_present_enabled_health = (1399979023, 1380031503, 1196530703)
+    battery_mv = 12600
 
     def limits(self):
         return Limits(max_speed_xy_mps=5.0, max_speed_up_mps=2.5, max_speed_down_mps=1.5,

@@ -480,22 +480,19 @@ class Vehicle:
         thr = 50 if (self.armed and not b.on_ground) else 0
         return M.MAVLink_vfr_hud_message(spd, spd, hdg, thr, self.geo()[2], b.vel[2])
 
+    # SYS_STATUS sensor bitmasks and battery as captured (overridden per personality)
+    sensors_present_enabled_health = (0x20802F, 0x20802F, 0x20802F)
+    battery_mv = 16200
+
     def msg_sys_status(self):
-        sensors = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x400 | 0x800 | 0x1000 | 0x8000 | 0x200000
-        return M.MAVLink_sys_status_message(sensors, sensors, sensors, 100, self.battery_mv(), -1,
-                                            self.battery_pct(), 0, 0, 0, 0, 0, 0)
-
-    def battery_pct(self):
-        if self.armed_time is None:
-            return 100
-        return 100
-
-    def battery_mv(self):
-        return 16200
+        present, enabled, health = self.sensors_present_enabled_health
+        return M.MAVLink_sys_status_message(present, enabled, health, 100, self.battery_mv, -100, 100,
+                                            0, 0, 0, 0, 0, 0)
 
     def msg_battery_status(self):
-        cells = [4050, 4050, 4050, 4050] + [65535] * 6
-        return M.MAVLink_battery_status_message(0, 0, 1, 32767, cells, -1, -1, -1, self.battery_pct())
+        cells = [self.battery_mv] + [65535] * 9
+        return M.MAVLink_battery_status_message(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767,
+                                                cells, -100, 0, -1, 100, 0, M.MAV_BATTERY_CHARGE_STATE_OK)
 
     def msg_system_time(self):
         return M.MAVLink_system_time_message(int(time.time() * 1e6), self.boot_ms())
