@@ -237,6 +237,31 @@ class ArduPilotVehicle(Vehicle):
             self.model.target = Target("position", (b.pos[0], b.pos[1], self.takeoff_alt_m),
                                        speed_up_mps=self.param("WPNAV_SPEED_UP") / 100)
             return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_DO_REPOSITION:
+            if pint(p[2]) & 1 and self.mode != 4:
+                if not self.set_mode(4, "DO_REPOSITION"):
+                    return M.MAV_RESULT_FAILED
+            if self.mode != 4 or not self.armed or not self.airborne:
+                return M.MAV_RESULT_FAILED
+            self.taking_off = False
+            self.model.target = self.reposition_target(p)
+            self.vel_target_time = None
+            return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_CONDITION_YAW:
+            if self.mode != 4 or not self.armed:
+                return M.MAV_RESULT_FAILED
+            b = self.model.body
+            angle = math.radians(p[1] or 0.0)
+            if pint(p[4]):  # relative, p3 direction: 1 clockwise, -1 counter-clockwise
+                yaw_ned = self.yaw_enu_to_ned(b.yaw_rad) + (angle if pint(p[3]) >= 0 else -angle)
+            else:
+                yaw_ned = angle
+            t = self.model.target
+            if t.kind == "idle" or not self.airborne:
+                return M.MAV_RESULT_FAILED
+            t.yaw_rad = self.yaw_ned_to_enu(yaw_ned)
+            t.yaw_rate_rps = None
+            return M.MAV_RESULT_ACCEPTED
         if cmd == M.MAV_CMD_NAV_LAND:
             return M.MAV_RESULT_ACCEPTED if self.set_mode(9, "NAV_LAND") else M.MAV_RESULT_FAILED
         if cmd == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:

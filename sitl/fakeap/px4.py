@@ -260,6 +260,13 @@ class Px4Vehicle(Vehicle):
             self.takeoff_alt_m = alt
             self.apply_mode_target()
             return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_DO_REPOSITION:
+            if not (self.armed and self.airborne):
+                return M.MAV_RESULT_TEMPORARILY_REJECTED
+            target = self.reposition_target(p)
+            self.set_mode("AUTO.LOITER")
+            self.model.target = target
+            return M.MAV_RESULT_ACCEPTED
         if cmd == M.MAV_CMD_NAV_LAND:
             return self.request_mode("AUTO.LAND")
         if cmd == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:

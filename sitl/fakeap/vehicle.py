@@ -82,6 +82,7 @@ class Vehicle:
         self.model.target = Target(kind="idle")
         self.note("fault", f"reboot, silent for {gap_s} s")
         self._pending_boot = True
+        self.link.set_down(True)
 
     # ------------------------------------------------------------------ personality hooks
     def limits(self):
@@ -382,6 +383,7 @@ class Vehicle:
     def tick(self, now, dt):
         if getattr(self, "_pending_boot", False) and now >= self.rebooting_until:
             self._pending_boot = False
+            self.link.set_down(False)
             self.link.reset_peer()
             self.boot()
         if now < self.rebooting_until:
@@ -601,6 +603,21 @@ class Vehicle:
 
     def on_attitude_target(self, msg):
         pass
+
+    def reposition_target(self, p):
+        """DO_REPOSITION p5 lat, p6 lon (degrees, or degE7 from COMMAND_INT), p7 AMSL alt, p4 yaw deg."""
+        lat, lon, alt = p[5], p[6], p[7]
+        if any(v is None or v != v for v in (lat, lon)):
+            b = self.model.body
+            x, y = b.pos[0], b.pos[1]
+        else:
+            if abs(lat) > 1000 or abs(lon) > 1000:
+                lat, lon = lat / 1e7, lon / 1e7
+            x, y, _ = self.world.geo_to_enu(lat, lon, 0.0)
+        z = self.model.body.pos[2] if alt is None or alt != alt else alt - self.world.origin["alt_m"]
+        yaw = None if p[4] is None or p[4] != p[4] else self.yaw_ned_to_enu(math.radians(p[4]))
+        speed = p[1] if p[1] is not None and p[1] == p[1] and p[1] > 0 else None
+        return Target("position", (x, y, z), (0.0, 0.0, 0.0), yaw, None, speed_xy_mps=speed)
 
     def hold_here(self):
         b = self.model.body
