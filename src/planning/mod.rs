@@ -94,7 +94,8 @@ pub struct PlanRequest {
 }
 
 /// Limits of one planning call. The caller measures time; planners only read these.
-#[derive(Debug, Clone, Copy, Default)]
+/// `Default` is unlimited: no expansion limit, no flags, no staleness check.
+#[derive(Debug, Clone, Copy)]
 pub struct PlanBudget<'a> {
     /// Node expansions before giving up with [`PlanError::Timeout`].
     pub max_expansions: usize,
@@ -104,6 +105,17 @@ pub struct PlanBudget<'a> {
     pub deadline_passed: Option<&'a AtomicBool>,
     /// Current time (seconds, same clock as [`PlanningMap::stamp_s`]) for the staleness check.
     pub now_s: Option<f64>,
+}
+
+impl Default for PlanBudget<'_> {
+    fn default() -> Self {
+        PlanBudget {
+            max_expansions: usize::MAX,
+            cancel: None,
+            deadline_passed: None,
+            now_s: None,
+        }
+    }
 }
 
 impl<'a> PlanBudget<'a> {
