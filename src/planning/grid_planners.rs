@@ -11,7 +11,7 @@
 //! * Voronoi: the octile heuristic (still admissible: every multiplier is >= 1); entering a cell off the generalised Voronoi diagram costs
 //!   `1 + VORONOI_OFF_DIAGRAM_PENALTY` times its length, so the path joins the diagram (the
 //!   ridge of maximal clearance), follows it and leaves it near the goal; pruning keeps the
-//!   raw path's clearance. (Aerostack2 instead adds `300 - distance` per cell and ignores the
+//!   raw path's clearance to within one cell or 20 %. (Aerostack2 instead adds `300 - distance` per cell and ignores the
 //!   safety distance.)
 
 use std::sync::Mutex;
@@ -156,8 +156,14 @@ fn plan_on_grid(
 
     let clearance = |i: usize| rules.clearance(i);
     let anchors = if voronoi {
+        // A shortcut may come closer to obstacles than the stretch it replaces by one cell or
+        // 20 %, whichever is less (and never inside the safety distance): the diagram's ridge
+        // wiggles by a cell, and following it exactly keeps dozens of waypoints.
+        let cell = spec.resolution_m as f32;
         prune(&spec, &found.cells, clearance, |c, m| {
-            rules.base(c).is_some() && rules.clearance(c) >= m
+            let d = rules.clearance(c);
+            let slack = cell.min(0.2 * m);
+            rules.base(c).is_some() && d >= m - slack && (d > rules.safety_m || d >= m)
         })
     } else {
         prune(&spec, &found.cells, clearance, |c, m| {
@@ -427,13 +433,15 @@ mod tests {
         let a = plan(&r, &m).unwrap();
         r.kind = PlannerKind::Voronoi;
         let v = plan(&r, &m).unwrap();
+        // Gap middles are 0.3 m (below) and 0.4 m (above) from obstacles; pruning may give up
+        // 20 % of that.
         assert!(
-            a.min_clearance_m < 0.25,
+            a.min_clearance_m < 0.21,
             "A* clearance {}",
             a.min_clearance_m
         );
         assert!(
-            v.min_clearance_m >= 0.3,
+            v.min_clearance_m >= 0.25,
             "Voronoi clearance {}",
             v.min_clearance_m
         );
