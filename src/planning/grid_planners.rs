@@ -135,10 +135,26 @@ fn plan_on_grid(
             Err(_) => &mut fresh,
         };
         if method == Method::AStar && rules.uniform() && rules.free(start) {
-            let w = i64::from(spec.width_cells);
-            let h = i64::from(spec.height_cells);
+            // Jumps test each scanned cell and its sides: a padded free-cell mask makes that one
+            // byte load with no range test (the one-cell border is blocked).
+            let w = spec.width_cells as usize;
+            let padded_w = w + 2;
+            let mut mask = vec![false; padded_w * (spec.height_cells as usize + 2)];
+            for (row, cells) in mask
+                .chunks_exact_mut(padded_w)
+                .skip(1)
+                .take(spec.height_cells as usize)
+                .enumerate()
+            {
+                let first = row * w;
+                for (x, m) in cells.iter_mut().skip(1).take(w).enumerate() {
+                    *m = rules.free(first + x);
+                }
+            }
+            let pw = padded_w as i64;
             let walkable = |x: i64, y: i64| {
-                x >= 0 && y >= 0 && x < w && y < h && rules.free((y * w + x) as usize)
+                let i = (y + 1) * pw + x + 1;
+                i >= 0 && mask.get(i as usize).copied().unwrap_or(false)
             };
             jump_point_search(s, &spec, start, goal, budget, walkable)?
         } else {

@@ -13,7 +13,12 @@
 //! (orthogonal step = resolution, diagonal = resolution * sqrt 2). A cell is blocked when it is
 //! occupied (`>= occupied_threshold`), unknown under [`UnknownPolicy::Blocked`], or within
 //! `safety_distance_m` of an occupied cell (round inflation from the exact distance transform).
-//! A start inside the inflated zone may climb out along non-decreasing clearance.
+//! A start inside the inflated zone may climb out along strictly increasing clearance. Unknown
+//! cells are not obstacles for the distance field (an exploring drone must be able to approach a
+//! frontier); the unknown policy only decides whether they may be entered.
+//!
+//! Planners keep their search buffers between calls behind a `Mutex`; a call that finds them
+//! busy (another thread planning with the same planner) uses fresh buffers instead of waiting.
 
 pub mod coverage;
 pub mod distance;
