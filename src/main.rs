@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_serve;
 mod cli_sim;
 
 #[derive(Parser)]
