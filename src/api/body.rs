@@ -35,3 +35,22 @@ pub fn parse<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
         serde_json::from_slice(bytes).map_err(|e| ApiError::BadJson(e.to_string()))?;
     serde_json::from_value(value).map_err(|e| ApiError::BadRequest(e.to_string()))
 }
+
+/// Middleware: a body announced larger than the limit is refused before it is read, so the
+/// client gets its 413 without sending the body (bodies without a length are cut at the
+/// limit by `DefaultBodyLimit`).
+pub async fn refuse_large(
+    axum::extract::State(state): axum::extract::State<ApiState>,
+    request: Request,
+    next: axum::middleware::Next,
+) -> Result<axum::response::Response, ApiError> {
+    let announced = request
+        .headers()
+        .get(axum::http::header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<usize>().ok());
+    if announced.is_some_and(|n| n > state.max_body_bytes) {
+        return Err(ApiError::TooLarge(state.max_body_bytes));
+    }
+    Ok(next.run(request).await)
+}

@@ -81,6 +81,10 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         .merge(open)
         .fallback(web::static_file)
         .layer(DefaultBodyLimit::max(api.max_body_bytes))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            body::refuse_large,
+        ))
         .layer(tower_http::timeout::TimeoutLayer::with_status_code(
             axum::http::StatusCode::REQUEST_TIMEOUT,
             Duration::from_secs(30),
