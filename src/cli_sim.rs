@@ -23,43 +23,43 @@ use std::time::Duration;
 pub struct SimArgs {
     /// World file (JSON; the thesis layout or its extensions). Default: an open field.
     #[arg(long)]
-    world: Option<PathBuf>,
+    pub(crate) world: Option<PathBuf>,
     /// Number of drones (drone_0 ... drone_{N-1}); start poses from the world file when it has them.
     #[arg(long, default_value_t = 1)]
-    drones: usize,
+    pub(crate) drones: usize,
     /// Simulated seconds per wall-clock second, or `max` for as fast as the CPU allows.
     #[arg(long, default_value = "1")]
-    speedup: String,
+    pub(crate) speedup: String,
     /// Seed for noise and sensors; the same seed gives the same flight.
     #[arg(long, default_value_t = 0)]
-    seed: u64,
+    pub(crate) seed: u64,
     /// Flight log (JSON lines). Default: kestrel-sim-<seed>.jsonl in the current directory.
     #[arg(long)]
-    log: Option<PathBuf>,
+    pub(crate) log: Option<PathBuf>,
     /// Exit when the flight is over: 0 if it succeeded, non-zero with the reason if not.
     #[arg(long)]
-    exit_when_done: bool,
+    pub(crate) exit_when_done: bool,
     /// Config file (TOML) for controller, behaviors, simulator, API and geofence settings.
     #[arg(long)]
-    config: Option<PathBuf>,
+    pub(crate) config: Option<PathBuf>,
     /// With --exit-when-done: give up after this many simulated seconds.
     #[arg(long, default_value_t = 600.0)]
-    max_sim_time_s: f64,
+    pub(crate) max_sim_time_s: f64,
     /// Serve the API on ADDR:PORT (default: the config's [api] listen, 127.0.0.1:8080).
     #[arg(long)]
-    listen: Option<String>,
+    pub(crate) listen: Option<String>,
     /// Fly this mission (JSON, Aerostack2's format) instead of the demo.
     #[arg(long)]
-    mission: Option<PathBuf>,
+    pub(crate) mission: Option<PathBuf>,
     /// Scenario (JSON): frames to register and the mission to fly.
     #[arg(long)]
-    scenario: Option<PathBuf>,
+    pub(crate) scenario: Option<PathBuf>,
     /// Start with every drone landed and idle, waiting for the API.
     #[arg(long)]
-    no_demo: bool,
+    pub(crate) no_demo: bool,
     /// Keep loaded missions and frames in this directory across restarts.
     #[arg(long)]
-    state_dir: Option<PathBuf>,
+    pub(crate) state_dir: Option<PathBuf>,
 }
 
 pub fn parse_speedup(s: &str) -> Result<Pace> {

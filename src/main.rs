@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_mission;
 mod cli_serve;
 mod cli_sim;
 
@@ -22,6 +23,9 @@ struct Cli {
 enum Command {
     /// Fly in the built-in simulator (no hardware needed). Without options: the demo flight.
     Sim(cli_sim::SimArgs),
+    /// Missions: validate a file, fly it in the simulator, print the schema.
+    #[command(subcommand)]
+    Mission(cli_mission::MissionCommand),
     /// Check a config file and print the validated result.
     CheckConfig {
         /// Config file (TOML).
@@ -40,6 +44,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Sim(args) => cli_sim::run(args),
+        Command::Mission(command) => cli_mission::run(command),
         Command::CheckConfig { config } => {
             let c = kestrel::config::Config::load(&config)
                 .with_context(|| format!("checking {}", config.display()))?;
