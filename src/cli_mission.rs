@@ -70,6 +70,7 @@ pub fn run(command: MissionCommand) -> Result<()> {
             log: a.log,
             exit_when_done: true,
             config: a.config,
+            sensor: None,
             max_sim_time_s: a.max_sim_time_s,
             listen: Some(a.listen),
             mission: Some(a.file),
@@ -96,6 +97,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
         log: None,
         exit_when_done: true,
         config: None,
+        sensor: None,
         max_sim_time_s: 0.0,
         listen: None,
         mission: None,
@@ -103,7 +105,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
         no_demo: true,
         state_dir: None,
     };
-    let host = cli_sim::build(&args, &config, scenario.as_ref())?;
+    let (host, _) = cli_sim::build(&args, &config, scenario.as_ref())?;
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {}", a.file.display()))?;
     let value: serde_json::Value = match serde_json::from_str(&text) {

@@ -10,10 +10,11 @@ use kestrel::flightlog::FlightLog;
 use kestrel::host::logwriter;
 use kestrel::host::runtime::Pace;
 use kestrel::host::scenario::Scenario;
-use kestrel::host::{simulated_host, Host};
+use kestrel::host::sim::{sim_world, simulated_host_in};
+use kestrel::host::Host;
 use kestrel::mission::{Action, MissionUpdate};
-use kestrel::sim::script::demo_plan;
-use kestrel::sim::world::World;
+use kestrel::sim::script::{demo_plans, PlanItem};
+use kestrel::sim::world::{SensorConfig, World};
 use serde_json::{json, Value};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -42,6 +43,9 @@ pub struct SimArgs {
     /// Config file (TOML) for controller, behaviors, simulator, API and geofence settings.
     #[arg(long)]
     pub(crate) config: Option<PathBuf>,
+    /// Range sensor of every drone: `multiranger`, `lidar` or `none` (overrides the world file).
+    #[arg(long)]
+    pub(crate) sensor: Option<String>,
     /// With --exit-when-done: give up after this many simulated seconds.
     #[arg(long, default_value_t = 600.0)]
     pub(crate) max_sim_time_s: f64,
@@ -75,9 +79,9 @@ pub fn parse_speedup(s: &str) -> Result<Pace> {
     Ok(Pace::Factor(f))
 }
 
-/// The built-in demo as a mission for `drone`.
-fn demo_mission(drone: &str) -> Value {
-    let plan: Vec<Value> = demo_plan()
+/// A demo plan as a mission for `drone`.
+fn demo_mission(drone: &str, plan: Vec<PlanItem>) -> Value {
+    let plan: Vec<Value> = plan
         .into_iter()
         .map(|(behavior, args)| json!({"behavior": behavior, "args": args}))
         .collect();
@@ -121,16 +125,30 @@ pub fn execute(host: &mut Host, mission: Value) -> Result<(usize, u32)> {
     Ok((index, id))
 }
 
-/// Builds the simulated host: config, world, scenario frames, saved state.
-pub fn build(args: &SimArgs, config: &Config, scenario: Option<&Scenario>) -> Result<Host> {
-    let world = match &args.world {
+/// Builds the simulated host (config, world, sensors, scenario frames, saved state) and the
+/// demo plan of each drone, placed clear of obstacles and of each other.
+pub fn build(
+    args: &SimArgs,
+    config: &Config,
+    scenario: Option<&Scenario>,
+) -> Result<(Host, Vec<Vec<PlanItem>>)> {
+    let mut world = match &args.world {
         Some(p) => World::load(p)?,
         None => World::empty(),
     };
+    if let Some(sensor) = config.sim.sensor {
+        world.sensor = sensor;
+    }
+    if let Some(name) = &args.sensor {
+        world.sensor = SensorConfig::by_name(name)
+            .with_context(|| format!("--sensor takes multiranger, lidar or none, got `{name}`"))?;
+    }
     let drones = args
         .drones
         .max(scenario.and_then(|s| s.drones).unwrap_or(1));
-    let mut host = simulated_host(world, drones, args.seed, config);
+    let sim = sim_world(world, drones, args.seed, config);
+    let demos = demo_plans(&sim);
+    let mut host = simulated_host_in(sim, config);
     // One tick, so every drone has a position before missions are validated and started.
     host.step();
     if let Some(dir) = &args.state_dir {
@@ -145,7 +163,7 @@ pub fn build(args: &SimArgs, config: &Config, scenario: Option<&Scenario>) -> Re
         host.set_frame(frame)
             .with_context(|| format!("registering frame {id}"))?;
     }
-    Ok(host)
+    Ok((host, demos))
 }
 
 pub fn load_config(path: Option<&Path>) -> Result<Config> {
@@ -162,7 +180,7 @@ pub fn run(args: SimArgs) -> Result<()> {
     }
     let config = load_config(args.config.as_deref())?;
     let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
-    let mut host = build(&args, &config, scenario.as_ref())?;
+    let (mut host, demos) = build(&args, &config, scenario.as_ref())?;
     let log_path = args
         .log
         .clone()
@@ -181,8 +199,9 @@ pub fn run(args: SimArgs) -> Result<()> {
             .with_context(|| format!("flying {}", file.display()))?]
     } else {
         host.drone_ids()
-            .iter()
-            .map(|d| execute(&mut host, demo_mission(d)))
+            .into_iter()
+            .zip(demos)
+            .map(|(d, plan)| execute(&mut host, demo_mission(&d, plan)))
             .collect::<Result<Vec<_>>>()?
     };
     println!(

@@ -1,11 +1,12 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
-//! `[api]`, `[geofence]`, `[mission]`.
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`.
 
 use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
+use crate::sim::world::SensorConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -17,6 +18,7 @@ pub struct Config {
     pub controller: ControllerConfig,
     pub behaviors: BehaviorConfig,
     pub sim: SimSection,
+    pub mavlink: crate::platform::mavlink::config::MavlinkSection,
     pub api: ApiSection,
     pub geofence: GeofenceSection,
     pub mission: MissionSection,
@@ -59,6 +61,9 @@ pub struct SimSection {
     pub wind_enu_mps: [f64; 3],
     /// Random acceleration standard deviation per axis (m/s^2).
     pub turbulence_mps2: f64,
+    /// Range sensor of every simulated drone (`kind` = `multiranger`, `lidar360` or `none`);
+    /// replaces the world file's. Absent: the world file's, else the multi-ranger.
+    pub sensor: Option<SensorConfig>,
 }
 
 impl Default for SimSection {
@@ -66,6 +71,7 @@ impl Default for SimSection {
         Self {
             wind_enu_mps: [0.0; 3],
             turbulence_mps2: 0.0,
+            sensor: None,
         }
     }
 }
@@ -214,6 +220,7 @@ impl Config {
             o.validate()
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;
         }
+        self.mavlink.validate()?;
         if self.drone.id.is_empty() {
             return Err(("drone.id".into(), "must not be empty".into()));
         }
@@ -260,6 +267,12 @@ mod tests {
     fn empty_config_gives_defaults() {
         let c = Config::parse("", "test").unwrap();
         assert_eq!(c.drone.id, "drone_0");
+    }
+
+    #[test]
+    fn sim_sensor_is_chosen_by_kind() {
+        let c = Config::parse("[sim.sensor]\nkind = \"lidar360\"\n", "test").unwrap();
+        assert_eq!(c.sim.sensor, Some(SensorConfig::lidar()));
     }
 
     #[test]

@@ -195,7 +195,7 @@ impl DroneCore {
                 .last_error
                 .clone()
                 .unwrap_or_else(|| "crashed".into());
-            self.server.stop_all(&reason, &ctx);
+            self.server.fail_all(&reason, &ctx);
             self.server.clear_hold();
         }
         let out = self.server.tick(&ctx);

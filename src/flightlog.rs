@@ -54,13 +54,14 @@ impl FlightLog {
         }
     }
 
+    /// Whether a pose record of `drone` is due at `t` (so callers can skip gathering it).
+    pub fn pose_due(&self, t: Duration, drone: &str) -> bool {
+        self.next_pose.get(drone).is_none_or(|next| t >= *next)
+    }
+
     /// Writes a pose record if one is due for this drone.
     pub fn pose(&mut self, t: Duration, state: &VehicleState, behavior: Option<&str>) {
-        let due = self
-            .next_pose
-            .get(&state.drone)
-            .is_none_or(|next| t >= *next);
-        if !due {
+        if !self.pose_due(t, &state.drone) {
             return;
         }
         self.next_pose

@@ -4,7 +4,8 @@ use super::goal::{
     check_finite, check_positive, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs,
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
-use super::{yaw_target, Behavior, BehaviorContext, Step};
+use super::server::seconds_since;
+use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Step};
 use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
@@ -12,6 +13,7 @@ use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
+use std::time::Duration;
 
 #[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -69,6 +71,9 @@ pub struct FollowPath {
     next: usize,
     trajectory: Option<PathTrajectory>,
     yaw: ResolvedYaw,
+    /// Least path length left so far (m) and when it last shrank, to fail when stuck.
+    best_remaining_m: f64,
+    best_at: Duration,
 }
 
 impl FollowPath {
@@ -79,6 +84,8 @@ impl FollowPath {
             next: 0,
             trajectory: None,
             yaw: ResolvedYaw::Fixed(0.0),
+            best_remaining_m: f64::INFINITY,
+            best_at: Duration::ZERO,
         }
     }
 
@@ -108,7 +115,10 @@ impl FollowPath {
             ..TrajectoryLimits::default()
         };
         let remaining = self.waypoints.get(self.next..).unwrap_or(&[]);
-        self.trajectory = Some(PathTrajectory::new(ctx.position(), remaining, limits));
+        let trajectory = PathTrajectory::new(ctx.position(), remaining, limits);
+        self.best_remaining_m = trajectory.remaining_m();
+        self.best_at = ctx.now;
+        self.trajectory = Some(trajectory);
     }
 }
 
@@ -140,6 +150,18 @@ impl Behavior for FollowPath {
             return Step::Failed("no trajectory".into());
         };
         let sample = trajectory.advance(ctx.dt_s, &ctx.position());
+        // The reference waits for a lagging vehicle, so a vehicle that cannot follow shows
+        // as a path that stops getting shorter.
+        let remaining_m = trajectory.remaining_m();
+        if remaining_m < self.best_remaining_m - 0.1 {
+            self.best_remaining_m = remaining_m;
+            self.best_at = ctx.now;
+        } else if seconds_since(ctx.now, self.best_at) > ctx.config.no_progress_timeout_s {
+            return Step::Failed(format!(
+                "no progress for {:.0} s, {remaining_m:.2} m of path left",
+                ctx.config.no_progress_timeout_s
+            ));
+        }
         // Waypoints count as passed when the vehicle comes within the threshold.
         while let Some(w) = self.waypoints.get(self.next) {
             if (w - ctx.position()).norm() < ctx.config.waypoint_threshold_m
@@ -156,7 +178,10 @@ impl Behavior for FollowPath {
             .copied()
             .unwrap_or_else(|| ctx.position());
         let distance_to_end = (last - ctx.position()).norm();
-        if sample.finished && distance_to_end < ctx.config.goal_threshold_m {
+        if sample.finished
+            && distance_to_end < ctx.config.goal_threshold_m
+            && heading_reached(&self.yaw, ctx)
+        {
             return Step::Succeeded;
         }
         let next_point = self.waypoints.get(self.next).copied().unwrap_or(last);

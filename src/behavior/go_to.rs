@@ -5,7 +5,7 @@ use super::goal::{
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{yaw_target, Behavior, BehaviorContext, Step};
+use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Step};
 use crate::control::MotionReference;
 use crate::estimator::frames::EARTH;
 use crate::estimator::geodetic::GeoPoint;
@@ -200,7 +200,7 @@ impl Behavior for GoTo {
         };
         self.last_target = Some((target, ctx.now));
         let distance = (target - ctx.position()).norm();
-        if distance < ctx.config.goal_threshold_m {
+        if distance < ctx.config.goal_threshold_m && heading_reached(&self.yaw, ctx) {
             return Step::Succeeded;
         }
         if distance < self.best_distance_m - 0.1 {

@@ -156,3 +156,85 @@ impl Land {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::testing::Scene;
+
+    fn run(land: &mut Land, scene: &Scene, t: Duration) -> (Step, Vec<PlatformRequest>) {
+        let mut requests = Vec::new();
+        let step = land.run(&scene.ctx_at(t), &mut requests);
+        (step, requests)
+    }
+
+    #[test]
+    fn without_a_land_detector_touchdown_is_a_second_without_descent() {
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(1.0, 2.0, 2.0), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        let ms = Duration::from_millis;
+        // Descending: a reference below, never a disarm.
+        scene.set_position(Vec3::new(1.0, 2.0, 1.0), Vec3::new(0.0, 0.0, -0.5));
+        let (step, requests) = run(&mut land, &scene, ms(2000));
+        assert!(requests.is_empty());
+        match step {
+            Step::Running {
+                reference: Some(MotionReference::Position { position_enu_m, .. }),
+                ..
+            } => assert!(position_enu_m.z < 0.0 && position_enu_m.x == 1.0),
+            other => panic!("{other:?}"),
+        }
+        // On the ground (the platform still says flying): still for a second, then disarm.
+        scene.set_position(Vec3::new(1.0, 2.0, 0.0), Vec3::zeros());
+        assert!(run(&mut land, &scene, ms(4000)).1.is_empty());
+        assert!(run(&mut land, &scene, ms(4500)).1.is_empty());
+        let (_, requests) = run(&mut land, &scene, ms(5100));
+        assert_eq!(requests, [PlatformRequest::Disarm]);
+        scene.platform.armed = false;
+        assert_eq!(run(&mut land, &scene, ms(5200)).0, Step::Succeeded);
+    }
+
+    #[test]
+    fn a_refused_disarm_fails_with_the_autopilot_reason() {
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        scene.set_position(Vec3::zeros(), Vec3::zeros());
+        scene.platform.flight = FlightStatus::Landed;
+        scene.platform.last_error = Some("disarm refused: vehicle in air".into());
+        let (_, requests) = run(&mut land, &scene, Duration::from_secs(3));
+        assert_eq!(requests, [PlatformRequest::Disarm]);
+        let (step, _) = run(&mut land, &scene, Duration::from_secs(9));
+        assert_eq!(
+            step,
+            Step::Failed("landed but disarm refused: disarm refused: vehicle in air".into())
+        );
+    }
+
+    #[test]
+    fn native_land_asks_the_autopilot_once() {
+        let mut scene = Scene::flying();
+        scene.capabilities.native_land = true;
+        scene.set_position(Vec3::new(0.0, 0.0, 3.0), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        let (step, requests) = run(&mut land, &scene, Duration::from_secs(1));
+        assert_eq!(requests, [PlatformRequest::Land]);
+        assert!(matches!(
+            step,
+            Step::Running {
+                reference: None,
+                ..
+            }
+        ));
+        assert!(run(&mut land, &scene, Duration::from_secs(2)).1.is_empty());
+        scene.platform.armed = false;
+        assert_eq!(
+            run(&mut land, &scene, Duration::from_secs(3)).0,
+            Step::Succeeded
+        );
+    }
+}

@@ -20,6 +20,8 @@ mod rotate;
 mod sequence;
 mod server;
 mod takeoff;
+#[cfg(test)]
+mod testing;
 
 pub use goal::{FramedPoint, YawMode, WGS84};
 pub use registry::{BehaviorSpec, Goal, GoalSummary, Registry, Resource};
@@ -125,6 +127,27 @@ pub trait Behavior: Send {
         Err("this behavior cannot be modified in flight".into())
     }
     fn resume(&mut self, _ctx: &BehaviorContext) {}
+}
+
+/// Heading error (rad) below which a behavior with a heading goal counts it as reached.
+pub(crate) const YAW_THRESHOLD_RAD: f64 = 0.03;
+
+/// Whether the heading asked by `mode` is reached; modes without a heading at the goal
+/// (path facing, or a face point right above the vehicle) always are. A goal is only done when
+/// its heading is, because the hold that follows keeps the heading the vehicle has then.
+pub(crate) fn heading_reached(mode: &goal::ResolvedYaw, ctx: &BehaviorContext) -> bool {
+    let wanted = match mode {
+        goal::ResolvedYaw::PathFacing => return true,
+        goal::ResolvedYaw::Fixed(angle) => *angle,
+        goal::ResolvedYaw::Face(point) => {
+            let d = point - ctx.position();
+            if d.xy().norm() < 0.3 {
+                return true;
+            }
+            d.y.atan2(d.x)
+        }
+    };
+    crate::types::wrap_angle_rad(wanted - ctx.yaw()).abs() < YAW_THRESHOLD_RAD
 }
 
 /// Turns a yaw mode into a yaw target for this tick; `toward` is the point the vehicle heads to.

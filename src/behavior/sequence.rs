@@ -1,5 +1,5 @@
 //! Composite behaviors: a sequence of registered behaviors run one after another, built from
-//! the primitives (never copied from them). `rtl` = go_to home at a height, then land.
+//! the primitives (never copied from them). `rtl` = climb to a height, go_to home, then land.
 
 use super::goal::check_positive;
 use super::registry::{BehaviorSpec, Goal, Resource};
@@ -142,12 +142,20 @@ impl Behavior for Rtl {
         let home = ctx
             .home_enu_m
             .ok_or("no home position: the vehicle has not armed")?;
-        let go_home = json!({ "x": home.x, "y": home.y, "z": home.z + self.goal.height, "speed": self.goal.speed, "frame_id": "earth" });
-        let land = json!({ "speed": self.goal.land_speed });
-        let mut sequence = Sequence::new(vec![
-            (super::go_to::spec(), go_home),
-            (super::land::spec(), land),
-        ]);
+        // Climb first (never descend) to the return height, fly home level, then land.
+        let here = ctx.position();
+        let cruise_z = (home.z + self.goal.height).max(here.z);
+        let go = |x: f64, y: f64| json!({ "x": x, "y": y, "z": cruise_z, "speed": self.goal.speed, "frame_id": "earth" });
+        let mut plan = Vec::new();
+        if cruise_z - here.z > ctx.config.goal_threshold_m {
+            plan.push((super::go_to::spec(), go(here.x, here.y)));
+        }
+        plan.push((super::go_to::spec(), go(home.x, home.y)));
+        plan.push((
+            super::land::spec(),
+            json!({ "speed": self.goal.land_speed }),
+        ));
+        let mut sequence = Sequence::new(plan);
         sequence.activate(ctx)?;
         self.sequence = Some(sequence);
         Ok(())

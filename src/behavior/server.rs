@@ -247,9 +247,18 @@ impl BehaviorServer {
 
     /// Stops everything (link loss, emergency); each ends aborted with `reason`.
     pub fn stop_all(&mut self, reason: &str, ctx: &BehaviorContext) {
+        self.end_all(&BehaviorResult::Aborted(reason.to_string()), ctx);
+    }
+
+    /// Ends everything because the flight itself failed (a crash); each ends failed with `reason`.
+    pub fn fail_all(&mut self, reason: &str, ctx: &BehaviorContext) {
+        self.end_all(&BehaviorResult::Failed(reason.to_string()), ctx);
+    }
+
+    fn end_all(&mut self, result: &BehaviorResult, ctx: &BehaviorContext) {
         let ids: Vec<BehaviorId> = self.active.iter().map(|a| a.info.id).collect();
         for id in ids {
-            self.finish(id, BehaviorResult::Aborted(reason.to_string()), ctx);
+            self.finish(id, result.clone(), ctx);
         }
     }
 
@@ -333,4 +342,162 @@ impl BehaviorServer {
 /// Elapsed seconds between two instants, never negative.
 pub fn seconds_since(now: Duration, then: Duration) -> f64 {
     now.saturating_sub(then).as_secs_f64()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::registry::{BehaviorSpec, Goal};
+    use crate::behavior::testing::Scene as World;
+    use crate::types::FlightStatus;
+    use serde_json::json;
+
+    /// Succeeds after `ticks` runs; counts how often it ran.
+    #[derive(serde::Deserialize, schemars::JsonSchema)]
+    struct CountGoal {
+        ticks: u32,
+    }
+    impl Goal for CountGoal {
+        fn check(&self) -> Result<(), String> {
+            Ok(())
+        }
+    }
+    struct Count {
+        goal: CountGoal,
+        runs: u32,
+    }
+    impl Behavior for Count {
+        fn activate(&mut self, _ctx: &BehaviorContext) -> Result<(), String> {
+            Ok(())
+        }
+        fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
+            self.runs += 1;
+            if self.runs >= self.goal.ticks {
+                Step::Succeeded
+            } else {
+                Step::Running {
+                    reference: Some(MotionReference::hold(ctx.position(), 0.0, 1.0)),
+                    feedback: json!({ "runs": self.runs }),
+                }
+            }
+        }
+    }
+
+    fn server() -> BehaviorServer {
+        let mut registry = Registry::empty();
+        registry.register(BehaviorSpec::new(
+            "count",
+            "test behavior",
+            Resource::Motion,
+            |goal: CountGoal| Count { goal, runs: 0 },
+        ));
+        BehaviorServer::new(registry)
+    }
+
+    fn results(events: &[BehaviorEvent]) -> Vec<(BehaviorId, BehaviorResult)> {
+        events
+            .iter()
+            .filter_map(|e| match e {
+                BehaviorEvent::Finished { id, result, .. } => Some((*id, result.clone())),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn runs_until_success_then_holds() {
+        let w = World::flying();
+        let mut s = server();
+        let id = s.start("count", &json!({ "ticks": 3 }), &w.ctx(0)).unwrap();
+        for t in 1..=3 {
+            assert!(s.tick(&w.ctx(t)).reference.is_some());
+        }
+        assert_eq!(
+            results(&s.drain_events()),
+            [(id, BehaviorResult::Succeeded)]
+        );
+        assert!(s.active().is_empty());
+        assert!(s.tick(&w.ctx(4)).reference.is_some(), "holds after success");
+    }
+
+    #[test]
+    fn paused_behaviors_do_not_run_and_resume_where_they_were() {
+        let w = World::flying();
+        let mut s = server();
+        let id = s.start("count", &json!({ "ticks": 3 }), &w.ctx(0)).unwrap();
+        s.tick(&w.ctx(1));
+        s.pause(id, &w.ctx(1)).unwrap();
+        assert_eq!(s.pause(id, &w.ctx(1)), Err(ServerError::NotRunning(id)));
+        for t in 2..10 {
+            assert!(s.tick(&w.ctx(t)).reference.is_some(), "holds while paused");
+        }
+        assert_eq!(s.info(id).unwrap().state, RunState::Paused);
+        assert_eq!(s.info(id).unwrap().feedback, json!({ "runs": 1 }));
+        s.resume(id, &w.ctx(10)).unwrap();
+        assert_eq!(s.resume(id, &w.ctx(10)), Err(ServerError::NotPaused(id)));
+        s.tick(&w.ctx(11));
+        s.tick(&w.ctx(12));
+        assert_eq!(
+            results(&s.drain_events()),
+            [(id, BehaviorResult::Succeeded)]
+        );
+    }
+
+    #[test]
+    fn a_new_motion_behavior_preempts_the_running_one() {
+        let w = World::flying();
+        let mut s = server();
+        let first = s
+            .start("count", &json!({ "ticks": 100 }), &w.ctx(0))
+            .unwrap();
+        let second = s
+            .start("count", &json!({ "ticks": 100 }), &w.ctx(1))
+            .unwrap();
+        assert_eq!(
+            results(&s.drain_events()),
+            [(first, BehaviorResult::Aborted("preempted by count".into()))]
+        );
+        assert_eq!(s.active().len(), 1);
+        assert_eq!(s.active()[0].id, second);
+    }
+
+    #[test]
+    fn commands_name_what_is_wrong() {
+        let w = World::flying();
+        let mut s = server();
+        assert_eq!(
+            s.start("fly_to_the_moon", &json!({}), &w.ctx(0)),
+            Err(ServerError::UnknownBehavior("fly_to_the_moon".into()))
+        );
+        assert!(matches!(
+            s.start("count", &json!({ "ticks": "many" }), &w.ctx(0)),
+            Err(ServerError::Rejected { .. })
+        ));
+        assert_eq!(s.stop(42, &w.ctx(0)), Err(ServerError::NotActive(42)));
+        let id = s
+            .start("count", &json!({ "ticks": 10 }), &w.ctx(0))
+            .unwrap();
+        let refused = s.modify(id, &json!({ "ticks": 2 }), &w.ctx(0));
+        assert!(
+            matches!(&refused, Err(ServerError::Rejected { reason, .. }) if reason.contains("cannot be modified")),
+            "{refused:?}"
+        );
+        s.stop(id, &w.ctx(1)).unwrap();
+        assert_eq!(
+            results(&s.drain_events()),
+            [(id, BehaviorResult::Aborted("stopped".into()))]
+        );
+    }
+
+    #[test]
+    fn on_the_ground_nothing_is_held() {
+        let mut w = World::flying();
+        let mut s = server();
+        let id = s
+            .start("count", &json!({ "ticks": 100 }), &w.ctx(0))
+            .unwrap();
+        w.platform.flight = FlightStatus::Landed;
+        s.stop(id, &w.ctx(1)).unwrap();
+        assert!(s.tick(&w.ctx(2)).reference.is_none());
+    }
 }

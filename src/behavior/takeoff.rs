@@ -5,7 +5,7 @@ use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
-use crate::types::Vec3;
+use crate::types::{FlightStatus, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -86,6 +86,10 @@ impl Behavior for Takeoff {
     fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
         if ctx.platform.flight.is_airborne() {
             return Err("already flying".into());
+        }
+        if ctx.platform.flight == FlightStatus::Crashed {
+            let reason = ctx.platform.last_error.as_deref().unwrap_or("crashed");
+            return Err(format!("the vehicle crashed ({reason}) and must be reset"));
         }
         if !ctx.state.valid.position {
             return Err("no position estimate".into());
@@ -184,5 +188,123 @@ impl Takeoff {
             "actual_takeoff_height": ctx.position().z - (self.target.z - self.goal.height),
             "actual_takeoff_speed": ctx.state.velocity_enu_mps.z,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::testing::Scene;
+
+    fn on_the_ground() -> Scene {
+        let mut scene = Scene::flying();
+        scene.platform.armed = false;
+        scene.platform.offboard = false;
+        scene.platform.flight = FlightStatus::Disarmed;
+        scene
+    }
+
+    fn run(t: &mut Takeoff, scene: &Scene, now: Duration) -> (Step, Vec<PlatformRequest>) {
+        let mut requests = Vec::new();
+        let step = t.run(&scene.ctx_at(now), &mut requests);
+        (step, requests)
+    }
+
+    #[test]
+    fn asks_to_arm_once_a_second_and_fails_with_the_autopilot_reason() {
+        let mut scene = on_the_ground();
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: 2.0,
+            speed: 1.0,
+        });
+        takeoff.activate(&scene.ctx(0)).unwrap();
+        let ms = Duration::from_millis;
+        let (step, requests) = run(&mut takeoff, &scene, ms(0));
+        assert_eq!(
+            requests,
+            [PlatformRequest::Arm, PlatformRequest::StartOffboard]
+        );
+        assert!(
+            matches!(
+                step,
+                Step::Running {
+                    reference: Some(_),
+                    ..
+                }
+            ),
+            "streams a setpoint before offboard"
+        );
+        assert!(run(&mut takeoff, &scene, ms(500)).1.is_empty());
+        assert_eq!(run(&mut takeoff, &scene, ms(1000)).1.len(), 2);
+        scene.platform.last_error = Some("arming denied: battery empty".into());
+        let (step, _) = run(&mut takeoff, &scene, ms(15_100));
+        assert_eq!(
+            step,
+            Step::Failed("could not arm and enter offboard: arming denied: battery empty".into())
+        );
+    }
+
+    #[test]
+    fn climbs_to_the_height_above_the_takeoff_point() {
+        let mut scene = on_the_ground();
+        scene.set_position(Vec3::new(3.0, 4.0, 0.5), Vec3::zeros());
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: 2.0,
+            speed: 1.0,
+        });
+        takeoff.activate(&scene.ctx(0)).unwrap();
+        scene.platform.armed = true;
+        scene.platform.offboard = true;
+        let (step, requests) = run(&mut takeoff, &scene, Duration::from_secs(1));
+        assert!(requests.is_empty());
+        match step {
+            Step::Running {
+                reference:
+                    Some(MotionReference::Position {
+                        position_enu_m,
+                        max_speed_mps,
+                        ..
+                    }),
+                ..
+            } => {
+                assert_eq!(position_enu_m, Vec3::new(3.0, 4.0, 2.5));
+                assert_eq!(max_speed_mps, 1.0);
+            }
+            other => panic!("{other:?}"),
+        }
+        scene.set_position(Vec3::new(3.0, 4.0, 2.48), Vec3::new(0.0, 0.0, 0.05));
+        assert_eq!(
+            run(&mut takeoff, &scene, Duration::from_secs(4)).0,
+            Step::Succeeded
+        );
+    }
+
+    #[test]
+    fn native_takeoff_is_requested_after_arming() {
+        let mut scene = on_the_ground();
+        scene.capabilities.native_takeoff = true;
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: 5.0,
+            speed: 1.0,
+        });
+        takeoff.activate(&scene.ctx(0)).unwrap();
+        let (_, requests) = run(&mut takeoff, &scene, Duration::ZERO);
+        assert_eq!(
+            requests,
+            [PlatformRequest::Arm, PlatformRequest::StartOffboard]
+        );
+        scene.platform.armed = true;
+        let (step, requests) = run(&mut takeoff, &scene, Duration::from_secs(1));
+        assert_eq!(requests, [PlatformRequest::Takeoff { height_m: 5.0 }]);
+        assert!(
+            matches!(
+                step,
+                Step::Running {
+                    reference: None,
+                    ..
+                }
+            ),
+            "the autopilot climbs by itself"
+        );
     }
 }

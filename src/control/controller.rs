@@ -27,8 +27,10 @@ pub struct ControllerConfig {
 impl Default for ControllerConfig {
     fn default() -> Self {
         Self {
-            position: PidGains::uniform(1.2, 0.05, 0.0, 0.5),
-            trajectory: PidGains::uniform(1.5, 0.1, 0.0, 0.5),
+            // The integrals cancel a steady push (wind) of up to 0.6 m/s; the integration zone
+            // and conditional integration keep them from winding up on long approaches.
+            position: PidGains::uniform(1.2, 0.4, 0.0, 1.5).with_integral_zone(0.5),
+            trajectory: PidGains::uniform(1.5, 0.4, 0.0, 1.5).with_integral_zone(0.5),
             yaw: PidGains::uniform(2.0, 0.0, 0.0, 0.0),
             max_horizontal_speed_mps: 8.0,
             max_up_speed_mps: 3.0,

@@ -14,6 +14,10 @@ pub struct PidGains {
     pub integral_limit: Vec3,
     /// Weight of the newest sample in the derivative low-pass filter (0..=1, 1 = no filter).
     pub derivative_alpha: f64,
+    /// The integral only accumulates while the error is within this band (error unit; 0 =
+    /// always), so it trims a steady offset without adding overshoot to large moves.
+    #[serde(default)]
+    pub integral_zone: Vec3,
 }
 
 impl PidGains {
@@ -24,6 +28,15 @@ impl PidGains {
             kd: Vec3::repeat(kd),
             integral_limit: Vec3::repeat(integral_limit),
             derivative_alpha: 0.3,
+            integral_zone: Vec3::zeros(),
+        }
+    }
+
+    /// The same gains with an integration band (see `integral_zone`).
+    pub fn with_integral_zone(self, zone: f64) -> Self {
+        Self {
+            integral_zone: Vec3::repeat(zone),
+            ..self
         }
     }
 }
@@ -58,7 +71,13 @@ impl Pid {
         if dt_s <= 0.0 {
             return self.output(error, limit);
         }
-        self.integral += error * dt_s;
+        let before = self.integral;
+        for i in 0..3 {
+            let zone = self.gains.integral_zone[i];
+            if zone <= 0.0 || error[i].abs() <= zone {
+                self.integral[i] += error[i] * dt_s;
+            }
+        }
         for i in 0..3 {
             let cap = self.gains.integral_limit[i];
             if cap > 0.0 {
@@ -78,16 +97,32 @@ impl Pid {
             self.derivative = raw * a + self.derivative * (1.0 - a);
         }
         self.previous_error = Some(error);
+        // Conditional integration: while the output saturates, the integral must not grow, or
+        // it winds up during a long approach and overshoots the goal.
+        if is_saturated(&self.raw_output(error), &limit) {
+            for i in 0..3 {
+                if self.integral[i].abs() > before[i].abs() {
+                    self.integral[i] = before[i];
+                }
+            }
+        }
         self.output(error, limit)
     }
 
-    fn output(&self, error: Vec3, limit: Vec3) -> Vec3 {
+    fn raw_output(&self, error: Vec3) -> Vec3 {
         let g = &self.gains;
-        let raw = g.kp.component_mul(&error)
+        g.kp.component_mul(&error)
             + g.ki.component_mul(&self.integral)
-            + g.kd.component_mul(&self.derivative);
-        saturate_proportionally(raw, limit)
+            + g.kd.component_mul(&self.derivative)
     }
+
+    fn output(&self, error: Vec3, limit: Vec3) -> Vec3 {
+        saturate_proportionally(self.raw_output(error), limit)
+    }
+}
+
+fn is_saturated(v: &Vec3, limit: &Vec3) -> bool {
+    (0..3).any(|i| limit[i] > 0.0 && v[i].abs() > limit[i])
 }
 
 /// Scales `v` so each axis fits within `limit` (0 = unlimited), keeping its direction.
@@ -124,6 +159,32 @@ mod tests {
             "integral output capped at ki * limit, got {}",
             out.x
         );
+    }
+
+    #[test]
+    fn integral_does_not_wind_up_while_the_output_saturates() {
+        let mut pid = Pid::new(PidGains::uniform(1.0, 1.0, 0.0, 10.0));
+        let limit = Vec3::repeat(1.0);
+        for _ in 0..500 {
+            pid.update(Vec3::new(5.0, 0.0, 0.0), 0.01, limit);
+        }
+        // Arrived: with a wound-up integral the output would still push on past the goal.
+        let out = pid.update(Vec3::zeros(), 0.01, limit);
+        assert!(out.x.abs() < 1e-9, "integral wound up to {}", out.x);
+        // Unsaturated, the integral builds up as usual.
+        for _ in 0..100 {
+            pid.update(Vec3::new(0.1, 0.0, 0.0), 0.01, limit);
+        }
+        let out = pid.update(Vec3::zeros(), 0.01, limit);
+        assert!((out.x - 0.1).abs() < 0.01, "{}", out.x);
+    }
+
+    #[test]
+    fn integral_accumulates_only_inside_its_zone() {
+        let mut pid = Pid::new(PidGains::uniform(0.0, 1.0, 0.0, 0.0).with_integral_zone(0.5));
+        pid.update(Vec3::new(2.0, 0.4, 0.0), 1.0, Vec3::zeros());
+        let out = pid.update(Vec3::zeros(), 1.0, Vec3::zeros());
+        assert!((out - Vec3::new(0.0, 0.4, 0.0)).norm() < 1e-12, "{out}");
     }
 
     #[test]

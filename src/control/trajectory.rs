@@ -295,6 +295,74 @@ mod tests {
         }
     }
 
+    /// Speed of the reference where it passes closest to `point`.
+    fn speed_near(samples: &[TrajectorySample], point: &Vec3) -> f64 {
+        samples
+            .iter()
+            .min_by(|a, b| {
+                let da = (a.position_enu_m - point).norm();
+                let db = (b.position_enu_m - point).norm();
+                da.total_cmp(&db)
+            })
+            .map(|s| s.velocity_enu_mps.norm())
+            .unwrap()
+    }
+
+    #[test]
+    fn sharper_corners_are_taken_slower_but_never_stopped_at() {
+        let limits = TrajectoryLimits {
+            cruise_speed_mps: 2.0,
+            ..Default::default()
+        };
+        // A 45 deg turn, then a 135 deg turn.
+        let gentle = Vec3::new(10.0, 0.0, 0.0);
+        let sharp = Vec3::new(20.0, 10.0, 0.0);
+        let wps = [gentle, sharp, Vec3::new(10.0, 10.0, 0.0)];
+        let mut traj = PathTrajectory::new(Vec3::zeros(), &wps, limits);
+        let (samples, _) = fly_perfectly(&mut traj, 0.01);
+        let (v_gentle, v_sharp) = (speed_near(&samples, &gentle), speed_near(&samples, &sharp));
+        assert!(v_gentle > v_sharp, "{v_gentle} vs {v_sharp}");
+        assert!(v_sharp >= limits.min_corner_speed_mps - 1e-9, "{v_sharp}");
+        assert!(
+            v_gentle < limits.cruise_speed_mps,
+            "slows for a turn at all"
+        );
+    }
+
+    #[test]
+    fn speed_changes_respect_the_acceleration_limit_through_corners() {
+        let limits = TrajectoryLimits {
+            cruise_speed_mps: 3.0,
+            max_acceleration_mps2: 1.0,
+            ..Default::default()
+        };
+        let wps = [
+            Vec3::new(8.0, 0.0, 0.0),
+            Vec3::new(8.0, 8.0, 2.0),
+            Vec3::new(0.0, 8.0, 2.0),
+            Vec3::new(0.0, 0.0, 0.0),
+        ];
+        let mut traj = PathTrajectory::new(Vec3::zeros(), &wps, limits);
+        let (samples, _) = fly_perfectly(&mut traj, 0.01);
+        for w in samples.windows(2) {
+            let dv = (w[1].velocity_enu_mps.norm() - w[0].velocity_enu_mps.norm()).abs() / 0.01;
+            assert!(dv < 1.0 + 0.2, "speed changed at {dv} m/s^2");
+        }
+        assert!(samples.last().unwrap().finished);
+        assert!(samples.last().unwrap().velocity_enu_mps.norm() < 0.2);
+    }
+
+    #[test]
+    fn duplicate_waypoints_are_dropped() {
+        let p = Vec3::new(3.0, 4.0, 0.0);
+        let traj = PathTrajectory::new(Vec3::zeros(), &[p, p, p], TrajectoryLimits::default());
+        assert_eq!(traj.waypoint_count(), 1);
+        assert!((traj.length_m() - 5.0).abs() < 1e-12);
+        let here = PathTrajectory::new(p, &[p], TrajectoryLimits::default());
+        assert_eq!(here.length_m(), 0.0);
+        assert!(here.sample().finished);
+    }
+
     #[test]
     fn reference_waits_for_a_lagging_vehicle() {
         let mut traj = PathTrajectory::new(

@@ -295,6 +295,53 @@ mod tests {
     }
 
     #[test]
+    fn yaw_in_a_turned_frame_is_expressed_in_earth() {
+        let mut tree = FrameTree::new();
+        tree.set(
+            "panel",
+            EARTH,
+            FrameMotion::fixed(Pose::from_position_yaw(Vec3::zeros(), 3.0)),
+        )
+        .unwrap();
+        let yaw = tree.yaw_to_earth(0.5, "panel", Duration::ZERO).unwrap();
+        assert!(
+            (yaw - crate::types::wrap_angle_rad(3.5)).abs() < 1e-9,
+            "{yaw}"
+        );
+    }
+
+    #[test]
+    fn moving_map_offset_carries_its_children() {
+        let mut tree = FrameTree::new();
+        let drift = FrameMotion {
+            velocity_mps: Vec3::new(0.0, 0.1, 0.0),
+            ..FrameMotion::fixed(Pose::from_position_yaw(Vec3::new(1.0, 0.0, 0.0), 0.0))
+        };
+        tree.set(MAP, EARTH, drift).unwrap();
+        tree.set_base_link(
+            Pose::from_position_yaw(Vec3::new(2.0, 0.0, 1.0), 0.0),
+            Duration::ZERO,
+        );
+        let p = tree
+            .pose_in(BASE_LINK, EARTH, Duration::from_secs(10))
+            .unwrap();
+        assert!(
+            close(&p.position_m, &Vec3::new(3.0, 1.0, 1.0)),
+            "{}",
+            p.position_m
+        );
+        // Replacing a user frame keeps one entry with the new transform.
+        let fixed = FrameMotion::fixed(Pose::identity());
+        tree.set("a", EARTH, fixed).unwrap();
+        tree.set("a", MAP, fixed).unwrap();
+        assert_eq!(tree.names().filter(|n| *n == "a").count(), 1);
+        let a = tree
+            .point_to_earth(&Vec3::zeros(), "a", Duration::ZERO)
+            .unwrap();
+        assert!(close(&a, &Vec3::new(1.0, 0.0, 0.0)));
+    }
+
+    #[test]
     fn pose_of_base_link_in_a_user_frame() {
         let mut tree = FrameTree::new();
         tree.set(

@@ -8,6 +8,7 @@ pub mod dynamics;
 pub mod runner;
 pub mod script;
 pub mod sensors;
+pub mod spatial;
 pub mod vehicle;
 pub mod world;
 
@@ -16,6 +17,7 @@ use dynamics::MultirotorParams;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use spatial::ShapeIndex;
 use std::time::Duration;
 use vehicle::SimVehicle;
 use world::{SensorConfig, Shape, World};
@@ -30,7 +32,7 @@ pub struct Environment {
 
 pub struct SimWorld {
     pub world: World,
-    shapes: Vec<Shape>,
+    obstacles: ShapeIndex,
     pub vehicles: Vec<SimVehicle>,
     pub sensor: SensorConfig,
     pub environment: Environment,
@@ -47,7 +49,7 @@ impl SimWorld {
             .map(|(xy, yaw)| SimVehicle::new(Vec3::new(xy.x, xy.y, 0.0), yaw, params))
             .collect();
         Self {
-            shapes: world.shapes(),
+            obstacles: ShapeIndex::new(world.shapes()),
             sensor: world.sensor,
             world,
             vehicles,
@@ -57,7 +59,12 @@ impl SimWorld {
     }
 
     pub fn shapes(&self) -> &[Shape] {
-        &self.shapes
+        self.obstacles.shapes()
+    }
+
+    /// The obstacles with their spatial index.
+    pub fn obstacles(&self) -> &ShapeIndex {
+        &self.obstacles
     }
 
     /// Advances every vehicle by `dt_s`, then checks collisions and produces due scans.
@@ -83,12 +90,7 @@ impl SimWorld {
                 continue;
             }
             let p = v.state.position_m;
-            let hit = self
-                .shapes
-                .iter()
-                .enumerate()
-                .find(|(_, s)| s.distance_m(&p).is_some_and(|d| d < v.params.radius_m));
-            if let Some((k, _)) = hit {
+            if let Some(k) = self.obstacles.touching(&p, v.params.radius_m) {
                 let reason = format!(
                     "collision with obstacle {k} at ({:.2}, {:.2}, {:.2})",
                     p.x, p.y, p.z
@@ -122,7 +124,7 @@ impl SimWorld {
                 v.next_scan_at = now + Duration::from_secs_f64(period);
                 if let Some(scan) = sensors::scan(
                     &self.sensor,
-                    &self.shapes,
+                    &self.obstacles,
                     &v.state.position_m,
                     v.state.yaw_rad,
                     &mut self.rng,

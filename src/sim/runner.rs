@@ -99,13 +99,14 @@ impl SimRunner {
             let out = core.tick(now, &feedback);
             vehicle.command(now, out.setpoint, &out.requests);
             if let Some(log) = self.log.as_mut() {
-                let state = core.vehicle_state();
-                let active = core.server().active();
-                let motion = active
-                    .iter()
-                    .find(|a| a.state == RunState::Running || a.state == RunState::Paused)
-                    .map(|a| a.behavior.as_str());
-                log.pose(now, &state, motion);
+                if log.pose_due(now, core.drone_id()) {
+                    let active = core.server().active();
+                    let motion = active
+                        .iter()
+                        .find(|a| a.state == RunState::Running || a.state == RunState::Paused)
+                        .map(|a| a.behavior.as_str());
+                    log.pose(now, &core.vehicle_state(), motion);
+                }
                 for e in &out.events {
                     log.behavior(now, core.drone_id(), e);
                 }

@@ -3,7 +3,8 @@
 //! In: the vehicle pose, the world's shapes, a noise source. Out: a [`RangeScan`] at the
 //! sensor's rate (multi-ranger: 4 beams front/left/back/right; lidar: N beams over 360 deg).
 
-use super::world::{SensorConfig, Shape};
+use super::spatial::ShapeIndex;
+use super::world::SensorConfig;
 use crate::mapping::scan::{Beam, RangeScan};
 use crate::types::{Vec2, Vec3};
 use rand::Rng;
@@ -16,7 +17,7 @@ const RANGE_MIN_M: f64 = 0.04;
 /// One scan from `position` with heading `yaw_rad`, or `None` when the drone carries no sensor.
 pub fn scan<R: Rng>(
     config: &SensorConfig,
-    shapes: &[Shape],
+    obstacles: &ShapeIndex,
     position: &Vec3,
     yaw_rad: f64,
     rng: &mut R,
@@ -49,15 +50,15 @@ pub fn scan<R: Rng>(
         SensorConfig::None => return None,
     };
     let normal = Normal::new(0.0, noise.max(0.0)).ok();
+    let candidates = obstacles.near(position.x, position.y, range_max_m);
     let beams = angles
         .into_iter()
         .map(|angle_rad| {
             let world_angle = yaw_rad + angle_rad;
             let dir = Vec2::new(world_angle.cos(), world_angle.sin());
-            let hit = shapes
-                .iter()
-                .filter_map(|s| s.ray_hit_m(position, &dir))
-                .fold(f64::INFINITY, f64::min);
+            let hit = obstacles
+                .ray_m(&candidates, position, &dir)
+                .unwrap_or(f64::INFINITY);
             let noisy = hit + normal.map_or(0.0, |n| n.sample(rng));
             let range_m =
                 (noisy.is_finite() && noisy <= range_max_m).then(|| noisy.max(RANGE_MIN_M));
@@ -88,15 +89,16 @@ pub fn period_s(config: &SensorConfig) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::world::Shape;
     use rand::SeedableRng;
 
     #[test]
     fn multiranger_sees_a_pole_ahead_only() {
-        let shapes = [Shape::Cylinder {
+        let shapes = ShapeIndex::new(vec![Shape::Cylinder {
             center: Vec2::new(3.0, 0.0),
             radius_m: 0.5,
             height_m: 5.0,
-        }];
+        }]);
         let config = SensorConfig::Multiranger {
             range_max_m: 4.0,
             rate_hz: 20.0,
@@ -121,11 +123,11 @@ mod tests {
 
     #[test]
     fn lidar_has_360_beams_and_range_limit() {
-        let shapes = [Shape::Cylinder {
+        let shapes = ShapeIndex::new(vec![Shape::Cylinder {
             center: Vec2::new(20.0, 0.0),
             radius_m: 0.5,
             height_m: 5.0,
-        }];
+        }]);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         let s = scan(
             &SensorConfig::lidar(),

@@ -39,7 +39,7 @@ impl SimVehicle {
             params,
             state: RigidState {
                 position_m,
-                yaw_rad,
+                yaw_rad: wrap_angle_rad(yaw_rad),
                 ..Default::default()
             },
             armed: false,

@@ -44,44 +44,114 @@ fn default_height() -> f64 {
     10.0
 }
 
-/// Which range sensor the simulated drones carry.
+/// Which range sensor the simulated drones carry. Absent fields take the defaults of the
+/// kind, so `{"kind": "lidar360"}` is a complete sensor.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
 pub enum SensorConfig {
-    /// Crazyflie multi-ranger deck: four beams front/left/back/right.
+    /// Crazyflie multi-ranger deck: four beams front/left/back/right (defaults 4 m, 20 Hz,
+    /// 1 cm noise).
     Multiranger {
+        #[serde(default = "multiranger_range")]
         range_max_m: f64,
+        #[serde(default = "multiranger_rate")]
         rate_hz: f64,
+        #[serde(default = "default_noise")]
         noise_std_m: f64,
     },
-    /// Planar 360-beam lidar.
+    /// Planar lidar, beams evenly over 360 deg (defaults 360 beams, 10 m, 10 Hz, 1 cm noise).
     Lidar360 {
+        #[serde(default = "lidar_range")]
         range_max_m: f64,
+        #[serde(default = "lidar_rate")]
         rate_hz: f64,
+        #[serde(default = "default_noise")]
         noise_std_m: f64,
+        #[serde(default = "lidar_beams")]
         beams: u32,
     },
     None,
 }
 
+fn multiranger_range() -> f64 {
+    4.0
+}
+fn multiranger_rate() -> f64 {
+    20.0
+}
+fn lidar_range() -> f64 {
+    10.0
+}
+fn lidar_rate() -> f64 {
+    10.0
+}
+fn lidar_beams() -> u32 {
+    360
+}
+fn default_noise() -> f64 {
+    0.01
+}
+
 impl Default for SensorConfig {
     fn default() -> Self {
-        Self::Multiranger {
-            range_max_m: 4.0,
-            rate_hz: 20.0,
-            noise_std_m: 0.01,
-        }
+        Self::multiranger()
     }
 }
 
 impl SensorConfig {
+    pub fn multiranger() -> Self {
+        Self::Multiranger {
+            range_max_m: multiranger_range(),
+            rate_hz: multiranger_rate(),
+            noise_std_m: default_noise(),
+        }
+    }
+
     pub fn lidar() -> Self {
         Self::Lidar360 {
-            range_max_m: 10.0,
-            rate_hz: 10.0,
-            noise_std_m: 0.01,
-            beams: 360,
+            range_max_m: lidar_range(),
+            rate_hz: lidar_rate(),
+            noise_std_m: default_noise(),
+            beams: lidar_beams(),
         }
+    }
+
+    /// By name, as on the command line: `multiranger`, `lidar` (or `lidar360`), `none`.
+    pub fn by_name(name: &str) -> Option<Self> {
+        match name {
+            "multiranger" => Some(Self::multiranger()),
+            "lidar" | "lidar360" => Some(Self::lidar()),
+            "none" => Some(Self::None),
+            _ => None,
+        }
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let (range, rate, noise) = match *self {
+            Self::Multiranger {
+                range_max_m,
+                rate_hz,
+                noise_std_m,
+            } => (range_max_m, rate_hz, noise_std_m),
+            Self::Lidar360 {
+                range_max_m,
+                rate_hz,
+                noise_std_m,
+                beams,
+            } => {
+                if beams == 0 {
+                    return Err("sensor.beams must be at least 1".into());
+                }
+                (range_max_m, rate_hz, noise_std_m)
+            }
+            Self::None => return Ok(()),
+        };
+        if !(range > 0.0 && rate > 0.0 && noise >= 0.0) {
+            return Err(
+                "sensor needs range_max_m > 0 (m), rate_hz > 0 (Hz), noise_std_m >= 0 (m)".into(),
+            );
+        }
+        Ok(())
     }
 }
 
@@ -170,10 +240,12 @@ impl World {
         if self.pole_radius_m < 0.0 || self.cylinders.iter().any(|c| c.radius_m <= 0.0) {
             return Err("obstacle radii must be positive (m)".into());
         }
-        Ok(())
+        self.sensor.validate()
     }
 
-    /// Start poses for `n` drones: the world's own list for that count, else a row along x.
+    /// Start poses for `n` drones: the world's own list for that count, else spots on a 2 m
+    /// grid, heading east, filled row by row from the centre of the bounds (x = +0, +2, +4 ...
+    /// then -2, -4 ...; rows y = +0, +2, -2, +4 ...), skipping spots within 1 m of an obstacle.
     pub fn starts(&self, n: usize) -> Vec<(Vec2, f64)> {
         if let Some(list) = self.starts_xy_yaw.get(&n.to_string()) {
             if list.len() == n {
@@ -183,9 +255,44 @@ impl World {
                     .collect();
             }
         }
-        (0..n)
-            .map(|i| (Vec2::new(2.0 * i as f64, 0.0), 0.0))
-            .collect()
+        let shapes = self.shapes();
+        let b = &self.bounds_m;
+        let (cx, cy) = ((b.x[0] + b.x[1]) / 2.0, (b.y[0] + b.y[1]) / 2.0);
+        let steps = |lo: f64, hi: f64| {
+            let up = (0..)
+                .map(move |k| cx + 2.0 * f64::from(k))
+                .take_while(move |v| *v < hi);
+            let down = (1..)
+                .map(move |k| cx - 2.0 * f64::from(k))
+                .take_while(move |v| *v > lo);
+            up.chain(down)
+        };
+        let rows = {
+            let up = (1..)
+                .map(|k| cy + 2.0 * f64::from(k))
+                .take_while(|v| *v < b.y[1]);
+            let down = (1..)
+                .map(|k| cy - 2.0 * f64::from(k))
+                .take_while(|v| *v > b.y[0]);
+            std::iter::once(cy).chain(interleave(up, down))
+        };
+        let clear = |p: &Vec2| {
+            let at = Vec3::new(p.x, p.y, 0.0);
+            shapes
+                .iter()
+                .all(|s| s.distance_m(&at).is_none_or(|d| d >= 1.0))
+        };
+        let mut starts: Vec<(Vec2, f64)> = rows
+            .flat_map(|y| steps(b.x[0], b.x[1]).map(move |x| Vec2::new(x, y)))
+            .filter(clear)
+            .take(n)
+            .map(|p| (p, 0.0))
+            .collect();
+        // A world too crowded for its drones: keep counting along x rather than drop drones.
+        while starts.len() < n {
+            starts.push((Vec2::new(cx + 2.0 * starts.len() as f64, cy), 0.0));
+        }
+        starts
     }
 
     /// Every obstacle as one shape list (poles become cylinders).
@@ -208,6 +315,24 @@ impl World {
         });
         poles.chain(cylinders).chain(boxes).collect()
     }
+}
+
+/// Alternates two sequences (a0, b0, a1, b1 ...), then finishes whichever is longer.
+fn interleave<T>(
+    a: impl Iterator<Item = T>,
+    b: impl Iterator<Item = T>,
+) -> impl Iterator<Item = T> {
+    let (mut a, mut b) = (a.fuse(), b.fuse());
+    let mut take_a = true;
+    std::iter::from_fn(move || {
+        let next = if take_a {
+            a.next().or_else(|| b.next())
+        } else {
+            b.next().or_else(|| a.next())
+        };
+        take_a = !take_a;
+        next
+    })
 }
 
 /// An obstacle shape: vertical prism from the ground to `height_m`.
@@ -330,6 +455,58 @@ mod tests {
             .unwrap();
         let (p, yaw) = low.starts(2)[1];
         assert_eq!((p.x, p.y, yaw), (-19.78, 7.5, 3.47));
+    }
+
+    #[test]
+    fn default_starts_fill_a_grid_clear_of_obstacles() {
+        let empty = World::empty();
+        let row: Vec<(f64, f64)> = empty.starts(3).iter().map(|(p, _)| (p.x, p.y)).collect();
+        assert_eq!(row, [(0.0, 0.0), (2.0, 0.0), (4.0, 0.0)]);
+        let mut small = World::empty();
+        small.bounds_m = Bounds {
+            x: [-3.0, 3.0],
+            y: [-3.0, 3.0],
+        };
+        small.cylinders.push(Cylinder {
+            xy_m: [2.0, 0.0],
+            radius_m: 0.5,
+            height_m: 5.0,
+        });
+        let spots: Vec<(f64, f64)> = small.starts(4).iter().map(|(p, _)| (p.x, p.y)).collect();
+        assert_eq!(spots, [(0.0, 0.0), (-2.0, 0.0), (0.0, 2.0), (2.0, 2.0)]);
+        let low = World::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("sitl/worlds/low.json"))
+            .unwrap();
+        let shapes = low.shapes();
+        for (p, _) in low.starts(10) {
+            let at = Vec3::new(p.x, p.y, 0.0);
+            assert!(shapes.iter().all(|s| s.distance_m(&at).unwrap() >= 1.0));
+        }
+    }
+
+    #[test]
+    fn a_sensor_kind_alone_takes_its_defaults() {
+        let w: World = serde_json::from_str(
+            r#"{"bounds_m": {"x": [0, 1], "y": [0, 1]}, "sensor": {"kind": "lidar360", "beams": 90}}"#,
+        )
+        .unwrap();
+        assert_eq!(
+            w.sensor,
+            SensorConfig::Lidar360 {
+                range_max_m: 10.0,
+                rate_hz: 10.0,
+                noise_std_m: 0.01,
+                beams: 90
+            }
+        );
+        assert_eq!(SensorConfig::by_name("lidar"), Some(SensorConfig::lidar()));
+        assert!(SensorConfig::Lidar360 {
+            range_max_m: 10.0,
+            rate_hz: 0.0,
+            noise_std_m: 0.0,
+            beams: 1
+        }
+        .validate()
+        .is_err());
     }
 
     #[test]

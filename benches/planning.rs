@@ -1,0 +1,160 @@
+//! Planning benchmarks on a 500 x 500 grid (0.1 m cells) with 10 % random obstacles, corner to
+//! corner: A*, Dijkstra and Voronoi (median time per plan, including pruning), the `pathfinding`
+//! crate's A* on the same grid and moves as a baseline, and a 4-drone coverage plan.
+//!
+//! Run: `cargo bench --bench planning -- --quick`
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::{Vector2, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use kestrel::mapping::{GridSpec, OccupancyGrid};
+use kestrel::planning::{
+    plan_coverage, PathPlanner, PlanBudget, PlanRequest, PlannerKind, Planners, PlanningMap,
+    UnknownPolicy,
+};
+
+const N: u32 = 500;
+
+fn must<T, E: std::fmt::Debug>(r: Result<T, E>) -> T {
+    match r {
+        Ok(v) => v,
+        Err(e) => panic!("benchmark setup failed: {e:?}"),
+    }
+}
+
+fn grid() -> OccupancyGrid {
+    let spec = GridSpec {
+        resolution_m: 0.1,
+        width_cells: N,
+        height_cells: N,
+        origin_enu_m: Vector2::zeros(),
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(42);
+    let n = spec.cell_count();
+    let data = (0..n)
+        .map(|i| {
+            // Keep the two corners free.
+            if i == 0 || i == n - 1 || !rng.gen_bool(0.1) {
+                0
+            } else {
+                100
+            }
+        })
+        .collect();
+    must(OccupancyGrid::from_data(spec, data))
+}
+
+fn request(kind: PlannerKind) -> PlanRequest {
+    PlanRequest {
+        start_enu_m: Vector3::new(0.05, 0.05, 1.0),
+        goal_enu_m: Vector3::new(49.95, 49.95, 1.0),
+        flight_height_m: 1.0,
+        safety_distance_m: 0.0,
+        unknown: UnknownPolicy::Blocked,
+        kind,
+        max_map_age_s: None,
+    }
+}
+
+fn grid_planners(c: &mut Criterion) {
+    let map = PlanningMap::new(grid(), 50);
+    let planners = Planners::default();
+    let budget = PlanBudget::expansions(usize::MAX);
+    for (name, kind) in [
+        ("plan/a_star 500x500 10%", PlannerKind::AStar),
+        ("plan/dijkstra 500x500 10%", PlannerKind::Dijkstra),
+        ("plan/voronoi 500x500 10%", PlannerKind::Voronoi),
+    ] {
+        let req = request(kind);
+        let p = must(planners.plan(&req, &map, &budget));
+        println!(
+            "{name}: cost {:.2}, length {:.2} m, {} raw cells, {} waypoints, min clearance {:.2} m",
+            p.cost,
+            p.length_m,
+            p.raw_cells,
+            p.waypoints_enu_m.len(),
+            p.min_clearance_m
+        );
+        c.bench_function(name, |b| {
+            b.iter(|| must(planners.plan(black_box(&req), &map, &budget)))
+        });
+    }
+
+    // Baseline: pathfinding's A* with the same 8 moves, no corner cutting, costs x1000.
+    let g = grid();
+    let data = g.data().to_vec();
+    let n = i64::from(N);
+    let blocked = move |x: i64, y: i64| {
+        x < 0
+            || y < 0
+            || x >= n
+            || y >= n
+            || data.get((y * n + x) as usize).is_none_or(|&v| v >= 50)
+    };
+    let goal = (n - 1, n - 1);
+    let run = || {
+        pathfinding::prelude::astar(
+            &(0i64, 0i64),
+            |&(x, y)| {
+                let mut v = Vec::with_capacity(8);
+                for (dx, dy) in [
+                    (0, 1),
+                    (1, 0),
+                    (0, -1),
+                    (-1, 0),
+                    (1, 1),
+                    (1, -1),
+                    (-1, -1),
+                    (-1, 1),
+                ] {
+                    let diag = dx != 0 && dy != 0;
+                    if blocked(x + dx, y + dy)
+                        || (diag && (blocked(x + dx, y) || blocked(x, y + dy)))
+                    {
+                        continue;
+                    }
+                    v.push(((x + dx, y + dy), if diag { 1414i64 } else { 1000 }));
+                }
+                v
+            },
+            |&(x, y)| {
+                let (dx, dy) = ((goal.0 - x).abs(), (goal.1 - y).abs());
+                dx.max(dy) * 1000 + dx.min(dy) * 414
+            },
+            |&p| p == goal,
+        )
+    };
+    if let Some((path, cost)) = run() {
+        println!(
+            "pathfinding a_star: cost {:.2} (x 0.1 m), {} cells",
+            cost as f64 / 10_000.0,
+            path.len()
+        );
+    }
+    c.bench_function("plan/pathfinding crate a_star 500x500 10%", |b| {
+        b.iter(|| black_box(run()))
+    });
+}
+
+fn coverage(c: &mut Criterion) {
+    let poly = [
+        Vector2::new(0.0, 0.0),
+        Vector2::new(400.0, 30.0),
+        Vector2::new(380.0, 250.0),
+        Vector2::new(150.0, 260.0),
+        Vector2::new(-20.0, 180.0),
+    ];
+    let starts: Vec<Vector2<f64>> = (0..4)
+        .map(|i| Vector2::new(f64::from(i) * 5.0, -10.0))
+        .collect();
+    c.bench_function("coverage/5-gon 400 m, 5 m streets, 4 drones", |b| {
+        b.iter(|| must(plan_coverage(black_box(&poly), 5.0, None, &starts, 10.0)))
+    });
+}
+
+criterion_group!(benches, grid_planners, coverage);
+criterion_main!(benches);

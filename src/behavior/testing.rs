@@ -1,0 +1,72 @@
+//! Test support: a hand-set vehicle state to build [`BehaviorContext`]s from.
+
+use super::{BehaviorConfig, BehaviorContext};
+use crate::control::AcceptedSetpoints;
+use crate::estimator::frames::FrameTree;
+use crate::estimator::geodetic::GeodeticOrigin;
+use crate::platform::Capabilities;
+use crate::types::{EstimatedState, FlightStatus, PlatformStatus, Pose, Validity, Vec3};
+use std::time::Duration;
+
+pub(crate) struct Scene {
+    pub state: EstimatedState,
+    pub platform: PlatformStatus,
+    pub frames: FrameTree,
+    pub origin: GeodeticOrigin,
+    pub config: BehaviorConfig,
+    pub capabilities: Capabilities,
+    pub dt_s: f64,
+}
+
+impl Scene {
+    /// Armed, flying, in offboard, at the origin with a valid estimate.
+    pub fn flying() -> Self {
+        Self {
+            state: EstimatedState {
+                valid: Validity::ALL,
+                ..EstimatedState::default()
+            },
+            platform: PlatformStatus {
+                armed: true,
+                offboard: true,
+                flight: FlightStatus::Flying,
+                ..PlatformStatus::default()
+            },
+            frames: FrameTree::new(),
+            origin: GeodeticOrigin::default(),
+            config: BehaviorConfig::default(),
+            capabilities: Capabilities {
+                setpoints: AcceptedSetpoints {
+                    velocity: true,
+                    position: true,
+                },
+                native_takeoff: false,
+                native_land: false,
+            },
+            dt_s: 1.0,
+        }
+    }
+
+    pub fn set_position(&mut self, position_m: Vec3, velocity_mps: Vec3) {
+        self.state.pose = Pose::from_position_yaw(position_m, self.state.pose.yaw_rad());
+        self.state.velocity_enu_mps = velocity_mps;
+    }
+
+    pub fn ctx(&self, now_s: u64) -> BehaviorContext<'_> {
+        self.ctx_at(Duration::from_secs(now_s))
+    }
+
+    pub fn ctx_at(&self, now: Duration) -> BehaviorContext<'_> {
+        BehaviorContext {
+            now,
+            dt_s: self.dt_s,
+            state: &self.state,
+            platform: &self.platform,
+            capabilities: self.capabilities,
+            frames: &self.frames,
+            geo_origin: &self.origin,
+            home_enu_m: None,
+            config: &self.config,
+        }
+    }
+}

@@ -1,0 +1,286 @@
+//! Simulator test harness: builds a [`SimRunner`] with an in-memory flight log, sends
+//! behavior commands, and steps simulated time until a condition holds (never sleeping).
+
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
+
+use kestrel::behavior::{BehaviorEvent, BehaviorId, BehaviorResult, Registry};
+use kestrel::core::{BehaviorCommand, CoreConfig};
+use kestrel::flightlog::{self, FlightLog};
+use kestrel::sim::runner::{SimConfig, SimRunner};
+use kestrel::sim::world::World;
+use kestrel::types::{FlightStatus, Vec3};
+use serde_json::Value;
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+
+/// A writer the flight log owns while the test keeps a handle to read it back.
+#[derive(Clone, Default)]
+pub struct SharedBuffer(Arc<Mutex<Vec<u8>>>);
+
+impl Write for SharedBuffer {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// One vehicle state sample, recorded every control tick.
+#[derive(Debug, Clone, Copy)]
+pub struct Sample {
+    pub t_s: f64,
+    pub position_m: Vec3,
+    pub velocity_mps: Vec3,
+    pub yaw_rad: f64,
+    pub armed: bool,
+    pub flight: FlightStatus,
+}
+
+pub struct Harness {
+    pub runner: SimRunner,
+    log: SharedBuffer,
+    /// Every behavior event so far, per drone, with its time (s).
+    pub events: Vec<Vec<(f64, BehaviorEvent)>>,
+    /// Per-drone state at every tick.
+    pub samples: Vec<Vec<Sample>>,
+}
+
+impl Harness {
+    pub fn new(world: World, drones: usize) -> Self {
+        Self::with_config(
+            world,
+            SimConfig {
+                drones,
+                ..SimConfig::default()
+            },
+        )
+    }
+
+    pub fn with_config(world: World, config: SimConfig) -> Self {
+        Self::with_core_config(world, config, |i| CoreConfig::new(&format!("drone_{i}")))
+    }
+
+    pub fn with_core_config(
+        world: World,
+        config: SimConfig,
+        core_config: impl Fn(usize) -> CoreConfig,
+    ) -> Self {
+        let mut runner = SimRunner::new(
+            world,
+            &config,
+            core_config,
+            &Registry::with_motion_behaviors(),
+        );
+        let log = SharedBuffer::default();
+        runner.log = Some(FlightLog::new(Box::new(log.clone()), 10.0));
+        let mut h = Self {
+            runner,
+            log,
+            events: vec![Vec::new(); config.drones],
+            samples: vec![Vec::new(); config.drones],
+        };
+        // A host ticks its cores continuously; the first tick gives them a state estimate.
+        h.step();
+        h
+    }
+
+    pub fn one_drone() -> Self {
+        Self::new(World::empty(), 1)
+    }
+
+    pub fn now_s(&self) -> f64 {
+        self.runner.now().as_secs_f64()
+    }
+
+    pub fn start(&mut self, drone: usize, behavior: &str, goal: Value) -> BehaviorId {
+        self.try_command(
+            drone,
+            BehaviorCommand::Start {
+                behavior: behavior.into(),
+                goal,
+            },
+        )
+        .unwrap_or_else(|e| panic!("{behavior} rejected: {e}"))
+        .expect("start returns an id")
+    }
+
+    pub fn try_command(
+        &mut self,
+        drone: usize,
+        cmd: BehaviorCommand,
+    ) -> Result<Option<BehaviorId>, kestrel::behavior::ServerError> {
+        self.runner.cores[drone].command(cmd)
+    }
+
+    pub fn command(&mut self, drone: usize, cmd: BehaviorCommand) {
+        self.try_command(drone, cmd).unwrap();
+    }
+
+    /// One control tick for every drone.
+    pub fn step(&mut self) {
+        let events = self.runner.step();
+        let t = self.now_s();
+        for (i, evs) in events.into_iter().enumerate() {
+            self.events[i].extend(evs.into_iter().map(|e| (t, e)));
+        }
+        for (i, v) in self.runner.world.vehicles.iter().enumerate() {
+            self.samples[i].push(Sample {
+                t_s: t,
+                position_m: v.state.position_m,
+                velocity_mps: v.state.velocity_mps,
+                yaw_rad: v.state.yaw_rad,
+                armed: v.is_armed(),
+                flight: v.flight_status(),
+            });
+        }
+    }
+
+    /// Steps until `done` holds; panics after `limit_s` more simulated seconds.
+    pub fn run_until(&mut self, limit_s: f64, what: &str, mut done: impl FnMut(&Self) -> bool) {
+        let end = self.now_s() + limit_s;
+        while !done(self) {
+            assert!(
+                self.now_s() < end,
+                "timed out after {limit_s} simulated s waiting for {what}; events: {:?}",
+                self.events
+            );
+            self.step();
+        }
+    }
+
+    /// Steps for `seconds` of simulated time.
+    pub fn run_for(&mut self, seconds: f64) {
+        let end = self.now_s() + seconds;
+        while self.now_s() < end - 1e-9 {
+            self.step();
+        }
+    }
+
+    /// The result of behavior `id` on `drone`, once it finished.
+    pub fn result(&self, drone: usize, id: BehaviorId) -> Option<BehaviorResult> {
+        self.events[drone].iter().find_map(|(_, e)| match e {
+            BehaviorEvent::Finished { id: i, result, .. } if *i == id => Some(result.clone()),
+            _ => None,
+        })
+    }
+
+    /// When behavior `id` finished (simulated s).
+    pub fn finished_at(&self, drone: usize, id: BehaviorId) -> Option<f64> {
+        self.events[drone].iter().find_map(|(t, e)| match e {
+            BehaviorEvent::Finished { id: i, .. } if *i == id => Some(*t),
+            _ => None,
+        })
+    }
+
+    /// Runs until behavior `id` finishes and returns its result.
+    pub fn wait_for(&mut self, drone: usize, id: BehaviorId, limit_s: f64) -> BehaviorResult {
+        self.run_until(limit_s, &format!("behavior {id} to finish"), |h| {
+            h.result(drone, id).is_some()
+        });
+        self.result(drone, id).unwrap()
+    }
+
+    /// Starts a behavior and waits for it to succeed.
+    pub fn fly(&mut self, drone: usize, behavior: &str, goal: Value, limit_s: f64) -> BehaviorId {
+        let id = self.start(drone, behavior, goal);
+        let result = self.wait_for(drone, id, limit_s);
+        assert_eq!(
+            result,
+            BehaviorResult::Succeeded,
+            "{behavior} did not succeed"
+        );
+        id
+    }
+
+    pub fn position(&self, drone: usize) -> Vec3 {
+        self.runner.world.vehicles[drone].state.position_m
+    }
+
+    pub fn speed(&self, drone: usize) -> f64 {
+        self.runner.world.vehicles[drone].state.velocity_mps.norm()
+    }
+
+    /// Samples of `drone` between two times (s).
+    pub fn samples_between(&self, drone: usize, from_s: f64, to_s: f64) -> Vec<Sample> {
+        self.samples[drone]
+            .iter()
+            .filter(|s| s.t_s >= from_s && s.t_s <= to_s)
+            .copied()
+            .collect()
+    }
+
+    /// The flight log so far, parsed.
+    pub fn log_records(&mut self) -> Vec<Value> {
+        if let Some(log) = self.runner.log.as_mut() {
+            log.flush();
+        }
+        let text = String::from_utf8(self.log.0.lock().unwrap().clone()).unwrap();
+        flightlog::read(&text).unwrap()
+    }
+
+    /// `behavior:event[:result]` for every behavior record of `drone` in the flight log.
+    pub fn log_sequence(&mut self, drone: usize) -> Vec<String> {
+        let name = format!("drone_{drone}");
+        self.log_records()
+            .iter()
+            .filter(|r| r["type"] == "behavior" && r["drone"] == name.as_str())
+            .map(|r| {
+                let mut s = format!(
+                    "{}:{}",
+                    r["behavior"].as_str().unwrap(),
+                    r["event"].as_str().unwrap()
+                );
+                if let Some(result) = r["result"]["result"].as_str() {
+                    s.push(':');
+                    s.push_str(result);
+                }
+                s
+            })
+            .collect()
+    }
+
+    /// Asserts the flight log of `drone` holds exactly `expected` (see [`Self::log_sequence`]).
+    pub fn assert_log(&mut self, drone: usize, expected: &[&str]) {
+        let got = self.log_sequence(drone);
+        assert_eq!(got, expected, "behavior sequence in the flight log");
+    }
+
+    /// Takes off drone `drone` to `height_m` and waits until it succeeds.
+    pub fn take_off(&mut self, drone: usize, height_m: f64) {
+        self.fly(
+            drone,
+            "takeoff",
+            serde_json::json!({ "height": height_m, "speed": 1.0 }),
+            30.0,
+        );
+    }
+}
+
+/// Largest distance of any sample from `point` (m).
+pub fn max_distance(samples: &[Sample], point: &Vec3) -> f64 {
+    samples
+        .iter()
+        .map(|s| (s.position_m - point).norm())
+        .fold(0.0, f64::max)
+}
+
+/// Smallest distance of any sample from `point` (m), and when.
+pub fn closest_approach(samples: &[Sample], point: &Vec3) -> (f64, f64) {
+    samples
+        .iter()
+        .map(|s| ((s.position_m - point).norm(), s.t_s))
+        .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a })
+}
+
+/// A world with one pole (cylinder) at `xy` and nothing else.
+pub fn world_with_pole(x_m: f64, y_m: f64, radius_m: f64) -> World {
+    let mut w = World::empty();
+    w.cylinders.push(kestrel::sim::world::Cylinder {
+        xy_m: [x_m, y_m],
+        radius_m,
+        height_m: 10.0,
+    });
+    w
+}

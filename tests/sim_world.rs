@@ -1,0 +1,175 @@
+//! Whole flights in the thesis worlds: several drones, the demo script, the flight log, seeds.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use common::Harness;
+use kestrel::sim::runner::SimConfig;
+use kestrel::sim::script::{demo_plans, Script, ScriptState};
+use kestrel::sim::world::World;
+use kestrel::sim::Environment;
+use kestrel::types::Vec3;
+use std::path::Path;
+
+fn thesis_world(name: &str) -> World {
+    World::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("sitl/worlds/{name}.json")))
+        .unwrap()
+}
+
+/// Flies the demo script on every drone until all scripts end; returns their final states.
+fn fly_demo(h: &mut Harness, limit_s: f64) -> Vec<ScriptState> {
+    let mut scripts: Vec<Script> = demo_plans(&h.runner.world)
+        .into_iter()
+        .map(Script::new)
+        .collect();
+    let mut seen = vec![0; scripts.len()];
+    while !scripts.iter().all(Script::finished) {
+        assert!(h.now_s() < limit_s, "demo still running after {limit_s} s");
+        for (i, script) in scripts.iter_mut().enumerate() {
+            let events: Vec<_> = h.events[i][seen[i]..]
+                .iter()
+                .map(|(_, e)| e.clone())
+                .collect();
+            seen[i] = h.events[i].len();
+            script.update(&mut h.runner.cores[i], &events);
+        }
+        h.step();
+    }
+    scripts.into_iter().map(|s| s.state).collect()
+}
+
+const DEMO_SEQUENCE: [&str; 8] = [
+    "takeoff:started",
+    "takeoff:finished:succeeded",
+    "go_to:started",
+    "go_to:finished:succeeded",
+    "follow_path:started",
+    "follow_path:finished:succeeded",
+    "land:started",
+    "land:finished:succeeded",
+];
+
+#[test]
+fn seven_drones_take_off_and_land_at_the_thesis_start_poses_in_low() {
+    let world = thesis_world("low");
+    let starts = world.starts_xy_yaw["7"].clone();
+    let mut h = Harness::new(world, 7);
+    for (i, [x, y, yaw]) in starts.iter().enumerate() {
+        let v = &h.runner.world.vehicles[i];
+        assert_eq!(
+            v.state.position_m,
+            Vec3::new(*x, *y, 0.0),
+            "drone_{i} start"
+        );
+        assert_eq!(v.state.yaw_rad, kestrel::types::wrap_angle_rad(*yaw));
+    }
+    let results = fly_demo(&mut h, 120.0);
+    assert!(
+        results.iter().all(|r| *r == ScriptState::Succeeded),
+        "{results:?}"
+    );
+    let shapes = h.runner.world.shapes().to_vec();
+    for (i, [x, y, _]) in starts.iter().enumerate() {
+        let start = Vec3::new(*x, *y, 0.0);
+        let samples = &h.samples[i];
+        // Takeoff is vertical: still above the start pad at 2.9 m.
+        let top = samples
+            .iter()
+            .find(|s| s.position_m.z > 2.9)
+            .unwrap()
+            .position_m;
+        assert!(
+            (top.xy() - start.xy()).norm() < 0.05,
+            "drone_{i} drifted on takeoff"
+        );
+        // Never near a pole, never near another drone.
+        for s in samples {
+            for shape in &shapes {
+                assert!(
+                    shape.distance_m(&s.position_m).is_none_or(|d| d > 0.5),
+                    "drone_{i} passed {:?} m from a pole at {}",
+                    shape.distance_m(&s.position_m),
+                    s.position_m
+                );
+            }
+        }
+        for j in (i + 1)..7 {
+            let closest = samples
+                .iter()
+                .zip(&h.samples[j])
+                .map(|(a, b)| (a.position_m - b.position_m).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                closest > 1.0,
+                "drone_{i} and drone_{j} came {closest} m close"
+            );
+        }
+        let end = samples.last().unwrap();
+        assert!(
+            !end.armed && end.position_m.z == 0.0,
+            "drone_{i} landed and disarmed"
+        );
+        h.assert_log(i, &DEMO_SEQUENCE);
+    }
+    assert!(h.log_records().iter().all(|r| r["type"] != "collision"));
+}
+
+#[test]
+fn the_demo_avoids_poles_in_the_densest_world() {
+    let mut h = Harness::new(thesis_world("high"), 7);
+    let results = fly_demo(&mut h, 120.0);
+    assert!(
+        results.iter().all(|r| *r == ScriptState::Succeeded),
+        "{results:?}"
+    );
+}
+
+#[test]
+fn flight_log_has_poses_at_10_hz_for_every_drone() {
+    let mut h = Harness::new(World::empty(), 2);
+    fly_demo(&mut h, 60.0);
+    let records = h.log_records();
+    for drone in ["drone_0", "drone_1"] {
+        let poses: Vec<_> = records
+            .iter()
+            .filter(|r| r["type"] == "pose" && r["drone"] == drone)
+            .collect();
+        for r in &poses {
+            for key in ["t", "x", "y", "z", "yaw", "vx", "vy", "vz"] {
+                assert!(r[key].is_number(), "{key} missing in {r}");
+            }
+        }
+        let times: Vec<f64> = poses.iter().map(|r| r["t"].as_f64().unwrap()).collect();
+        let worst_gap = times.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        assert!(
+            worst_gap <= 0.1 + 1e-6,
+            "{drone}: {worst_gap} s between poses"
+        );
+        let span = times.last().unwrap() - times.first().unwrap();
+        assert!(span > 20.0, "{drone}: poses over {span} s only");
+        // The pose records name the behavior flying at that moment.
+        assert!(poses.iter().any(|r| r["behavior"] == "follow_path"));
+    }
+}
+
+fn noisy_flight(seed: u64) -> Vec<serde_json::Value> {
+    let config = SimConfig {
+        drones: 2,
+        seed,
+        environment: Environment {
+            wind_mps: Vec3::new(1.0, 0.5, 0.0),
+            turbulence_mps2: 0.8,
+        },
+        ..SimConfig::default()
+    };
+    let mut h = Harness::with_config(thesis_world("low"), config);
+    fly_demo(&mut h, 120.0);
+    h.log_records()
+}
+
+#[test]
+fn the_same_seed_gives_the_same_flight() {
+    let a = noisy_flight(11);
+    assert_eq!(a, noisy_flight(11), "same seed, same log");
+    assert_ne!(a, noisy_flight(12), "another seed, another flight");
+}
