@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 //! API costs on the control loop, measured on the real server and host in one process:
 //! 1. latency from an HTTP START (request sent) to the first changed setpoint the vehicle gets;
 //! 2. the control loop's tick timing with 0 and with 100 WebSocket clients at 10 Hz.
