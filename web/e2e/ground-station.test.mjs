@@ -205,6 +205,32 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
     await browser.shot('11-coverage-done');
   });
 
+  test('an on-demand task inspects a registered panel with the drone the operator picks', async () => {
+    const r = await kestrel.api('POST', '/api/frames', { frame_id: 'panel_7', parent: 'earth', translation_m: [4, -4, 0], yaw_rad: 0 });
+    assert.equal(r.status, 200, JSON.stringify(r.json));
+    await tab('control');
+    await until(page, () => [...document.querySelectorAll('#od-frame option')].some((o) => o.value === 'panel_7'), null, 20_000);
+    await page.locator('#od-frame').selectOption('panel_7');
+    await page.locator('#od-drone').selectOption({ label: 'drone_0' });
+    await page.locator('#od-approach').fill('5');
+    await page.locator('#od-height').fill('2');
+    await page.locator('#btn-inspect').click();
+    await until(page, () => /^accepted/.test(document.querySelector('#od-answer')?.textContent ?? ''), null, 20_000);
+    await until(
+      page,
+      () => {
+        const el = document.querySelector('.drone-glyph[data-drone="drone_0"]');
+        return el && Math.hypot(Number(el.dataset.x) - 4, Number(el.dataset.y) + 4) < 0.6;
+      },
+      null,
+      MISSION_TIMEOUT,
+    );
+    await browser.shot('12-on-demand');
+    await tab('monitor');
+    const n = await page.evaluate(() => document.querySelectorAll('.mstatus[data-drone="drone_0"] .mitem').length);
+    await waitFinished('drone_0', n);
+  });
+
   test('a drone whose link is lost is shown as lost, and live again when restored', async () => {
     await tab('fleet');
     const r = await kestrel.api('POST', '/api/sim/fault', { drone_id: 'drone_1', fault: 'link_lost' });
@@ -213,7 +239,7 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
     assert.match(await page.locator('.card[data-drone="drone_1"] [data-field="link"]').textContent(), /LOST/);
     await until(page, () => document.querySelector('.drone-glyph[data-drone="drone_1"]')?.classList.contains('lost'), null, 5_000);
     assert.equal(await page.locator('.card[data-drone="drone_0"]').getAttribute('data-link'), 'ok');
-    await browser.shot('12-link-lost');
+    await browser.shot('13-link-lost');
     await kestrel.api('POST', '/api/sim/fault', { drone_id: 'drone_1', fault: 'link_restored' });
     await page.locator('.card[data-drone="drone_1"][data-link="ok"]').waitFor({ timeout: 30_000 });
   });
@@ -221,7 +247,7 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
   test('works on a tablet-sized screen', async () => {
     await page.setViewportSize({ width: 820, height: 1180 });
     await page.waitForTimeout(500);
-    await browser.shot('13-tablet');
+    await browser.shot('14-tablet');
     assert.ok(await page.locator('#btn-hold-all').isVisible());
     assert.ok(await page.locator('#btn-land-all').isVisible());
     await page.setViewportSize({ width: 1400, height: 900 });
