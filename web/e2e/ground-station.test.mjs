@@ -272,6 +272,16 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
     await page.setViewportSize({ width: 1400, height: 900 });
   });
 
+  test('when kestrel goes away every drone is shown as lost', async () => {
+    await tab('fleet');
+    await kestrel.stop();
+    for (const d of ['drone_0', 'drone_1']) {
+      await page.locator(`.card[data-drone="${d}"][data-link="lost"]`).waitFor({ timeout: 20_000 });
+    }
+    await page.locator('#conn-status.bad').waitFor({ timeout: 5_000 });
+    await browser.shot('16-kestrel-gone');
+  });
+
   test('no request left localhost and the page raised no error', () => {
     assert.deepEqual(browser.blocked, []);
     assert.deepEqual(browser.pageErrors, []);
