@@ -223,11 +223,6 @@ impl StatusWatch {
         if prev.boot_counter != s.boot_counter {
             out.push(format!("autopilot reboot #{}", s.boot_counter));
         }
-        if prev.last_error != s.last_error {
-            if let Some(e) = &s.last_error {
-                out.push(format!("autopilot: {e}"));
-            }
-        }
         self.last = Some(s.clone());
         out
     }

@@ -15,6 +15,8 @@ use tokio::sync::watch;
 
 pub struct ServeOptions {
     pub listen: SocketAddr,
+    /// `listen` is only the default: when it is taken, any free port of the same address does.
+    pub listen_is_default: bool,
     pub token: Option<String>,
     pub api: ApiSection,
     pub pace: Pace,
@@ -86,9 +88,20 @@ fn print_event(e: &HostEvent) {
 /// flight ended).
 pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
     api::auth::check_listen(options.listen, options.token.as_deref())?;
-    let listener = tokio::net::TcpListener::bind(options.listen)
-        .await
-        .with_context(|| format!("cannot listen on {}", options.listen))?;
+    let listener = match tokio::net::TcpListener::bind(options.listen).await {
+        Ok(l) => l,
+        Err(e) if options.listen_is_default && e.kind() == std::io::ErrorKind::AddrInUse => {
+            println!(
+                "{} is taken; serving the API on a free port instead",
+                options.listen
+            );
+            tokio::net::TcpListener::bind(SocketAddr::new(options.listen.ip(), 0))
+                .await
+                .with_context(|| format!("cannot listen on {}", options.listen.ip()))?
+        }
+        Err(e) => return Err(e).with_context(|| format!("cannot listen on {}", options.listen)),
+    };
+    let address = listener.local_addr().context("reading the API address")?;
     let flights = options.flights.clone();
     let max_time = options.max_time;
     let mut rt = RuntimeOptions::new(options.pace);
@@ -123,7 +136,7 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
     } else {
         "no token: loopback only"
     };
-    println!("API on http://{} ({auth})", options.listen);
+    println!("API on http://{address} ({auth})");
     let mut events = spawned.events;
     let printer = tokio::spawn(async move {
         loop {
@@ -161,8 +174,7 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
                 if ended && !options.exit_when_done {
                     announced = true;
                     println!(
-                        "flights ended; still serving the API on http://{} (Ctrl-C to stop)",
-                        options.listen
+                        "flights ended; still serving the API on http://{address} (Ctrl-C to stop)"
                     );
                 }
             }

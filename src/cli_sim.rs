@@ -219,6 +219,8 @@ pub fn run(args: SimArgs) -> Result<()> {
         kestrel::api::auth::resolve_token(std::env::var("KESTREL_API_TOKEN").ok(), &config.api)?;
     let options = ServeOptions {
         listen,
+        listen_is_default: args.listen.is_none()
+            && config.api.listen == kestrel::config::ApiSection::default().listen,
         token,
         api: config.api.clone(),
         pace,

@@ -62,6 +62,11 @@ fn go_to_ends_within_0_2_m_of_the_goal() {
         .map(|s| (s.position_m - goal).dot(&along))
         .fold(f64::NEG_INFINITY, f64::max);
     assert!(overshoot < 0.1, "overshot the goal by {overshoot} m");
+    let fastest = h.samples[0]
+        .iter()
+        .map(|s| s.velocity_mps.norm())
+        .fold(0.0, f64::max);
+    assert!(fastest < 2.0 * 1.05, "flew at {fastest} m/s, asked 2");
     h.assert_log(
         0,
         &[
@@ -166,6 +171,11 @@ fn follow_path_passes_every_waypoint_without_stopping() {
         .map(|s| s.velocity_mps.norm())
         .fold(f64::INFINITY, f64::min);
     assert!(slowest > 0.2, "slowed to {slowest} m/s between waypoints");
+    let fastest = flight
+        .iter()
+        .map(|s| s.velocity_mps.norm())
+        .fold(0.0, f64::max);
+    assert!(fastest < 1.5 * 1.1, "flew at {fastest} m/s, asked 1.5");
     assert!((h.position(0) - path[3]).norm() < 0.2);
     // 14 m of path at 1.5 m/s with slow corners: well under a stop-and-go time.
     let took = h.now_s() - start;

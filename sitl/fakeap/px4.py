@@ -27,6 +27,7 @@ EVENTS = {
 FORCE_MAGIC = 21196
 SPOOLUP_S = 2.0        # arming to leaving the ground (takeoff detected ~1.7-1.9 s after arming)
 LAND_DETECT_S = 2.5    # touchdown to "Landing detected"
+FAILSAFE_SWITCH_S = 0.06
 
 
 def custom_mode_of(name):
@@ -40,6 +41,8 @@ class Px4Vehicle(Vehicle):
     capabilities = 59647        # as captured
     flight_sw_version = 255
     ack_before_replies = True
+    sensors_present_enabled_health = (50348079, 50413615, 320915519)
+    battery_mv = 16200
 
     def limits(self):
         # tuned so offboard takeoff to 5 m, the 11 m go-to and AUTO.LAND take about as long as captured
@@ -96,6 +99,7 @@ class Px4Vehicle(Vehicle):
         self.landed_since = None
         self.landing_detected_at = None
         self.rtl_phase = None
+        self.loss_detected_at = None
         self.model.target = Target("idle")
 
     # ------------------------------------------------------------------ heartbeat
@@ -127,6 +131,10 @@ class Px4Vehicle(Vehicle):
 
     def mode_name(self):
         return self.mode
+
+    def extra_state(self):
+        return {"offboard_signal": self.offboard_signal(), "failsafe": self.failsafe,
+                "intended_mode": self.intended_mode}
 
     def in_external_control(self):
         return self.mode == "OFFBOARD"
@@ -251,6 +259,13 @@ class Px4Vehicle(Vehicle):
             self.set_mode("AUTO.TAKEOFF")
             self.takeoff_alt_m = alt
             self.apply_mode_target()
+            return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_DO_REPOSITION:
+            if not (self.armed and self.airborne):
+                return M.MAV_RESULT_TEMPORARILY_REJECTED
+            target = self.reposition_target(p)
+            self.set_mode("AUTO.LOITER")
+            self.model.target = target
             return M.MAV_RESULT_ACCEPTED
         if cmd == M.MAV_CMD_NAV_LAND:
             return self.request_mode("AUTO.LAND")
@@ -380,17 +395,22 @@ class Px4Vehicle(Vehicle):
             return
         b = self.model.body
         agl = self.altitude_agl_m()
-        # offboard loss failsafe
+        # offboard loss failsafe: health events at COM_OF_LOSS_T, mode switch ~60 ms later
+        # (captured: events 1.01 s, CURRENT_MODE 1.06-1.11 s after the last setpoint)
         if self.mode == "OFFBOARD" and self.armed and not self.offboard_signal():
-            self.failsafe = True
-            self.note("failsafe", "offboard signal lost")
-            self.event("check_modes_offboard_signal", bytes([0, 0x40, 0, 0, 0x14]))
-            action = self.opts.offboard_loss_action
-            target_mode = "AUTO.LAND" if action == "land" else "POSCTL"
-            self.event("commander_failsafe_enter_generic", bytes([0, 0, 6, 0, 2]))
-            self.set_mode(target_mode, reason="failsafe")
-            self.failsafe = True
-            self.apply_mode_target()
+            if self.loss_detected_at is None:
+                self.loss_detected_at = now
+                self.note("failsafe", "offboard signal lost")
+                self.event("check_modes_offboard_signal", bytes([0, 0x40, 0, 0, 0x14]))
+            elif now - self.loss_detected_at >= FAILSAFE_SWITCH_S:
+                self.loss_detected_at = None
+                self.failsafe = True
+                target_mode = "AUTO.LAND" if self.param("COM_OBL_RC_ACT") == 4 else "POSCTL"
+                self.event("commander_failsafe_enter_generic", bytes([0, 0, 6, 0, 2]))
+                self.set_mode(target_mode, reason="failsafe")
+                self.apply_mode_target()
+        else:
+            self.loss_detected_at = None
         if not self.armed:
             self.landed_state = M.MAV_LANDED_STATE_ON_GROUND if b.on_ground else M.MAV_LANDED_STATE_IN_AIR
             return

@@ -53,8 +53,7 @@ class Recorder:
     def pump(self, seconds, until=None):
         end = time.time() + seconds
         while time.time() < end:
-            msg = self.link.m.recv_match(type=["HEARTBEAT", "EXTENDED_SYS_STATE", "COMMAND_ACK"],
-                                         blocking=True, timeout=0.1)
+            msg = self.link.recv(["HEARTBEAT", "EXTENDED_SYS_STATE", "COMMAND_ACK"], 0.1)
             if msg is None:
                 continue
             if msg.get_type() == "HEARTBEAT":

@@ -73,6 +73,7 @@ def test_ardupilot_proximity_ids_and_packet_loss(fake_factory, tmp_path):
     assert link.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 2e4) == M.MAV_RESULT_ACCEPTED
     f.control(cmd="packet_loss", probability=0.5)
     time.sleep(0.3)
+    link.drain()
     n = 0
     end = time.time() + 2
     while time.time() < end:

@@ -14,6 +14,7 @@ pub mod runtime;
 pub mod scenario;
 pub mod sim;
 pub mod status;
+pub mod vehicle;
 
 pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};
 pub use fleet::{Fleet, SimFleet};

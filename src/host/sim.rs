@@ -34,6 +34,12 @@ pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> Sim
 
 /// A host flying the vehicles of an existing simulator world.
 pub fn simulated_host_in(sim: SimWorld, config: &Config) -> Host {
+    let (cores, fleet, host_config) = simulated_parts(sim, config);
+    Host::new(cores, Box::new(fleet), host_config)
+}
+
+/// The pieces of a simulated host, for callers that wrap the fleet (benchmark probes).
+pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFleet, HostConfig) {
     let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
     let registry = payload::registry();
     let cores = sim
@@ -50,9 +56,9 @@ pub fn simulated_host_in(sim: SimWorld, config: &Config) -> Host {
             DroneCore::new(c, v.capabilities(), registry.clone())
         })
         .collect();
-    Host::new(
+    (
         cores,
-        Box::new(SimFleet::new(sim, PHYSICS_SUBSTEPS)),
+        SimFleet::new(sim, PHYSICS_SUBSTEPS),
         HostConfig {
             limits: Limits::from_config(config),
             switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),

@@ -8,6 +8,7 @@
 
 use std::collections::BTreeMap;
 
+use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 
 use super::grid::{Cell, CellBox, GridSpec, InsertParams, OccupancyGrid, UNKNOWN};
@@ -72,10 +73,25 @@ impl LayeredMap {
         local: &OccupancyGrid,
     ) -> Result<Option<CellBox>, MapError> {
         let spec = *self.global.spec();
+        // Global cells whose centres can fall inside the local grid.
+        let ls = local.spec();
+        let lo = (ls.origin_enu_m - spec.origin_enu_m) / spec.resolution_m;
+        let hi = lo
+            + Vector2::new(f64::from(ls.width_cells), f64::from(ls.height_cells)) * ls.resolution_m
+                / spec.resolution_m;
+        let range = |a: f64, b: f64, n: u32| {
+            let first = (a.floor().max(0.0) as u32).min(n);
+            let end = ((b.ceil().max(0.0)) as u32).min(n);
+            first..end
+        };
+        let (xs, ys) = (
+            range(lo.x, hi.x, spec.width_cells),
+            range(lo.y, hi.y, spec.height_cells),
+        );
         let layer = self.layer_mut(drone)?;
         let mut covered: Option<CellBox> = None;
-        for y in 0..spec.height_cells {
-            for x in 0..spec.width_cells {
+        for y in ys {
+            for x in xs.clone() {
                 let c = Cell { x, y };
                 let Some(v) = local.get_at(spec.cell_center_enu_m(c)) else {
                     continue;
@@ -129,7 +145,7 @@ impl LayeredMap {
 mod tests {
     use super::*;
     use crate::mapping::scan::Beam;
-    use nalgebra::{Vector2, Vector3};
+    use nalgebra::Vector3;
 
     fn spec(w: u32, h: u32, res: f64, ox: f64) -> GridSpec {
         GridSpec {

@@ -179,9 +179,7 @@ impl Session {
         }
         match event {
             Some(ModelEvent::Text(text)) => {
-                if text.is_problem() {
-                    tracing::warn!(target: "mavlink", "autopilot: {}", text.text);
-                }
+                tracing::info!(target: "mavlink", "autopilot: {}", text.text);
                 self.tracker.on_text(&text);
             }
             Some(ModelEvent::Contact {
@@ -354,7 +352,7 @@ impl Session {
 
     fn finish(&mut self, origin: Origin, outcome: Result<(), String>) {
         if let Err(e) = &outcome {
-            tracing::warn!(target: "mavlink", "{origin:?}: {e}");
+            tracing::debug!(target: "mavlink", "{origin:?}: {e}");
             self.model.set_error(e.clone());
         }
         if let Origin::Request(request) = origin {
