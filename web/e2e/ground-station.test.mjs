@@ -225,10 +225,17 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
   });
 
   test('an on-demand task inspects a registered panel with the drone the operator picks', async () => {
-    const r = await kestrel.api('POST', '/api/frames', { frame_id: 'panel_7', parent: 'earth', translation_m: [4, -4, 0], yaw_rad: 0 });
-    assert.equal(r.status, 200, JSON.stringify(r.json));
     await tab('control');
+    await page.locator('#frame-details summary').click();
+    await page.locator('#frame-id').fill('panel_7');
+    await page.locator('#frame-x').fill('4');
+    await page.locator('#frame-y').fill('-4');
+    await page.locator('#btn-frame').click();
+    await until(page, () => /^accepted/.test(document.querySelector('#frame-answer')?.textContent ?? ''), null, 20_000);
+    const frames = await kestrel.api('GET', '/api/frames');
+    assert.ok(frames.json.some((f) => f.frame_id === 'panel_7'), JSON.stringify(frames.json));
     await until(page, () => [...document.querySelectorAll('#od-frame option')].some((o) => o.value === 'panel_7'), null, 20_000);
+    await until(page, () => [...document.querySelectorAll('.frame-icon')].some((e) => e.textContent.includes('panel_7')), null, 10_000);
     await page.locator('#od-frame').selectOption('panel_7');
     await page.locator('#od-drone').selectOption({ label: 'drone_0' });
     await page.locator('#od-approach').fill('5');
