@@ -7,6 +7,7 @@
 //! Run: `cargo bench --bench planning -- --quick`
 
 use std::hint::black_box;
+use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{Vector2, Vector3};
@@ -140,6 +141,23 @@ fn grid_planners(c: &mut Criterion) {
     c.bench_function("plan/pathfinding crate a_star 500x500 10%", |b| {
         b.iter(|| black_box(run()))
     });
+
+    // The machine is shared, so also time both planners alternately (30 rounds, fastest run of
+    // each): the ratio holds even when the load changes between criterion's groups.
+    let req = request(PlannerKind::AStar);
+    let (mut ours, mut theirs) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..30 {
+        let t = Instant::now();
+        black_box(must(planners.plan(&req, &map, &budget)));
+        ours = ours.min(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        black_box(run());
+        theirs = theirs.min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    println!(
+        "paired fastest of 30: kestrel a_star {ours:.2} ms, pathfinding a_star {theirs:.2} ms, ratio {:.2}",
+        ours / theirs
+    );
 }
 
 /// The thesis's medium world rasterised at 0.1 m: cells whose centre is inside a pole.

@@ -201,6 +201,19 @@ mod tests {
     }
 
     #[test]
+    fn merge_local_clips_a_grid_hanging_over_the_edge() {
+        let mut m =
+            LayeredMap::new(spec(4, 1, 1.0, 0.0), FuseRule::Max, InsertParams::default()).unwrap();
+        // Local grid covers x in [-2, 2): only global cells 0 and 1 are inside it.
+        let local = OccupancyGrid::from_data(spec(4, 1, 1.0, -2.0), vec![100, 100, 30, 0]).unwrap();
+        m.merge_local("cf4", &local).unwrap();
+        assert_eq!(row0(&m.global), vec![30, 0, -1, -1]);
+        // A grid entirely outside changes nothing.
+        let far = OccupancyGrid::from_data(spec(2, 1, 1.0, 50.0), vec![100, 100]).unwrap();
+        assert_eq!(m.merge_local("cf4", &far).unwrap(), None);
+    }
+
+    #[test]
     fn merge_local_resamples_a_finer_offset_grid() {
         let mut m =
             LayeredMap::new(spec(4, 1, 1.0, 0.0), FuseRule::Max, InsertParams::default()).unwrap();

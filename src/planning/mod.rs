@@ -36,7 +36,9 @@ use serde::{Deserialize, Serialize};
 pub use coverage::{plan_coverage, CoverageError, CoveragePlan};
 pub use distance::DistanceField;
 pub use graph_planner::GraphAStarPlanner;
-pub use grid_planners::{AStarPlanner, DijkstraPlanner, VoronoiPlanner};
+pub use grid_planners::{
+    AStarPlanner, DijkstraPlanner, VoronoiPlanner, VORONOI_OFF_DIAGRAM_PENALTY,
+};
 pub use map::{PlanningMap, DEFAULT_OCCUPIED_THRESHOLD};
 
 /// One planner plugin. Contract: `plan` is synchronous, reads no clock, does no I/O, and returns
