@@ -484,6 +484,26 @@ mod tests {
     }
 
     #[test]
+    fn extensions_add_boxes_cylinders_and_a_geodetic_origin() {
+        let w: World = serde_json::from_str(
+            r#"{"bounds_m": {"x": [-10, 10], "y": [-10, 10]}, "pole_radius_m": 0.2,
+                "poles_xy_m": [[1, 1]],
+                "cylinders": [{"xy_m": [5, 5], "radius_m": 1.0, "height_m": 20}],
+                "boxes": [{"center_xy_m": [-5, 0], "size_xy_m": [2, 4], "yaw_rad": 0.5}],
+                "geodetic_origin": {"lat_deg": 47.0, "lon_deg": 8.0, "alt_m": 400}}"#,
+        )
+        .unwrap();
+        w.validate().unwrap();
+        let shapes = w.shapes();
+        assert_eq!(shapes.len(), 3, "pole, cylinder, box");
+        assert!(matches!(shapes[2], Shape::Box { height_m, .. } if height_m == 10.0));
+        assert_eq!(w.geodetic_origin.unwrap().alt_m, 400.0);
+        let bad: World =
+            serde_json::from_str(r#"{"bounds_m": {"x": [1, -1], "y": [0, 1]}}"#).unwrap();
+        assert!(bad.validate().is_err());
+    }
+
+    #[test]
     fn a_sensor_kind_alone_takes_its_defaults() {
         let w: World = serde_json::from_str(
             r#"{"bounds_m": {"x": [0, 1], "y": [0, 1]}, "sensor": {"kind": "lidar360", "beams": 90}}"#,
