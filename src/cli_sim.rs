@@ -97,6 +97,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         let mut c = CoreConfig::new(&format!("drone_{i}"));
         c.controller = config.controller;
         c.behaviors = config.behaviors;
+        c.estimator = config.estimator.plugin.unwrap_or_default();
         c
     };
     let mut runner = SimRunner::new(

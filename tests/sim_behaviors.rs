@@ -421,3 +421,31 @@ fn a_landed_drone_takes_off_again_and_rtl_goes_to_the_new_home() {
     assert!((p.xy() - Vec3::new(4.0, 3.0, 0.0).xy()).norm() < 0.2, "{p}");
     assert_eq!(h.log_sequence(0).len(), 12);
 }
+
+#[test]
+fn every_estimator_plugin_flies_the_simulator() {
+    use kestrel::core::CoreConfig;
+    use kestrel::estimator::EstimatorPlugin;
+    use kestrel::sim::runner::SimConfig;
+    use kestrel::sim::world::World;
+    for plugin in [
+        EstimatorPlugin::GroundTruth,
+        EstimatorPlugin::AutopilotOdometry,
+        EstimatorPlugin::ExternalPose,
+    ] {
+        let mut h =
+            Harness::with_core_config(World::empty(), SimConfig::default(), |i| CoreConfig {
+                estimator: plugin,
+                ..CoreConfig::new(&format!("drone_{i}"))
+            });
+        h.take_off(0, 2.0);
+        let goal = Vec3::new(3.0, 2.0, 2.0);
+        h.fly(
+            0,
+            "go_to",
+            json!({ "x": 3.0, "y": 2.0, "z": 2.0, "speed": 1.0 }),
+            30.0,
+        );
+        assert!((h.position(0) - goal).norm() < 0.2, "{plugin:?}");
+    }
+}
