@@ -8,6 +8,7 @@ pub mod dynamics;
 pub mod runner;
 pub mod script;
 pub mod sensors;
+pub mod shape;
 pub mod spatial;
 pub mod vehicle;
 pub mod world;
