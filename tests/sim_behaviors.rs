@@ -116,6 +116,7 @@ fn go_to_yaw_modes_turn_the_vehicle() {
     h.run_for(2.0);
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - std::f64::consts::FRAC_PI_2).abs() < 0.05, "{yaw}");
+    assert_eq!(h.log_sequence(0).len(), 8, "takeoff and three go_to");
 }
 
 #[test]
@@ -133,6 +134,15 @@ fn a_short_go_to_still_ends_at_its_fixed_heading() {
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - 3.0).abs() < 0.05, "stopped turning at {yaw} rad");
     assert!((h.position(0) - Vec3::new(0.3, 0.0, 2.0)).norm() < 0.2);
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -344,6 +354,17 @@ fn land_touches_down_and_disarms() {
         .map(|s| -s.velocity_mps.z)
         .fold(0.0, f64::max);
     assert!(fastest < 0.6, "descended at {fastest} m/s");
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:succeeded",
+            "land:started",
+            "land:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -360,6 +381,15 @@ fn rotate_turns_in_place() {
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - 2.0).abs() < 0.05, "{yaw}");
     assert!((h.position(0) - here).norm() < 0.1);
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "rotate:started",
+            "rotate:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -370,6 +400,15 @@ fn hover_lasts_its_duration() {
     let id = h.fly(0, "hover", json!({ "duration": 4.0 }), 10.0);
     let took = h.finished_at(0, id).unwrap() - start;
     assert!((took - 4.0).abs() < 0.05, "{took}");
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "hover:started",
+            "hover:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -395,6 +434,7 @@ fn goals_that_cannot_be_flown_are_rejected_with_a_reason() {
         )
         .unwrap_err();
     assert!(err.to_string().contains("height"), "{err}");
+    assert!(h.log_sequence(0).is_empty(), "rejected goals never start");
 }
 
 #[test]
