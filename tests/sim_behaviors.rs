@@ -489,3 +489,44 @@ fn every_estimator_plugin_flies_the_simulator() {
         assert!((h.position(0) - goal).norm() < 0.2, "{plugin:?}");
     }
 }
+
+#[test]
+fn a_paused_follow_path_resumes_through_the_waypoints_left() {
+    let mut h = Harness::one_drone();
+    h.take_off(0, 2.0);
+    let path = [
+        Vec3::new(5.0, 0.0, 2.0),
+        Vec3::new(5.0, 5.0, 2.0),
+        Vec3::new(0.0, 5.0, 2.0),
+    ];
+    let goal_path: Vec<[f64; 3]> = path.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let start = h.now_s();
+    let id = h.start(0, "follow_path", json!({ "path": goal_path, "speed": 1.5 }));
+    h.run_until(20.0, "the first corner", |h| {
+        (h.position(0) - path[0]).norm() < 0.3
+    });
+    h.run_for(1.0);
+    h.command(0, BehaviorCommand::Pause(id));
+    h.run_for(5.0);
+    let hold = h.position(0);
+    h.run_for(3.0);
+    assert!((h.position(0) - hold).norm() < 0.1, "holds while paused");
+    h.command(0, BehaviorCommand::Resume(id));
+    assert_eq!(h.wait_for(0, id, 40.0), BehaviorResult::Succeeded);
+    let flight = h.samples_between(0, start, h.now_s());
+    for w in &path {
+        let (d, _) = closest_approach(&flight, w);
+        assert!(d < 0.3, "waypoint {w} missed by {d} m");
+    }
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "follow_path:started",
+            "follow_path:paused",
+            "follow_path:resumed",
+            "follow_path:finished:succeeded",
+        ],
+    );
+}
