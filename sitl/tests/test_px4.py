@@ -221,3 +221,22 @@ def test_offboard_yaw_and_frames(fake_factory):
     assert abs(gp.hdg - 9000) < 300 and abs(gp.relative_alt - 4000) < 300
     lp = link.recv("LOCAL_POSITION_NED", 2)
     assert abs(lp.x - 2) < 0.3 and abs(lp.y + 3) < 0.3 and abs(lp.z + 4) < 0.3
+
+
+def test_timesync_and_params(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    req = link.recv("TIMESYNC", 2, lambda m: m.tc1 == 0)  # PX4 asks at 10 Hz
+    assert req is not None and req.ts1 > 0
+    link.m.mav.timesync_send(0, 123456789)
+    reply = link.recv("TIMESYNC", 2, lambda m: m.ts1 == 123456789)
+    assert reply is not None and reply.tc1 > 0
+    link.m.mav.param_request_read_send(1, 1, b"COM_OF_LOSS_T", -1)
+    pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OF_LOSS_T")
+    assert pv.param_value == 1.0 and pv.param_type == M.MAV_PARAM_TYPE_REAL32
+    link.m.mav.param_set_send(1, 1, b"COM_OF_LOSS_T", 0.5, M.MAV_PARAM_TYPE_REAL32)
+    assert link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OF_LOSS_T").param_value == 0.5
+    link.m.mav.param_request_read_send(1, 1, b"COM_OBL_RC_ACT", -1)
+    pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OBL_RC_ACT")
+    import struct
+    assert struct.unpack("<i", struct.pack("<f", pv.param_value))[0] == 4  # PX4 ints are bytewise

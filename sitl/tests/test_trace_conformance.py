@@ -53,7 +53,8 @@ class Recorder:
     def pump(self, seconds, until=None):
         end = time.time() + seconds
         while time.time() < end:
-            msg = self.link.recv(["HEARTBEAT", "EXTENDED_SYS_STATE", "COMMAND_ACK"], 0.1)
+            msg = self.link.recv(["HEARTBEAT", "EXTENDED_SYS_STATE", "COMMAND_ACK"],
+                                 max(0.0, min(0.1, end - time.time())))
             if msg is None:
                 continue
             if msg.get_type() == "HEARTBEAT":
@@ -100,11 +101,12 @@ def test_px4_offboard_states_are_captured_states(fake_factory):
     armed = False
     while time.time() < end:
         link.send_local(0, 0, -3, mask=3576)
-        rec.pump(0.1)
+        rec.pump(0.05)  # 20 Hz wall = 10 Hz simulated
         if not armed and time.time() > end - 4.0:
             assert rec.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
             armed = True
     rec.pump(6, lambda m: m.get_type() == "HEARTBEAT" and m.custom_mode == 0x06040000)
+    rec.pump(3, lambda m: m.get_type() == "EXTENDED_SYS_STATE" and m.landed_state == 4)
     allowed = set(cap_a) | set(cap_b)
     assert set(rec.hbs) <= allowed, (rec.hbs, allowed)
     assert (17, 0x60000, 3) in rec.hbs and (145, 0x60000, 4) in rec.hbs and (1, 0x60000, 0) in rec.hbs
