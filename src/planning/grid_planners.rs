@@ -18,6 +18,8 @@ use std::sync::Mutex;
 
 use nalgebra::Vector3;
 
+use crate::mapping::grid::GridSpec;
+
 use super::search::{jump_point_search, search, SearchScratch};
 use super::simplify::{polyline_min_clearance, prune};
 use super::{
@@ -135,23 +137,8 @@ fn plan_on_grid(
             Err(_) => &mut fresh,
         };
         if method == Method::AStar && rules.uniform() && rules.free(start) {
-            // Jumps test each scanned cell and its sides: a padded free-cell mask makes that one
-            // byte load with no range test (the one-cell border is blocked).
-            let w = spec.width_cells as usize;
-            let padded_w = w + 2;
-            let mut mask = vec![false; padded_w * (spec.height_cells as usize + 2)];
-            for (row, cells) in mask
-                .chunks_exact_mut(padded_w)
-                .skip(1)
-                .take(spec.height_cells as usize)
-                .enumerate()
-            {
-                let first = row * w;
-                for (x, m) in cells.iter_mut().skip(1).take(w).enumerate() {
-                    *m = rules.free(first + x);
-                }
-            }
-            let pw = padded_w as i64;
+            let mask = padded_free_mask(&spec, &rules);
+            let pw = i64::from(spec.width_cells) + 2;
             let walkable = |x: i64, y: i64| {
                 let i = (y + 1) * pw + x + 1;
                 i >= 0 && mask.get(i as usize).copied().unwrap_or(false)
@@ -211,6 +198,22 @@ fn plan_on_grid(
         cost: found.cost,
         min_clearance_m,
     })
+}
+
+/// Free cells (see [`CellRules::free`]) with a blocked one-cell border, row-major with width
+/// `width + 2`. Jumps test each scanned cell and its sides, so this makes a test one byte load
+/// with no range check.
+fn padded_free_mask(spec: &GridSpec, rules: &CellRules<'_>) -> Vec<bool> {
+    let w = spec.width_cells as usize;
+    let h = spec.height_cells as usize;
+    let mut mask = vec![false; (w + 2) * (h + 2)];
+    let rows = mask.chunks_exact_mut(w + 2).skip(1).take(h).enumerate();
+    for (row, cells) in rows {
+        for (x, m) in cells.iter_mut().skip(1).take(w).enumerate() {
+            *m = rules.free(row * w + x);
+        }
+    }
+    mask
 }
 
 /// Length of start -> waypoints.
