@@ -1,8 +1,8 @@
 //! 2D occupancy grid built from range scans (the `scan2occ_grid` plugin).
 //!
 //! In: a [`GridSpec`] and [`RangeScan`]s with [`InsertParams`]. Out: an [`OccupancyGrid`] of
-//! `i8` cells (`-1` unknown, `0..=100` occupancy), the changed [`CellBox`] of each insertion and
-//! [`GridPatch`]es of changed regions.
+//! `i8` cells (`-1` unknown, `0..=100` occupancy), a [`CellBox`] holding every cell an insertion
+//! changed, and [`GridPatch`]es of changed regions.
 //!
 //! Update rule, per scan: every cell a beam passes through before its end is a miss; the end cell
 //! is a hit when the range is below `min(range_max, max_range)`, otherwise (max-range or no return)
@@ -185,14 +185,16 @@ impl Default for InsertParams {
     }
 }
 
-/// Per-scan bookkeeping reused between insertions: a stamp per cell (`generation << 1 | hit`)
-/// and the list of cells touched by the current scan.
+/// Per-scan bookkeeping reused between insertions: a stamp per cell,
+/// `generation << 9 | hit << 8 | value before the scan (as u8)`.
 #[derive(Debug, Clone, Default)]
 struct RayScratch {
     mark: Vec<u32>,
     generation: u32,
-    touched: Vec<u32>,
 }
+
+const MARK_HIT: u32 = 1 << 8;
+const MARK_SHIFT: u32 = 9;
 
 /// Occupancy grid: `-1` unknown, `0..=100` occupancy probability in percent.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -317,8 +319,9 @@ impl OccupancyGrid {
         Some(GridPatch { region, data })
     }
 
-    /// Ray-casts a scan into the grid (see the module docs for the rule). Returns the box of cells
-    /// whose value changed, `None` if nothing changed.
+    /// Ray-casts a scan into the grid (see the module docs for the rule). Returns a box that
+    /// contains every cell whose value changed, `None` if nothing changed. (A cell first missed
+    /// then hit by the same scan may end where it started and still be inside the box.)
     pub fn insert_scan(
         &mut self,
         scan: &RangeScan,
@@ -335,32 +338,79 @@ impl OccupancyGrid {
             None => scan.range_max_m,
         };
         let gen = self.next_generation();
+        let hit = i16::from(params.hit_confidence.min(100));
+        let miss = -i16::from(params.miss_confidence.min(100));
+        let lock = params.lock_above.map(i16::from);
+        let update = |old: i8, delta: i16| -> i8 {
+            let old = i16::from(old);
+            if lock.is_some_and(|l| old > l) {
+                100
+            } else {
+                (old.max(0) + delta).clamp(0, 100) as i8
+            }
+        };
+        let w = self.spec.width_cells as usize;
+        let mut changed: Option<CellBox> = None;
+        // Cell coordinates are only computed for cells that change (rare once the map settles).
+        let note = |changed: &mut Option<CellBox>, i: usize| {
+            let c = Cell {
+                x: (i % w) as u32,
+                y: (i / w) as u32,
+            };
+            match changed.as_mut() {
+                Some(b) => b.include(c),
+                None => *changed = Some(CellBox::of_cell(c)),
+            }
+        };
         let origin = scan.origin_enu_m.xy();
-        let RayScratch { mark, touched, .. } = &mut self.scratch;
+        let OccupancyGrid {
+            spec,
+            data,
+            scratch,
+        } = self;
+        let mark = &mut scratch.mark;
         for beam in &scan.beams {
-            let (range_m, hit) = match beam.range_m {
+            let (range_m, is_hit) = match beam.range_m {
                 Some(r) if r.is_nan() || r < scan.range_min_m => continue,
                 Some(r) if r < limit_m => (r, true),
                 _ => (limit_m, false),
             };
             let end = origin + scan.beam_direction_enu(beam) * range_m;
-            let traced = trace_segment(&self.spec, origin, end, |i| {
-                if let Some(m) = mark.get_mut(i) {
-                    if *m >> 1 != gen {
-                        *m = gen << 1;
-                        touched.push(i as u32);
+            // Every cell on the ray, the end included, is a miss unless already updated by
+            // this scan.
+            let traced = trace_segment(spec, origin, end, |i| {
+                if let (Some(m), Some(v)) = (mark.get_mut(i), data.get_mut(i)) {
+                    if *m >> MARK_SHIFT != gen {
+                        let old = *v;
+                        *m = (gen << MARK_SHIFT) | u32::from(old as u8);
+                        let new = update(old, miss);
+                        if new != old {
+                            *v = new;
+                            note(&mut changed, i);
+                        }
                     }
                 }
                 true
             });
-            if hit && traced == TraceEnd::EndInside {
-                let end_index = self.spec.cell_at(end).and_then(|c| self.spec.index_of(c));
-                if let Some(m) = end_index.and_then(|i| mark.get_mut(i)) {
-                    *m |= 1;
+            if !(is_hit && traced == TraceEnd::EndInside) {
+                continue;
+            }
+            // The end cell: a hit replaces whatever this scan did to it so far.
+            let end_index = spec.cell_at(end).and_then(|c| spec.index_of(c));
+            let Some(e) = end_index else { continue };
+            if let (Some(m), Some(v)) = (mark.get_mut(e), data.get_mut(e)) {
+                if *m & MARK_HIT == 0 {
+                    *m |= MARK_HIT;
+                    let before_scan = (*m & 0xFF) as u8 as i8;
+                    let new = update(before_scan, hit);
+                    if new != *v {
+                        *v = new;
+                        note(&mut changed, e);
+                    }
                 }
             }
         }
-        Ok(self.apply_marks(params))
+        Ok(changed)
     }
 
     fn next_generation(&mut self) -> u32 {
@@ -370,46 +420,12 @@ impl OccupancyGrid {
             s.generation = 0;
         }
         s.generation += 1;
-        // Generations use 31 bits; on wrap, clear the stamps so old ones cannot match.
-        if s.generation >= 1 << 31 {
+        // Generations use the top 23 bits; on wrap, clear the stamps so old ones cannot match.
+        if s.generation >= 1 << (32 - MARK_SHIFT) {
             s.mark.iter_mut().for_each(|m| *m = 0);
             s.generation = 1;
         }
-        s.touched.clear();
         s.generation
-    }
-
-    fn apply_marks(&mut self, params: &InsertParams) -> Option<CellBox> {
-        let hit = i16::from(params.hit_confidence.min(100));
-        let miss = -i16::from(params.miss_confidence.min(100));
-        let lock = params.lock_above.map(i16::from);
-        let w = self.spec.width_cells;
-        let mut changed: Option<CellBox> = None;
-        for &i in &self.scratch.touched {
-            let i = i as usize;
-            let (Some(&m), Some(cell)) = (self.scratch.mark.get(i), self.data.get_mut(i)) else {
-                continue;
-            };
-            let old = i16::from(*cell);
-            let delta = if m & 1 == 1 { hit } else { miss };
-            let new = if lock.is_some_and(|l| old > l) {
-                100
-            } else {
-                (old.max(0) + delta).clamp(0, 100)
-            };
-            if new != old {
-                *cell = new as i8;
-                let c = Cell {
-                    x: i as u32 % w,
-                    y: i as u32 / w,
-                };
-                match changed.as_mut() {
-                    Some(b) => b.include(c),
-                    None => changed = Some(CellBox::of_cell(c)),
-                }
-            }
-        }
-        changed
     }
 }
 
