@@ -116,8 +116,9 @@ impl GridSpec {
 
     /// The cell containing a world point, `None` outside the grid.
     pub fn cell_at(&self, p: Vector2<f64>) -> Option<Cell> {
-        let gx = ((p.x - self.origin_enu_m.x) / self.resolution_m).floor();
-        let gy = ((p.y - self.origin_enu_m.y) / self.resolution_m).floor();
+        // Truncation equals floor on the accepted range (>= 0), without a libm call.
+        let gx = (p.x - self.origin_enu_m.x) / self.resolution_m;
+        let gy = (p.y - self.origin_enu_m.y) / self.resolution_m;
         let inside = gx >= 0.0
             && gy >= 0.0
             && gx < f64::from(self.width_cells)
@@ -349,6 +350,15 @@ impl OccupancyGrid {
                 (old.max(0) + delta).clamp(0, 100) as i8
             }
         };
+        // The update of every possible cell value, indexed by the value as `u8`.
+        let table = |delta: i16| -> [i8; 256] {
+            let mut t = [0i8; 256];
+            for (byte, slot) in t.iter_mut().enumerate() {
+                *slot = update(byte as u8 as i8, delta);
+            }
+            t
+        };
+        let (after_hit, after_miss) = (table(hit), table(miss));
         let w = self.spec.width_cells as usize;
         let mut changed: Option<CellBox> = None;
         // Cell coordinates are only computed for cells that change (rare once the map settles).
@@ -383,7 +393,7 @@ impl OccupancyGrid {
                     if *m >> MARK_SHIFT != gen {
                         let old = *v;
                         *m = (gen << MARK_SHIFT) | u32::from(old as u8);
-                        let new = update(old, miss);
+                        let new = after_miss[usize::from(old as u8)];
                         if new != old {
                             *v = new;
                             note(&mut changed, i);
@@ -402,7 +412,7 @@ impl OccupancyGrid {
                 if *m & MARK_HIT == 0 {
                     *m |= MARK_HIT;
                     let before_scan = (*m & 0xFF) as u8 as i8;
-                    let new = update(before_scan, hit);
+                    let new = after_hit[usize::from(before_scan as u8)];
                     if new != *v {
                         *v = new;
                         note(&mut changed, e);
