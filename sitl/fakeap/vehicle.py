@@ -1,6 +1,8 @@
 """Personality-independent part of a simulated vehicle: boot, link I/O with faults,
 stream scheduling, frames, common telemetry, sensors and the control-channel view."""
+import json
 import math
+import sys
 import time
 from collections import deque
 
@@ -82,6 +84,7 @@ class Vehicle:
         self.model.target = Target(kind="idle")
         self.note("fault", f"reboot, silent for {gap_s} s")
         self._pending_boot = True
+        self.link.set_down(True)
 
     # ------------------------------------------------------------------ personality hooks
     def limits(self):
@@ -145,6 +148,10 @@ class Vehicle:
         entry = {"t": round(self.clock.now(), 3), "kind": kind, "text": text}
         entry.update(extra)
         self.log.append(entry)
+        sink = getattr(self.opts, "log_sink", None)
+        if sink is not None:
+            sink.write(json.dumps({"vehicle": self.index, **entry}) + "\n")
+            sink.flush()
 
     # ------------------------------------------------------------------ I/O
     ack_before_replies = False  # PX4 emits a command's EVENTs after its COMMAND_ACK
@@ -198,7 +205,9 @@ class Vehicle:
         try:
             self._dispatch(msg, wall)
         except Exception as exc:  # a malformed request must never kill the fake
-            self.note("error", f"{msg.get_type()}: {type(exc).__name__}: {exc}")
+            text = f"{msg.get_type()}: {type(exc).__name__}: {exc}"
+            self.note("error", text)
+            sys.stderr.write(f"fake autopilot vehicle {self.index}: error handling {text}\n")
 
     def _dispatch(self, msg, wall):
         t = msg.get_type()
@@ -243,7 +252,7 @@ class Vehicle:
                     self._send_param(name, list(self.params).index(name))
         elif t == "TIMESYNC":
             if msg.tc1 == 0:
-                self.send(M.MAVLink_timesync_message(int(time.monotonic() * 1e9), msg.ts1, msg.get_srcSystem(), msg.get_srcComponent()))
+                self.send(M.MAVLink_timesync_message(int(time.monotonic() * 1e9), msg.ts1))
         else:
             self.handle_other(msg)
 
@@ -382,6 +391,7 @@ class Vehicle:
     def tick(self, now, dt):
         if getattr(self, "_pending_boot", False) and now >= self.rebooting_until:
             self._pending_boot = False
+            self.link.set_down(False)
             self.link.reset_peer()
             self.boot()
         if now < self.rebooting_until:
@@ -480,22 +490,19 @@ class Vehicle:
         thr = 50 if (self.armed and not b.on_ground) else 0
         return M.MAVLink_vfr_hud_message(spd, spd, hdg, thr, self.geo()[2], b.vel[2])
 
+    # SYS_STATUS sensor bitmasks and battery as captured (overridden per personality)
+    sensors_present_enabled_health = (0x20802F, 0x20802F, 0x20802F)
+    battery_mv = 16200
+
     def msg_sys_status(self):
-        sensors = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x400 | 0x800 | 0x1000 | 0x8000 | 0x200000
-        return M.MAVLink_sys_status_message(sensors, sensors, sensors, 100, self.battery_mv(), -1,
-                                            self.battery_pct(), 0, 0, 0, 0, 0, 0)
-
-    def battery_pct(self):
-        if self.armed_time is None:
-            return 100
-        return 100
-
-    def battery_mv(self):
-        return 16200
+        present, enabled, health = self.sensors_present_enabled_health
+        return M.MAVLink_sys_status_message(present, enabled, health, 100, self.battery_mv, -100, 100,
+                                            0, 0, 0, 0, 0, 0)
 
     def msg_battery_status(self):
-        cells = [4050, 4050, 4050, 4050] + [65535] * 6
-        return M.MAVLink_battery_status_message(0, 0, 1, 32767, cells, -1, -1, -1, self.battery_pct())
+        cells = [self.battery_mv] + [65535] * 9
+        return M.MAVLink_battery_status_message(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767,
+                                                cells, -100, 0, -1, 100, 0, M.MAV_BATTERY_CHARGE_STATE_OK)
 
     def msg_system_time(self):
         return M.MAVLink_system_time_message(int(time.time() * 1e6), self.boot_ms())
@@ -605,6 +612,21 @@ class Vehicle:
     def on_attitude_target(self, msg):
         pass
 
+    def reposition_target(self, p):
+        """DO_REPOSITION p5 lat, p6 lon (degrees, or degE7 from COMMAND_INT), p7 AMSL alt, p4 yaw deg."""
+        lat, lon, alt = p[5], p[6], p[7]
+        if any(v is None or v != v for v in (lat, lon)):
+            b = self.model.body
+            x, y = b.pos[0], b.pos[1]
+        else:
+            if abs(lat) > 1000 or abs(lon) > 1000:
+                lat, lon = lat / 1e7, lon / 1e7
+            x, y, _ = self.world.geo_to_enu(lat, lon, 0.0)
+        z = self.model.body.pos[2] if alt is None or alt != alt else alt - self.world.origin["alt_m"]
+        yaw = None if p[4] is None or p[4] != p[4] else self.yaw_ned_to_enu(math.radians(p[4]))
+        speed = p[1] if p[1] is not None and p[1] == p[1] and p[1] > 0 else None
+        return Target("position", (x, y, z), (0.0, 0.0, 0.0), yaw, None, speed_xy_mps=speed)
+
     def hold_here(self):
         b = self.model.body
         return Target("position", (b.pos[0], b.pos[1], b.pos[2]), (0.0, 0.0, 0.0), None, None)
@@ -636,4 +658,10 @@ class Vehicle:
                        "vel_enu_mps": [round(v, 3) for v in self.model.target.vel_enu]},
             "faults": self.faults.describe(self.clock.now()),
             "collision": bool(getattr(self, "_colliding", False)),
+            "last_setpoint_age_s": None if self.last_setpoint_sim is None
+            else round(self.clock.now() - self.last_setpoint_sim, 3),
+            **self.extra_state(),
         }
+
+    def extra_state(self):
+        return {}

@@ -38,6 +38,8 @@ pub enum HostError {
     Frame(String),
     #[error("{0}")]
     NotSupported(String),
+    #[error("{0}")]
+    Unavailable(String),
 }
 
 impl From<FrameError> for HostError {

@@ -8,11 +8,16 @@
 
 pub mod engine;
 pub mod fleet;
+pub mod logwriter;
 pub mod payload;
+pub mod runtime;
+pub mod scenario;
 pub mod sim;
 pub mod status;
+pub mod vehicle;
 
 pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};
 pub use fleet::{Fleet, SimFleet};
+pub use runtime::{HostHandle, Pace, RuntimeOptions};
 pub use sim::simulated_host;
 pub use status::{DroneStatus, HostEvent, HostSnapshot};

@@ -288,3 +288,20 @@ pub struct MissionStatus {
     pub done_results: Vec<DoneResult>,
     pub last_error: Option<String>,
 }
+
+impl MissionStatus {
+    /// How mission `id` ended, once it has: `Ok` when it ran to its end without error.
+    pub fn outcome(&self, id: u32) -> Option<Result<(), String>> {
+        if self.mission_id != Some(id) || self.state != ExecState::Idle {
+            return None;
+        }
+        if let Some(e) = &self.last_error {
+            return Some(Err(e.clone()));
+        }
+        if self.pending_items == 0 && self.done_items > 0 {
+            Some(Ok(()))
+        } else {
+            Some(Err(format!("mission {id} was stopped")))
+        }
+    }
+}

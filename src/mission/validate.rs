@@ -98,16 +98,9 @@ pub fn validate_text(
     text: &str,
     ctx: &ValidationContext,
 ) -> Result<ValidMission, Vec<ValidationError>> {
-    let value: Value = serde_json::from_str(text).map_err(|e| {
-        vec![at(
-            "",
-            format!(
-                "not valid JSON: {e} (line {}, column {})",
-                e.line(),
-                e.column()
-            ),
-        )]
-    })?;
+    // serde's message ends with the line and column.
+    let value: Value =
+        serde_json::from_str(text).map_err(|e| vec![at("", format!("not valid JSON: {e}"))])?;
     validate_value(&value, ctx)
 }
 

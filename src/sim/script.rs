@@ -14,9 +14,14 @@ use serde_json::{json, Value};
 pub type PlanItem = (String, Value);
 
 /// Demo waypoints in the drone's start frame (x forward, y left, z up; m): a go_to, then a
-/// three-point path. Takeoff and landing are vertical.
+/// path that ends above the start. Takeoff and landing are vertical, on the start pad.
 const DEMO_GO_TO: [f64; 3] = [0.0, 5.0, 3.0];
-const DEMO_PATH: [[f64; 3]; 3] = [[3.0, 5.0, 3.5], [3.0, 8.0, 3.5], [0.0, 8.0, 3.0]];
+const DEMO_PATH: [[f64; 3]; 4] = [
+    [3.0, 5.0, 3.5],
+    [3.0, 8.0, 3.5],
+    [0.0, 8.0, 3.0],
+    [0.0, 0.0, 3.0],
+];
 /// Headings tried (multiples of 45 deg from the start heading) and shrink factors, in order.
 const TURNS: usize = 8;
 const SCALES: [f64; 3] = [1.0, 0.6, 0.3];
@@ -25,7 +30,8 @@ const OBSTACLE_MARGIN_M: f64 = 0.8;
 const DRONE_SEPARATION_M: f64 = 1.5;
 
 /// The demo from a start pose: take off to 3 m, go to 5 m left of the start, follow a short
-/// path, land. Waypoints are in `earth`, relative to the start position and heading.
+/// path back to above the start, land where it took off. Waypoints are in `earth`, relative
+/// to the start position and heading.
 pub fn demo_plan(start_m: Vec3, yaw_rad: f64) -> Vec<PlanItem> {
     plan_from(&demo_track(start_m, yaw_rad, 1.0))
 }
@@ -288,7 +294,7 @@ mod tests {
     #[test]
     fn boxed_in_drones_only_hover() {
         let mut world = World::empty();
-        for (x, y) in [(1.2, 0.0), (-1.2, 0.0), (0.0, 1.2), (0.0, -1.2)] {
+        for (x, y) in [(1.4, 0.0), (-1.4, 0.0), (0.0, 1.4), (0.0, -1.4)] {
             world.cylinders.push(Cylinder {
                 xy_m: [x, y],
                 radius_m: 0.3,
@@ -296,6 +302,7 @@ mod tests {
             });
         }
         let sim = SimWorld::new(world, 1, 0, Environment::default());
+        assert_eq!(sim.vehicles[0].state.position_m, Vec3::zeros());
         let names: Vec<String> = demo_plans(&sim)[0].iter().map(|(n, _)| n.clone()).collect();
         assert_eq!(names, ["takeoff", "hover", "land"]);
     }
