@@ -73,10 +73,11 @@ fn ardupilot_demo_flight_reaches_every_target() {
     let (fake, _k, takeoff) = demo_flight(p, &[], "");
     let rest = fake.cmd(json!({"cmd": "setpoint_stats"}));
     assert!(rest["count"].as_u64().unwrap() > 500, "{rest}");
-    // NAV_TAKEOFF climbs without setpoints (they would cancel it), well within GUID_TIMEOUT;
-    // after it the stream is steady.
-    let max = max_gap_ms(p, "takeoff", &takeoff);
-    assert!(max < 3000.0, "{max} ms gap during the takeoff: {takeoff}");
+    // NAV_TAKEOFF climbs on the autopilot's own target, without setpoints (a position target
+    // would cancel it): gaps there are by design. While the arming and the climb's end are
+    // flown on setpoints, the stream is steady.
+    let p99 = takeoff["p99_ms"].as_f64().unwrap_or(f64::INFINITY);
+    assert!(p99 < 40.0, "{takeoff}");
     let max = max_gap_ms(p, "the rest", &rest);
     assert!(max < 200.0, "{max} ms gap after the takeoff: {rest}");
 }

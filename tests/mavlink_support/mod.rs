@@ -120,6 +120,29 @@ impl Fake {
         self.cmd(json!({"cmd": "state"}))
     }
 
+    /// The fake's state and last log entries, for failure messages.
+    pub fn diagnostics(&self) -> String {
+        let state = try_control(self.control_port, &json!({"cmd": "state"}));
+        let log = try_control(self.control_port, &json!({"cmd": "log"}));
+        let tail: Vec<String> = log
+            .as_ref()
+            .and_then(|l| l["entries"].as_array())
+            .map(|e| {
+                e.iter()
+                    .rev()
+                    .take(25)
+                    .rev()
+                    .map(|v| v.to_string())
+                    .collect()
+            })
+            .unwrap_or_default();
+        format!(
+            "fake state: {}\nfake log tail:\n{}",
+            state.map_or_else(|| "(no answer)".into(), |s| s.to_string()),
+            tail.join("\n")
+        )
+    }
+
     /// Records the true state every 50 ms until the returned poller is stopped.
     pub fn poll_states(&self) -> Poller {
         let port = self.control_port;

@@ -28,6 +28,7 @@ const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
 /// SET_GPS_GLOBAL_ORIGIN is re-sent at this period until GPS_GLOBAL_ORIGIN confirms it.
 const ORIGIN_PERIOD: Duration = Duration::from_secs(2);
 const ORIGIN_ATTEMPTS: u8 = 10;
+const SILENCE_REPORT_PERIOD: Duration = Duration::from_secs(5);
 
 /// What the platform does when the link to the autopilot comes back during a flight.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -91,6 +92,8 @@ pub struct Session {
     stream_fallback_needed: bool,
     origin_attempts: u8,
     next_origin_at: Option<Duration>,
+    /// While the link is down: when to report again what still arrives.
+    next_silence_report: Option<Duration>,
     link_was_lost: bool,
     stats: SessionStats,
 }
@@ -111,6 +114,7 @@ impl Session {
             stream_fallback_needed: false,
             origin_attempts: 0,
             next_origin_at: None,
+            next_silence_report: None,
             link_was_lost: false,
             stats: SessionStats::default(),
         }
@@ -223,13 +227,30 @@ impl Session {
     /// Timers: link health, heartbeat, retries, actions, stream re-sends.
     pub fn on_tick(&mut self, now: Duration) {
         if self.model.check_link(now) {
-            tracing::warn!(target: "mavlink", "link to the autopilot lost (no HEARTBEAT for {:?})", self.profile.heartbeat_timeout);
+            tracing::warn!(
+                target: "mavlink",
+                "link to the autopilot lost (nothing for {:?}; {} messages so far)",
+                self.profile.heartbeat_timeout,
+                self.stats.messages_in
+            );
+            self.next_silence_report = Some(now + SILENCE_REPORT_PERIOD);
             self.stats.link_losses += 1;
             self.link_was_lost = true;
             self.streamer.stop();
             self.fail_all("link to the autopilot lost");
         }
         let link_ok = self.model.link(now) == LinkHealth::Ok;
+        if link_ok {
+            self.next_silence_report = None;
+        } else if self.next_silence_report.is_some_and(|t| now >= t) {
+            // Tells a dead transport (nothing arrives) from a silent autopilot (other traffic).
+            tracing::warn!(
+                target: "mavlink",
+                "still no link: {} messages received so far",
+                self.stats.messages_in
+            );
+            self.next_silence_report = Some(now + SILENCE_REPORT_PERIOD);
+        }
         if now >= self.next_heartbeat && self.our_system().is_some() {
             self.next_heartbeat = now + HEARTBEAT_PERIOD;
             self.push(our_heartbeat());
