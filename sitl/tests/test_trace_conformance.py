@@ -107,7 +107,7 @@ def test_px4_offboard_states_are_captured_states(fake_factory):
     while time.time() < end:
         link.send_local(0, 0, -3, mask=3576)
         rec.pump(0.05)  # 20 Hz wall = 10 Hz simulated
-        if not armed and time.time() > end - 4.0:
+        if not armed and time.time() > end - 3.0:  # >= 3 simulated heartbeats with (17, OFFBOARD, 3)
             assert rec.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
             armed = True
     rec.pump(6, lambda m: m.get_type() == "HEARTBEAT" and m.custom_mode == 0x06040000)
