@@ -1,56 +1,72 @@
-//! `kestrel sim`: the built-in simulator, paced to wall-clock time or as fast as possible.
+//! `kestrel sim`: the built-in simulator on the host, serving the API. By default every drone
+//! flies the demo mission; `--mission FILE` flies that mission, `--scenario FILE` registers
+//! its frames and flies its mission, `--no-demo` waits for the API.
 
+use crate::cli_serve::{self, ServeOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use kestrel::behavior::Registry;
 use kestrel::config::Config;
-use kestrel::core::CoreConfig;
 use kestrel::flightlog::FlightLog;
-use kestrel::sim::runner::{SimConfig, SimRunner};
-use kestrel::sim::script::{demo_plans, Script, ScriptState};
+use kestrel::host::logwriter;
+use kestrel::host::runtime::Pace;
+use kestrel::host::scenario::Scenario;
+use kestrel::host::sim::{sim_world, simulated_host_in};
+use kestrel::host::Host;
+use kestrel::mission::{Action, MissionUpdate};
+use kestrel::sim::script::{demo_plans, PlanItem};
 use kestrel::sim::world::{SensorConfig, World};
-use kestrel::sim::Environment;
-use kestrel::types::Vec3;
-use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use serde_json::{json, Value};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 #[derive(Args, Debug)]
 pub struct SimArgs {
     /// World file (JSON; the thesis layout or its extensions). Default: an open field.
     #[arg(long)]
-    world: Option<PathBuf>,
+    pub(crate) world: Option<PathBuf>,
     /// Number of drones (drone_0 ... drone_{N-1}); start poses from the world file when it has them.
     #[arg(long, default_value_t = 1)]
-    drones: usize,
+    pub(crate) drones: usize,
     /// Simulated seconds per wall-clock second, or `max` for as fast as the CPU allows.
     #[arg(long, default_value = "1")]
-    speedup: String,
+    pub(crate) speedup: String,
     /// Seed for noise and sensors; the same seed gives the same flight.
     #[arg(long, default_value_t = 0)]
-    seed: u64,
+    pub(crate) seed: u64,
     /// Flight log (JSON lines). Default: kestrel-sim-<seed>.jsonl in the current directory.
     #[arg(long)]
-    log: Option<PathBuf>,
+    pub(crate) log: Option<PathBuf>,
     /// Exit when the flight is over: 0 if it succeeded, non-zero with the reason if not.
     #[arg(long)]
-    exit_when_done: bool,
-    /// Config file (TOML) for controller, behaviors and simulator settings.
+    pub(crate) exit_when_done: bool,
+    /// Config file (TOML) for controller, behaviors, simulator, API and geofence settings.
     #[arg(long)]
-    config: Option<PathBuf>,
+    pub(crate) config: Option<PathBuf>,
     /// Range sensor of every drone: `multiranger`, `lidar` or `none` (overrides the world file).
     #[arg(long)]
-    sensor: Option<String>,
-    /// Give up after this many simulated seconds.
+    pub(crate) sensor: Option<String>,
+    /// With --exit-when-done: give up after this many simulated seconds.
     #[arg(long, default_value_t = 600.0)]
-    max_sim_time_s: f64,
+    pub(crate) max_sim_time_s: f64,
+    /// Serve the API on ADDR:PORT (default: the config's [api] listen, 127.0.0.1:8080).
+    #[arg(long)]
+    pub(crate) listen: Option<String>,
+    /// Fly this mission (JSON, Aerostack2's format) instead of the demo.
+    #[arg(long)]
+    pub(crate) mission: Option<PathBuf>,
+    /// Scenario (JSON): frames to register and the mission to fly.
+    #[arg(long)]
+    pub(crate) scenario: Option<PathBuf>,
+    /// Start with every drone landed and idle, waiting for the API.
+    #[arg(long)]
+    pub(crate) no_demo: bool,
+    /// Keep loaded missions and frames in this directory across restarts.
+    #[arg(long)]
+    pub(crate) state_dir: Option<PathBuf>,
 }
 
-enum Pace {
-    Max,
-    Factor(f64),
-}
-
-fn parse_speedup(s: &str) -> Result<Pace> {
+pub fn parse_speedup(s: &str) -> Result<Pace> {
     if s == "max" {
         return Ok(Pace::Max);
     }
@@ -63,15 +79,59 @@ fn parse_speedup(s: &str) -> Result<Pace> {
     Ok(Pace::Factor(f))
 }
 
-pub fn run(args: SimArgs) -> Result<()> {
-    let pace = parse_speedup(&args.speedup)?;
-    if args.drones == 0 {
-        bail!("--drones must be at least 1");
-    }
-    let config = match &args.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    };
+/// A demo plan as a mission for `drone`.
+fn demo_mission(drone: &str, plan: Vec<PlanItem>) -> Value {
+    let plan: Vec<Value> = plan
+        .into_iter()
+        .map(|(behavior, args)| json!({"behavior": behavior, "args": args}))
+        .collect();
+    json!({"target": drone, "plan": plan})
+}
+
+fn read_json(path: &Path) -> Result<Value> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{} is not valid JSON", path.display()))
+}
+
+/// Loads and starts `mission` on the drone it names; returns (drone index, mission id).
+pub fn execute(host: &mut Host, mission: Value) -> Result<(usize, u32)> {
+    let target = mission
+        .get("target")
+        .and_then(Value::as_str)
+        .unwrap_or_default()
+        .to_string();
+    let index = host
+        .drone_ids()
+        .iter()
+        .position(|d| *d == target)
+        .with_context(|| format!("mission target `{target}` is not one of the drones"))?;
+    let updated = host
+        .update(&MissionUpdate {
+            drone_id: Some(target.clone()),
+            mission_id: None,
+            item_id: None,
+            action: Action::Execute,
+            mission: Some(mission),
+        })
+        .map_err(|e| match e {
+            kestrel::host::HostError::Action(kestrel::mission::ActionError::Invalid(errors)) => {
+                let lines: Vec<String> = errors.iter().map(|e| format!("  {e}")).collect();
+                anyhow::anyhow!("the mission is invalid:\n{}", lines.join("\n"))
+            }
+            other => anyhow::anyhow!("{target}: {other}"),
+        })?;
+    let id = updated.status.mission_id.context("no mission id")?;
+    Ok((index, id))
+}
+
+/// Builds the simulated host (config, world, sensors, scenario frames, saved state) and the
+/// demo plan of each drone, placed clear of obstacles and of each other.
+pub fn build(
+    args: &SimArgs,
+    config: &Config,
+    scenario: Option<&Scenario>,
+) -> Result<(Host, Vec<Vec<PlanItem>>)> {
     let mut world = match &args.world {
         Some(p) => World::load(p)?,
         None => World::empty(),
@@ -83,90 +143,117 @@ pub fn run(args: SimArgs) -> Result<()> {
         world.sensor = SensorConfig::by_name(name)
             .with_context(|| format!("--sensor takes multiranger, lidar or none, got `{name}`"))?;
     }
-    let sim_config = SimConfig {
-        drones: args.drones,
-        seed: args.seed,
-        rate_hz: config.drone.control_rate_hz,
-        environment: Environment {
-            wind_mps: Vec3::from(config.sim.wind_enu_mps),
-            turbulence_mps2: config.sim.turbulence_mps2,
-        },
-        ..SimConfig::default()
-    };
-    let core_config = |i: usize| {
-        let mut c = CoreConfig::new(&format!("drone_{i}"));
-        c.controller = config.controller;
-        c.behaviors = config.behaviors;
-        c.estimator = config.estimator.plugin.unwrap_or_default();
-        c
-    };
-    let mut runner = SimRunner::new(
-        world,
-        &sim_config,
-        core_config,
-        &Registry::with_motion_behaviors(),
-    );
+    let drones = args
+        .drones
+        .max(scenario.and_then(|s| s.drones).unwrap_or(1));
+    let sim = sim_world(world, drones, args.seed, config);
+    let demos = demo_plans(&sim);
+    let mut host = simulated_host_in(sim, config);
+    // One tick, so every drone has a position before missions are validated and started.
+    host.step();
+    if let Some(dir) = &args.state_dir {
+        let file = dir.join("state.json");
+        if let Some(state) = kestrel::mission::store::load(&file)? {
+            host.restore(state, Duration::from_secs_f64(config.mission.switch_hold_s));
+            println!("restored missions from {}", file.display());
+        }
+    }
+    for frame in scenario.map(|s| s.frames.clone()).unwrap_or_default() {
+        let id = frame.frame_id.clone();
+        host.set_frame(frame)
+            .with_context(|| format!("registering frame {id}"))?;
+    }
+    Ok((host, demos))
+}
+
+pub fn load_config(path: Option<&Path>) -> Result<Config> {
+    Ok(match path {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    })
+}
+
+pub fn run(args: SimArgs) -> Result<()> {
+    let pace = parse_speedup(&args.speedup)?;
+    if args.drones == 0 {
+        bail!("--drones must be at least 1");
+    }
+    let config = load_config(args.config.as_deref())?;
+    let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
+    let (mut host, demos) = build(&args, &config, scenario.as_ref())?;
     let log_path = args
         .log
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("kestrel-sim-{}.jsonl", args.seed)));
-    runner.log = Some(
-        FlightLog::create(&log_path)
-            .with_context(|| format!("creating flight log {}", log_path.display()))?,
-    );
+    let (writer, log_file) = logwriter::open(&log_path)
+        .with_context(|| format!("creating flight log {}", log_path.display()))?;
+    host.set_log(FlightLog::new(Box::new(writer), 10.0));
+    let mission_file = args
+        .mission
+        .clone()
+        .or_else(|| scenario.as_ref().and_then(|s| s.mission.clone()));
+    let flights = if args.no_demo {
+        Vec::new()
+    } else if let Some(file) = &mission_file {
+        vec![execute(&mut host, read_json(file)?)
+            .with_context(|| format!("flying {}", file.display()))?]
+    } else {
+        host.drone_ids()
+            .into_iter()
+            .zip(demos)
+            .map(|(d, plan)| execute(&mut host, demo_mission(&d, plan)))
+            .collect::<Result<Vec<_>>>()?
+    };
     println!(
         "kestrel sim: {} drone(s), flight log {}",
-        args.drones,
+        host.drone_ids().len(),
         log_path.display()
     );
-
-    let mut scripts: Vec<Script> = demo_plans(&runner.world)
-        .into_iter()
-        .map(Script::new)
-        .collect();
-    let wall_start = Instant::now();
-    let limit = Duration::from_secs_f64(args.max_sim_time_s);
-    loop {
-        let events = runner.step();
-        for (i, (script, events)) in scripts.iter_mut().zip(&events).enumerate() {
-            for e in events {
-                println!(
-                    "[{:8.2} s] drone_{i}: {}",
-                    runner.now().as_secs_f64(),
-                    serde_json::to_string(e).unwrap_or_default()
-                );
-            }
-            if let Some(core) = runner.cores.get_mut(i) {
-                script.update(core, events);
-            }
-        }
-        if scripts.iter().all(Script::finished) || runner.now() > limit {
-            break;
-        }
-        if let Pace::Factor(f) = pace {
-            let target = runner.now().div_f64(f);
-            if let Some(wait) = target.checked_sub(wall_start.elapsed()) {
-                std::thread::sleep(wait);
-            }
-        }
-    }
-    if let Some(log) = runner.log.as_mut() {
-        log.flush();
-    }
-    let wall = wall_start.elapsed().as_secs_f64();
-    let sim_s = runner.now().as_secs_f64();
+    let listen: SocketAddr = args
+        .listen
+        .as_deref()
+        .unwrap_or(&config.api.listen)
+        .parse()
+        .context("--listen takes ADDR:PORT, e.g. 127.0.0.1:8080")?;
+    let token =
+        kestrel::api::auth::resolve_token(std::env::var("KESTREL_API_TOKEN").ok(), &config.api)?;
+    let options = ServeOptions {
+        listen,
+        listen_is_default: args.listen.is_none()
+            && config.api.listen == kestrel::config::ApiSection::default().listen,
+        token,
+        api: config.api.clone(),
+        pace,
+        state_file: args.state_dir.as_ref().map(|d| d.join("state.json")),
+        log: Some(log_file),
+        flights,
+        exit_when_done: args.exit_when_done,
+        max_time: Duration::from_secs_f64(args.max_sim_time_s),
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting tokio")?;
+    let outcome = runtime.block_on(cli_serve::serve(host, options))?;
     println!(
-        "simulated {sim_s:.1} s in {wall:.2} s wall-clock ({:.0}x real time)",
-        sim_s / wall.max(1e-9)
+        "simulated {:.1} s in {:.2} s wall-clock ({:.0}x real time)",
+        outcome.simulated_s,
+        outcome.wall_s,
+        outcome.simulated_s / outcome.wall_s.max(1e-9)
     );
-    let failures: Vec<String> = scripts
+    if outcome.results.is_empty() {
+        return Ok(());
+    }
+    let failures: Vec<String> = outcome
+        .results
         .iter()
-        .enumerate()
-        .filter_map(|(i, s)| match &s.state {
-            ScriptState::Succeeded => None,
-            ScriptState::Failed(r) => Some(format!("drone_{i}: {r}")),
-            ScriptState::Running { index } => Some(format!(
-                "drone_{i}: still running item {index} after {sim_s:.0} s"
+        .filter_map(|(drone, r)| match r {
+            Some(Ok(())) => None,
+            Some(Err(e)) => Some(format!("{drone}: {e}")),
+            None => Some(format!(
+                "{drone}: still flying after {:.0} s",
+                outcome.simulated_s
             )),
         })
         .collect();

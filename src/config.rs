@@ -1,5 +1,6 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
-//! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`.
+//! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`.
 
 use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
@@ -17,6 +18,10 @@ pub struct Config {
     pub controller: ControllerConfig,
     pub behaviors: BehaviorConfig,
     pub sim: SimSection,
+    pub mavlink: crate::platform::mavlink::config::MavlinkSection,
+    pub api: ApiSection,
+    pub geofence: GeofenceSection,
+    pub mission: MissionSection,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -67,6 +72,84 @@ impl Default for SimSection {
             wind_enu_mps: [0.0; 3],
             turbulence_mps2: 0.0,
             sensor: None,
+        }
+    }
+}
+
+/// The HTTP/WebSocket ground-station API.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ApiSection {
+    /// Address and port to serve on; `--listen` overrides it.
+    pub listen: String,
+    /// Bearer token for every command; `KESTREL_API_TOKEN` overrides it.
+    pub token: Option<String>,
+    /// File holding the token (created at install); used when `token` is absent.
+    pub token_file: Option<PathBuf>,
+    /// Browser origins allowed to call the API (CORS), e.g. `http://localhost:5173`.
+    pub cors_origins: Vec<String>,
+    /// Largest accepted request body (bytes).
+    pub max_body_bytes: usize,
+    /// Most WebSocket clients served at once.
+    pub max_ws_clients: usize,
+}
+
+impl Default for ApiSection {
+    fn default() -> Self {
+        Self {
+            listen: "127.0.0.1:8080".into(),
+            token: None,
+            token_file: None,
+            cors_origins: Vec::new(),
+            max_body_bytes: 1 << 20,
+            max_ws_clients: 256,
+        }
+    }
+}
+
+/// Where missions may send the vehicle. Altitudes are relative to home (the arming point, or
+/// the vehicle's position before the first arming).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GeofenceSection {
+    /// Ceiling above home (m).
+    pub max_altitude_m: f64,
+    /// Floor relative to home (m); negative allows goals below the home altitude.
+    pub min_altitude_m: f64,
+    /// Largest horizontal distance from home (m); absent = no radius limit.
+    pub radius_m: Option<f64>,
+    /// Polygon [[x, y], ..] (m, ENU `earth`) the vehicle must stay inside; absent = none.
+    pub polygon_enu_m: Option<Vec<[f64; 2]>>,
+}
+
+impl Default for GeofenceSection {
+    fn default() -> Self {
+        Self {
+            max_altitude_m: 120.0,
+            min_altitude_m: 0.0,
+            radius_m: Some(1000.0),
+            polygon_enu_m: None,
+        }
+    }
+}
+
+/// The mission executor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MissionSection {
+    /// When START switches from a running mission to another, hold this long before the new
+    /// plan starts (s).
+    pub switch_hold_s: f64,
+    /// Loaded missions and their progress are kept here; `--state-dir` and
+    /// `$STATE_DIRECTORY` override it. Absent = `./kestrel-state`.
+    pub state_dir: Option<PathBuf>,
+}
+
+impl Default for MissionSection {
+    fn default() -> Self {
+        Self {
+            switch_hold_s: 1.0,
+            state_dir: None,
         }
     }
 }
@@ -137,8 +220,40 @@ impl Config {
             o.validate()
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;
         }
+        self.mavlink.validate()?;
         if self.drone.id.is_empty() {
             return Err(("drone.id".into(), "must not be empty".into()));
+        }
+        let g = &self.geofence;
+        positive("geofence.max_altitude_m", g.max_altitude_m)?;
+        if !(g.min_altitude_m.is_finite() && g.min_altitude_m < g.max_altitude_m) {
+            return Err((
+                "geofence.min_altitude_m".into(),
+                format!("must be below max_altitude_m, got {}", g.min_altitude_m),
+            ));
+        }
+        if let Some(r) = g.radius_m {
+            positive("geofence.radius_m", r)?;
+        }
+        if let Some(p) = &g.polygon_enu_m {
+            if p.len() < 3 || p.iter().flatten().any(|v| !v.is_finite()) {
+                return Err((
+                    "geofence.polygon_enu_m".into(),
+                    "needs at least 3 finite [x, y] vertices".into(),
+                ));
+            }
+        }
+        if !(self.mission.switch_hold_s.is_finite() && self.mission.switch_hold_s >= 0.0) {
+            return Err(("mission.switch_hold_s".into(), "must be >= 0".into()));
+        }
+        if self.api.listen.parse::<std::net::SocketAddr>().is_err() {
+            return Err((
+                "api.listen".into(),
+                format!("must be ADDR:PORT, got `{}`", self.api.listen),
+            ));
+        }
+        if self.api.max_body_bytes < 1024 {
+            return Err(("api.max_body_bytes".into(), "must be >= 1024".into()));
         }
         Ok(())
     }

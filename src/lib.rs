@@ -20,6 +20,7 @@ pub mod control;
 pub mod core;
 pub mod estimator;
 pub mod flightlog;
+pub mod host;
 pub mod mapping;
 pub mod mission;
 pub mod planning;

@@ -4,6 +4,9 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_mission;
+mod cli_run;
+mod cli_serve;
 mod cli_sim;
 
 #[derive(Parser)]
@@ -21,6 +24,11 @@ struct Cli {
 enum Command {
     /// Fly in the built-in simulator (no hardware needed). Without options: the demo flight.
     Sim(cli_sim::SimArgs),
+    /// Fly a PX4 or ArduPilot autopilot over MAVLink (`--platform`, `--connection`).
+    Run(cli_run::RunArgs),
+    /// Missions: validate a file, fly it in the simulator, print the schema.
+    #[command(subcommand)]
+    Mission(cli_mission::MissionCommand),
     /// Check a config file and print the validated result.
     CheckConfig {
         /// Config file (TOML).
@@ -39,6 +47,8 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Sim(args) => cli_sim::run(args),
+        Command::Run(args) => cli_run::run(args),
+        Command::Mission(command) => cli_mission::run(command),
         Command::CheckConfig { config } => {
             let c = kestrel::config::Config::load(&config)
                 .with_context(|| format!("checking {}", config.display()))?;

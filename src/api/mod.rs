@@ -1,1 +1,107 @@
-//! (being written)
+//! The HTTP/WebSocket ground-station API (axum), as `docs/API.md` describes it.
+//!
+//! In: HTTP requests and WebSocket messages. Out: commands to the host (bounded channel,
+//! one-shot replies) and answers built from the host's latest published state. Security:
+//! bearer token on everything but health, the OpenAPI spec and the static ground station;
+//! CORS allow-list; body size limit; request timeout.
+
+pub mod auth;
+pub mod body;
+pub mod error;
+pub mod openapi;
+pub mod routes;
+pub mod web;
+pub mod ws;
+
+use crate::config::ApiSection;
+use crate::host::logwriter::LogFile;
+use crate::host::HostHandle;
+use axum::extract::DefaultBodyLimit;
+use axum::http::{header, HeaderValue, Method};
+use axum::routing::{get, post};
+use axum::{middleware, Json, Router};
+use std::sync::atomic::AtomicUsize;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tower_http::cors::{AllowOrigin, CorsLayer};
+
+#[derive(Clone)]
+pub struct ApiState {
+    pub host: HostHandle,
+    pub token: Option<Arc<str>>,
+    pub started: Instant,
+    pub max_body_bytes: usize,
+    pub max_ws_clients: usize,
+    pub ws_clients: Arc<AtomicUsize>,
+    pub log: Option<LogFile>,
+}
+
+impl ApiState {
+    pub fn new(
+        host: HostHandle,
+        token: Option<String>,
+        api: &ApiSection,
+        log: Option<LogFile>,
+    ) -> Self {
+        Self {
+            host,
+            token: token.map(Arc::from),
+            started: Instant::now(),
+            max_body_bytes: api.max_body_bytes,
+            max_ws_clients: api.max_ws_clients,
+            ws_clients: Arc::new(AtomicUsize::new(0)),
+            log,
+        }
+    }
+}
+
+/// Every route, with its layers.
+pub fn router(state: ApiState, api: &ApiSection) -> Router {
+    let protected = Router::new()
+        .route("/api/status", get(routes::status))
+        .route("/api/behaviors", get(routes::behaviors))
+        .route("/api/missions", get(routes::missions).post(routes::upload))
+        .route(
+            "/api/missions/{id}",
+            get(routes::mission).delete(routes::delete_mission),
+        )
+        .route("/api/mission_update", post(routes::mission_update))
+        .route("/api/frames", get(routes::frames).post(routes::set_frame))
+        .route("/api/log", get(routes::log))
+        .route("/api/sim/fault", post(routes::sim_fault))
+        .route("/api/ws", get(ws::upgrade))
+        .route_layer(middleware::from_fn_with_state(
+            state.clone(),
+            auth::require_token,
+        ));
+    let open = Router::new()
+        .route("/api/health", get(routes::health))
+        .route("/api/openapi.json", get(|| async { Json(openapi::spec()) }));
+    let mut app = protected
+        .merge(open)
+        .fallback(web::static_file)
+        .layer(DefaultBodyLimit::max(api.max_body_bytes))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            body::refuse_large,
+        ))
+        .layer(tower_http::timeout::TimeoutLayer::with_status_code(
+            axum::http::StatusCode::REQUEST_TIMEOUT,
+            Duration::from_secs(30),
+        ))
+        .layer(tower_http::trace::TraceLayer::new_for_http());
+    let origins: Vec<HeaderValue> = api
+        .cors_origins
+        .iter()
+        .filter_map(|o| HeaderValue::from_str(o).ok())
+        .collect();
+    if !origins.is_empty() {
+        app = app.layer(
+            CorsLayer::new()
+                .allow_origin(AllowOrigin::list(origins))
+                .allow_methods([Method::GET, Method::POST, Method::DELETE])
+                .allow_headers([header::AUTHORIZATION, header::CONTENT_TYPE]),
+        );
+    }
+    app.with_state(state)
+}

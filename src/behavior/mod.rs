@@ -23,8 +23,8 @@ mod takeoff;
 #[cfg(test)]
 mod testing;
 
-pub use goal::{FramedPoint, YawMode};
-pub use registry::{BehaviorSpec, Registry, Resource};
+pub use goal::{FramedPoint, YawMode, WGS84};
+pub use registry::{BehaviorSpec, Goal, GoalSummary, Registry, Resource};
 pub use server::{
     ActiveInfo, BehaviorEvent, BehaviorId, BehaviorResult, BehaviorServer, RunState, ServerError,
 };

@@ -4,6 +4,8 @@
 //! [`PlatformStatus`] and estimator [`Measurement`]s. Nothing above this layer knows which
 //! platform it flies; the MAVLink implementation lives in `platform::mavlink`.
 
+pub mod mavlink;
+
 use crate::control::{AcceptedSetpoints, Setpoint};
 use crate::estimator::Measurement;
 use crate::mapping::scan::RangeScan;

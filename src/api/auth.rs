@@ -1,0 +1,122 @@
+//! Bearer-token authentication and the start-up rule about where the API may listen.
+//!
+//! In: the token from `KESTREL_API_TOKEN`, the config's `[api] token` or `token_file`; each
+//! request's `Authorization: Bearer` header (or `?token=` on the WebSocket). Out: the request
+//! passes, or `401 unauthorized`. Listening beyond loopback without a token is refused.
+
+use super::error::ApiError;
+use super::ApiState;
+use crate::config::ApiSection;
+use axum::extract::{Request, State};
+use axum::http::header::AUTHORIZATION;
+use axum::middleware::Next;
+use axum::response::Response;
+use std::net::SocketAddr;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum AuthError {
+    #[error("cannot read the API token file {path}: {message}")]
+    TokenFile { path: String, message: String },
+    #[error("the API token is empty")]
+    EmptyToken,
+    #[error("refusing to listen on {0} without an API token: set KESTREL_API_TOKEN or [api] token / token_file, or listen on 127.0.0.1")]
+    OpenBeyondLoopback(SocketAddr),
+}
+
+/// The token, from the environment value (if set), then the config.
+pub fn resolve_token(env: Option<String>, api: &ApiSection) -> Result<Option<String>, AuthError> {
+    let token = match (env, &api.token, &api.token_file) {
+        (Some(t), _, _) => Some(t),
+        (None, Some(t), _) => Some(t.clone()),
+        (None, None, Some(path)) => {
+            let text = std::fs::read_to_string(path).map_err(|e| AuthError::TokenFile {
+                path: path.display().to_string(),
+                message: e.to_string(),
+            })?;
+            Some(text.trim().to_string())
+        }
+        (None, None, None) => None,
+    };
+    match token {
+        Some(t) if t.trim().is_empty() => Err(AuthError::EmptyToken),
+        other => Ok(other),
+    }
+}
+
+/// Without a token the API may only listen on loopback.
+pub fn check_listen(addr: SocketAddr, token: Option<&str>) -> Result<(), AuthError> {
+    if token.is_none() && !addr.ip().is_loopback() {
+        return Err(AuthError::OpenBeyondLoopback(addr));
+    }
+    Ok(())
+}
+
+/// Compares without stopping at the first difference, so timing tells nothing.
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+fn query_token(query: Option<&str>) -> Option<&str> {
+    query?
+        .split('&')
+        .find_map(|pair| pair.strip_prefix("token="))
+}
+
+/// Middleware: every protected route needs the bearer token (when one is configured).
+pub async fn require_token(
+    State(state): State<ApiState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, ApiError> {
+    let Some(expected) = state.token.as_deref() else {
+        return Ok(next.run(request).await);
+    };
+    let header = request
+        .headers()
+        .get(AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "));
+    let given = header.or_else(|| query_token(request.uri().query()));
+    match given {
+        Some(t) if same(t.as_bytes(), expected.as_bytes()) => Ok(next.run(request).await),
+        _ => Err(ApiError::Unauthorized),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn environment_wins_then_config_then_file() {
+        let mut api = ApiSection::default();
+        assert_eq!(resolve_token(None, &api), Ok(None));
+        api.token = Some("cfg".into());
+        assert_eq!(
+            resolve_token(Some("env".into()), &api),
+            Ok(Some("env".into()))
+        );
+        assert_eq!(resolve_token(None, &api), Ok(Some("cfg".into())));
+        assert_eq!(
+            resolve_token(Some(" ".into()), &api),
+            Err(AuthError::EmptyToken)
+        );
+    }
+
+    #[test]
+    fn open_api_only_on_loopback() {
+        let lo: SocketAddr = "127.0.0.1:8080".parse().unwrap();
+        let any: SocketAddr = "0.0.0.0:8080".parse().unwrap();
+        assert!(check_listen(lo, None).is_ok());
+        assert!(check_listen(any, None).is_err());
+        assert!(check_listen(any, Some("t")).is_ok());
+    }
+
+    #[test]
+    fn token_from_query_and_constant_time_compare() {
+        assert_eq!(query_token(Some("a=1&token=xyz")), Some("xyz"));
+        assert!(same(b"abc", b"abc"));
+        assert!(!same(b"abc", b"abd"));
+        assert!(!same(b"abc", b"ab"));
+    }
+}

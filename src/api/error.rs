@@ -1,0 +1,125 @@
+//! The one place where errors become HTTP answers: a status and a stable snake_case code.
+//!
+//! In: [`HostError`]s and request problems. Out: `{"error": {"code", "message", "details"}}`,
+//! or, for MissionUpdate answers, `{"accepted": false, "reason", "code", "details"}`.
+
+use crate::host::HostError;
+use crate::mission::{ActionError, ValidationError};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::Serialize;
+use serde_json::json;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ApiError {
+    #[error(transparent)]
+    Host(#[from] HostError),
+    #[error("missing or wrong bearer token")]
+    Unauthorized,
+    #[error("request body is not valid JSON: {0}")]
+    BadJson(String),
+    #[error("request body is larger than the limit of {0} bytes")]
+    TooLarge(usize),
+    #[error("{0}")]
+    BadRequest(String),
+    #[error("{0}")]
+    NotFound(String),
+    #[error("too many WebSocket clients (limit {0})")]
+    TooManyClients(usize),
+}
+
+/// The JSON error body, for the OpenAPI spec.
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct ErrorBody {
+    pub code: String,
+    pub message: String,
+    pub details: Vec<ValidationError>,
+}
+
+impl ApiError {
+    /// Status and stable code of every error.
+    pub fn status_and_code(&self) -> (StatusCode, &'static str) {
+        match self {
+            ApiError::Host(h) => match h {
+                HostError::UnknownDrone(..) => (StatusCode::NOT_FOUND, "unknown_drone"),
+                HostError::DroneNeeded(_) => (StatusCode::BAD_REQUEST, "drone_id_required"),
+                HostError::Invalid(_) | HostError::Action(ActionError::Invalid(_)) => {
+                    (StatusCode::UNPROCESSABLE_ENTITY, "invalid_mission")
+                }
+                HostError::Action(ActionError::UnknownMission(_)) => {
+                    (StatusCode::NOT_FOUND, "unknown_mission")
+                }
+                HostError::Action(ActionError::Refused(_)) => {
+                    (StatusCode::CONFLICT, "action_refused")
+                }
+                HostError::Frame(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_frame"),
+                HostError::NotSupported(_) => (StatusCode::BAD_REQUEST, "not_supported"),
+                HostError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
+            },
+            ApiError::Unauthorized => (StatusCode::UNAUTHORIZED, "unauthorized"),
+            ApiError::BadJson(_) => (StatusCode::BAD_REQUEST, "bad_json"),
+            ApiError::TooLarge(_) => (StatusCode::PAYLOAD_TOO_LARGE, "payload_too_large"),
+            ApiError::BadRequest(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_request"),
+            ApiError::NotFound(_) => (StatusCode::NOT_FOUND, "not_found"),
+            ApiError::TooManyClients(_) => (StatusCode::SERVICE_UNAVAILABLE, "too_many_clients"),
+        }
+    }
+
+    pub fn details(&self) -> Vec<ValidationError> {
+        match self {
+            ApiError::Host(HostError::Invalid(d))
+            | ApiError::Host(HostError::Action(ActionError::Invalid(d))) => d.clone(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// The message, with the first validation errors spelled out.
+    pub fn message(&self) -> String {
+        match self {
+            ApiError::Host(HostError::Invalid(d)) => {
+                let first: Vec<String> = d.iter().take(3).map(ToString::to_string).collect();
+                format!("mission is invalid: {}", first.join("; "))
+            }
+            other => other.to_string(),
+        }
+    }
+
+    /// The answer to a refused MissionUpdate.
+    pub fn as_rejection(&self) -> Response {
+        let (status, code) = self.status_and_code();
+        let body = json!({
+            "accepted": false,
+            "reason": self.message(),
+            "code": code,
+            "details": self.details(),
+        });
+        (status, Json(body)).into_response()
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let (status, code) = self.status_and_code();
+        let body = json!({
+            "error": {"code": code, "message": self.message(), "details": self.details()}
+        });
+        (status, Json(body)).into_response()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_are_conflicts_and_invalid_missions_unprocessable() {
+        let e = ApiError::from(HostError::Action(ActionError::Refused("no".into())));
+        assert_eq!(
+            e.status_and_code(),
+            (StatusCode::CONFLICT, "action_refused")
+        );
+        let e = ApiError::from(HostError::Invalid(vec![]));
+        assert_eq!(e.status_and_code().0, StatusCode::UNPROCESSABLE_ENTITY);
+    }
+}

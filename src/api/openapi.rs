@@ -1,0 +1,48 @@
+//! The OpenAPI 3 description of the API, served at `/api/openapi.json`, generated from the
+//! handlers' annotations and the Rust types.
+
+use super::error::ErrorBody;
+use super::routes;
+use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
+use crate::host::runtime::BehaviorInfo;
+use crate::host::status::{BatteryStatus, DroneStatus, GeoStatus};
+use crate::mission::ValidationError;
+use crate::mission::{DoneResult, ItemResult, Mission, MissionItem, MissionStatus, MissionUpdate};
+use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+use utoipa::{Modify, OpenApi};
+
+struct BearerAuth;
+
+impl Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        if let Some(components) = openapi.components.as_mut() {
+            components.add_security_scheme(
+                "bearer",
+                SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+            );
+        }
+    }
+}
+
+#[derive(OpenApi)]
+#[openapi(
+    info(title = "Kestrel ground-station API", description = "Missions, MissionUpdate actions, frames, status and telemetry of Kestrel drones. WebSocket: GET /api/ws (see docs/API.md)."),
+    paths(
+        routes::health, routes::status, routes::behaviors, routes::missions, routes::upload,
+        routes::mission, routes::delete_mission, routes::mission_update, routes::set_frame,
+        routes::frames, routes::log, routes::sim_fault
+    ),
+    components(schemas(
+        ErrorBody, ValidationError, Mission, MissionItem, MissionUpdate, MissionStatus,
+        DoneResult, ItemResult, DroneStatus, BatteryStatus, GeoStatus, FrameRegistration,
+        MissionView, Uploaded, Updated, BehaviorInfo, routes::Health, routes::StatusAnswer,
+        routes::UpdateAnswer, routes::Fault
+    )),
+    modifiers(&BearerAuth),
+    tags((name = "missions"), (name = "vehicles"), (name = "frames"), (name = "system"))
+)]
+pub struct ApiDoc;
+
+pub fn spec() -> utoipa::openapi::OpenApi {
+    ApiDoc::openapi()
+}

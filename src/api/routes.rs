@@ -1,0 +1,272 @@
+//! REST handlers: health, status, behaviors, missions, MissionUpdate, frames, flight log and
+//! simulator faults. Each one asks the host (commands) or reads its latest published state.
+//!
+//! In: HTTP requests (JSON bodies, `?drone=` queries). Out: JSON answers as `docs/API.md`
+//! lists them; errors through [`ApiError`].
+
+use super::body::{parse, JsonBody};
+use super::error::{ApiError, ErrorBody};
+use super::ApiState;
+use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
+use crate::host::runtime::BehaviorInfo;
+use crate::host::{Command, DroneStatus};
+use crate::mission::{Mission, MissionUpdate};
+use axum::extract::{Path, Query, State};
+use axum::http::{header, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+pub struct DroneQuery {
+    /// A drone id (`drone_0` ...); absent = every drone (or the only one).
+    pub drone: Option<String>,
+}
+
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+pub struct UploadQuery {
+    /// Load under this id (replacing an idle mission with that id).
+    pub mission_id: Option<u32>,
+}
+
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct Health {
+    pub status: String,
+    pub version: String,
+    pub drones: Vec<String>,
+    pub uptime_s: f64,
+    pub simulated: bool,
+}
+
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct StatusAnswer {
+    pub t: f64,
+    pub drones: Vec<DroneStatus>,
+}
+
+#[utoipa::path(get, path = "/api/health", tag = "system",
+    responses((status = 200, body = Health)))]
+pub async fn health(State(s): State<ApiState>) -> Json<Health> {
+    Json(Health {
+        status: "ok".into(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        drones: s.host.info.drones.clone(),
+        uptime_s: s.started.elapsed().as_secs_f64(),
+        simulated: s.host.info.simulated,
+    })
+}
+
+#[utoipa::path(get, path = "/api/status", tag = "vehicles", security(("bearer" = [])),
+    responses((status = 200, body = StatusAnswer), (status = 401, body = ErrorBody)))]
+pub async fn status(State(s): State<ApiState>) -> Json<StatusAnswer> {
+    let snap = s.host.snapshot();
+    Json(StatusAnswer {
+        t: snap.t,
+        drones: snap.drones.clone(),
+    })
+}
+
+#[utoipa::path(get, path = "/api/behaviors", tag = "missions", security(("bearer" = [])),
+    responses((status = 200, body = Vec<BehaviorInfo>)))]
+pub async fn behaviors(State(s): State<ApiState>) -> Json<Vec<BehaviorInfo>> {
+    Json(s.host.info.behaviors.clone())
+}
+
+#[utoipa::path(get, path = "/api/missions", tag = "missions", security(("bearer" = [])),
+    params(DroneQuery), responses((status = 200, body = Vec<MissionView>)))]
+pub async fn missions(
+    State(s): State<ApiState>,
+    Query(q): Query<DroneQuery>,
+) -> Result<Json<Vec<MissionView>>, ApiError> {
+    let views = s
+        .host
+        .call(|reply| Command::Missions {
+            drone: q.drone,
+            reply,
+        })
+        .await?;
+    Ok(Json(views))
+}
+
+#[utoipa::path(post, path = "/api/missions", tag = "missions", security(("bearer" = [])),
+    params(UploadQuery), request_body = Mission,
+    responses((status = 201, body = Uploaded), (status = 422, body = ErrorBody),
+        (status = 413, body = ErrorBody)))]
+pub async fn upload(
+    State(s): State<ApiState>,
+    Query(q): Query<UploadQuery>,
+    JsonBody(mission): JsonBody<Value>,
+) -> Result<(StatusCode, Json<Uploaded>), ApiError> {
+    let up = s
+        .host
+        .call(|reply| Command::Upload {
+            mission,
+            mission_id: q.mission_id,
+            reply,
+        })
+        .await?;
+    Ok((StatusCode::CREATED, Json(up)))
+}
+
+#[utoipa::path(get, path = "/api/missions/{id}", tag = "missions", security(("bearer" = [])),
+    params(("id" = u32, Path), DroneQuery),
+    responses((status = 200, body = MissionView), (status = 404, body = ErrorBody)))]
+pub async fn mission(
+    State(s): State<ApiState>,
+    Path(id): Path<u32>,
+    Query(q): Query<DroneQuery>,
+) -> Result<Json<MissionView>, ApiError> {
+    let view = s
+        .host
+        .call(|reply| Command::Mission {
+            drone: q.drone,
+            mission_id: id,
+            reply,
+        })
+        .await?;
+    Ok(Json(view))
+}
+
+#[utoipa::path(delete, path = "/api/missions/{id}", tag = "missions", security(("bearer" = [])),
+    params(("id" = u32, Path), DroneQuery),
+    responses((status = 204), (status = 409, body = ErrorBody), (status = 404, body = ErrorBody)))]
+pub async fn delete_mission(
+    State(s): State<ApiState>,
+    Path(id): Path<u32>,
+    Query(q): Query<DroneQuery>,
+) -> Result<StatusCode, ApiError> {
+    s.host
+        .call(|reply| Command::Delete {
+            drone: q.drone,
+            mission_id: id,
+            reply,
+        })
+        .await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// A MissionUpdate's answer.
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct UpdateAnswer {
+    pub accepted: bool,
+    #[serde(flatten)]
+    pub updated: Updated,
+}
+
+/// Applies a MissionUpdate; the JSON form of Aerostack2's message, accepted as is.
+pub async fn apply_update(s: &ApiState, bytes: &[u8]) -> Result<Updated, ApiError> {
+    let update: MissionUpdate = parse(bytes)?;
+    Ok(s.host
+        .call(|reply| Command::Update { update, reply })
+        .await?)
+}
+
+#[utoipa::path(post, path = "/api/mission_update", tag = "missions", security(("bearer" = [])),
+    request_body = MissionUpdate,
+    responses((status = 200, body = UpdateAnswer,
+        description = "accepted; refusals answer 409 (or 422 for an invalid mission, 404 for an unknown one) with {accepted: false, reason, code, details}")))]
+pub async fn mission_update(
+    State(s): State<ApiState>,
+    JsonBody(body): JsonBody<Value>,
+) -> Response {
+    let bytes = body.to_string();
+    match apply_update(&s, bytes.as_bytes()).await {
+        Ok(updated) => Json(UpdateAnswer {
+            accepted: true,
+            updated,
+        })
+        .into_response(),
+        Err(e) => e.as_rejection(),
+    }
+}
+
+#[utoipa::path(post, path = "/api/frames", tag = "frames", security(("bearer" = [])),
+    request_body = FrameRegistration,
+    responses((status = 200, description = "{\"frame_id\": ..}"), (status = 422, body = ErrorBody)))]
+pub async fn set_frame(
+    State(s): State<ApiState>,
+    JsonBody(frame): JsonBody<FrameRegistration>,
+) -> Result<Json<Value>, ApiError> {
+    let id = frame.frame_id.clone();
+    s.host
+        .call(|reply| Command::SetFrame { frame, reply })
+        .await?;
+    Ok(Json(json!({ "frame_id": id })))
+}
+
+#[utoipa::path(get, path = "/api/frames", tag = "frames", security(("bearer" = [])),
+    responses((status = 200, body = Vec<FrameRegistration>)))]
+pub async fn frames(State(s): State<ApiState>) -> Result<Json<Vec<FrameRegistration>>, ApiError> {
+    Ok(Json(s.host.call(|reply| Command::Frames { reply }).await?))
+}
+
+#[utoipa::path(get, path = "/api/log", tag = "system", security(("bearer" = [])),
+    params(DroneQuery),
+    responses((status = 200, content_type = "application/x-ndjson",
+        description = "the flight log of the current or last flight, one JSON record per line")))]
+pub async fn log(
+    State(s): State<ApiState>,
+    Query(q): Query<DroneQuery>,
+) -> Result<Response, ApiError> {
+    let file = s
+        .log
+        .clone()
+        .ok_or_else(|| ApiError::NotFound("no flight log is being written".into()))?;
+    s.host.call(|reply| Command::FlushLog { reply }).await?;
+    // The writer thread flushes when idle, at most 100 ms after the hand-over.
+    tokio::time::sleep(std::time::Duration::from_millis(150)).await;
+    let text = tokio::fs::read_to_string(&file.path)
+        .await
+        .map_err(|e| ApiError::NotFound(format!("flight log {}: {e}", file.path.display())))?;
+    let body = match &q.drone {
+        None => text,
+        Some(d) => {
+            let needle = format!("\"drone\":\"{d}\"");
+            text.lines()
+                .filter(|l| l.contains(&needle))
+                .fold(String::new(), |mut acc, l| {
+                    acc.push_str(l);
+                    acc.push('\n');
+                    acc
+                })
+        }
+    };
+    Ok(([(header::CONTENT_TYPE, "application/x-ndjson")], body).into_response())
+}
+
+#[derive(Debug, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Fault {
+    pub drone_id: String,
+    /// `link_lost` or `link_restored`.
+    pub fault: String,
+}
+
+#[utoipa::path(post, path = "/api/sim/fault", tag = "system", security(("bearer" = [])),
+    request_body = Fault,
+    responses((status = 200), (status = 400, body = ErrorBody)))]
+pub async fn sim_fault(
+    State(s): State<ApiState>,
+    JsonBody(fault): JsonBody<Fault>,
+) -> Result<Json<Value>, ApiError> {
+    let link_lost = match fault.fault.as_str() {
+        "link_lost" => true,
+        "link_restored" => false,
+        other => {
+            return Err(ApiError::BadRequest(format!(
+                "unknown fault `{other}`: use link_lost or link_restored"
+            )))
+        }
+    };
+    s.host
+        .call(|reply| Command::Fault {
+            drone_id: fault.drone_id.clone(),
+            link_lost,
+            reply,
+        })
+        .await?;
+    Ok(Json(
+        json!({ "drone_id": fault.drone_id, "fault": fault.fault }),
+    ))
+}

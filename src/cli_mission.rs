@@ -1,0 +1,142 @@
+//! `kestrel mission validate|run|schema`: check a mission file against this build's behaviors,
+//! the config's limits and a scenario's frames; fly it in the simulator; print the schema.
+
+use crate::cli_sim::{self, SimArgs};
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use kestrel::host::scenario::Scenario;
+use kestrel::mission::schema::mission_schema;
+use std::path::PathBuf;
+
+#[derive(Subcommand, Debug)]
+pub enum MissionCommand {
+    /// Check a mission (JSON): every error as a JSON pointer and a message; exit 1 if invalid.
+    Validate(ValidateArgs),
+    /// Fly a mission in the built-in simulator until it ends (exit 0 if it succeeded).
+    Run(RunArgs),
+    /// Print the JSON Schema of missions (the source of missions/schema.json).
+    Schema,
+}
+
+#[derive(Args, Debug)]
+pub struct ValidateArgs {
+    /// Mission file.
+    file: PathBuf,
+    /// Scenario whose frames the mission uses.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Config file (limits, geofence).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Drones in the simulator (missions may target drone_0 ... drone_{N-1}).
+    #[arg(long, default_value_t = 1)]
+    drones: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Mission file.
+    file: PathBuf,
+    /// Scenario whose frames the mission uses.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long)]
+    world: Option<PathBuf>,
+    #[arg(long, default_value_t = 1)]
+    drones: usize,
+    /// Simulated seconds per wall-clock second, or `max`.
+    #[arg(long, default_value = "max")]
+    speedup: String,
+    /// Flight log (JSON lines).
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Serve the API meanwhile on ADDR:PORT (default: any free loopback port).
+    #[arg(long, default_value = "127.0.0.1:0")]
+    listen: String,
+    #[arg(long, default_value_t = 3600.0)]
+    max_sim_time_s: f64,
+}
+
+pub fn run(command: MissionCommand) -> Result<()> {
+    match command {
+        MissionCommand::Validate(a) => validate(a),
+        MissionCommand::Run(a) => cli_sim::run(SimArgs {
+            world: a.world,
+            drones: a.drones,
+            speedup: a.speedup,
+            seed: 0,
+            log: a.log,
+            exit_when_done: true,
+            config: a.config,
+            sensor: None,
+            max_sim_time_s: a.max_sim_time_s,
+            listen: Some(a.listen),
+            mission: Some(a.file),
+            scenario: a.scenario,
+            no_demo: false,
+            state_dir: None,
+        }),
+        MissionCommand::Schema => {
+            let schema = mission_schema(&kestrel::host::payload::registry());
+            println!("{}", serde_json::to_string_pretty(&schema)?);
+            Ok(())
+        }
+    }
+}
+
+fn validate(a: ValidateArgs) -> Result<()> {
+    let config = cli_sim::load_config(a.config.as_deref())?;
+    let scenario = a.scenario.as_deref().map(Scenario::load).transpose()?;
+    let args = SimArgs {
+        world: None,
+        drones: a.drones,
+        speedup: "max".into(),
+        seed: 0,
+        log: None,
+        exit_when_done: true,
+        config: None,
+        sensor: None,
+        max_sim_time_s: 0.0,
+        listen: None,
+        mission: None,
+        scenario: None,
+        no_demo: true,
+        state_dir: None,
+    };
+    let (host, _) = cli_sim::build(&args, &config, scenario.as_ref())?;
+    let text = std::fs::read_to_string(&a.file)
+        .with_context(|| format!("cannot read {}", a.file.display()))?;
+    let value: serde_json::Value = match serde_json::from_str(&text) {
+        Ok(v) => v,
+        Err(e) => bail!("{}: not valid JSON: {e}", a.file.display()),
+    };
+    let target = value.get("target").and_then(|t| t.as_str()).unwrap_or("");
+    let index = host
+        .drone_ids()
+        .iter()
+        .position(|d| d == target)
+        .unwrap_or(0);
+    match host.validate(index, &value) {
+        Ok(valid) => {
+            for w in &valid.warnings {
+                println!("warning: {w}");
+            }
+            println!(
+                "{}: valid ({} items for {})",
+                a.file.display(),
+                valid.items.len(),
+                valid.target
+            );
+            Ok(())
+        }
+        Err(kestrel::host::HostError::Invalid(errors)) => {
+            for e in &errors {
+                println!("{e}");
+            }
+            bail!("{}: {} error(s)", a.file.display(), errors.len())
+        }
+        Err(e) => bail!("{e}"),
+    }
+}

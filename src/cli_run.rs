@@ -1,0 +1,375 @@
+//! `kestrel run`: fly a real autopilot (PX4 or ArduPilot over MAVLink) with the same core and
+//! behaviors as the simulator, ticked in real time by a tokio interval.
+//!
+//! In: `--config FILE` (TOML), `--platform` and `--connection` overriding its `[mavlink]`
+//! section. Out: the flight (with `--mission-demo`, the simulator's demo plan), a JSON-lines
+//! flight log, one stdout line per behavior event and platform change.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use kestrel::behavior::{BehaviorEvent, BehaviorResult, Registry, RunState};
+use kestrel::config::Config;
+use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
+use kestrel::estimator::geodetic::GeodeticOrigin;
+use kestrel::estimator::EstimatorPlugin;
+use kestrel::flightlog::FlightLog;
+use kestrel::platform::mavlink::{LinkConfig, LinkPolicy, MavlinkPlatform, Profile};
+use kestrel::platform::Platform;
+use kestrel::sim::script::demo_plan;
+use kestrel::types::{LinkHealth, PlatformStatus, VehicleState};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use tokio::time::{Instant, MissedTickBehavior};
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Config file (TOML); its `[mavlink]` section says where the autopilot is.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Autopilot profile (`platforms/px4.toml`, `platforms/ardupilot-copter.toml`, or a
+    /// built-in name `px4` / `ardupilot-copter`). Overrides `mavlink.platform`.
+    #[arg(long)]
+    platform: Option<String>,
+    /// MAVLink connection (`udpin:0.0.0.0:14540`, `tcpout:127.0.0.1:5760`,
+    /// `serial:/dev/ttyACM0:921600` ...). Overrides `mavlink.connection`.
+    #[arg(long)]
+    connection: Option<String>,
+    /// Fly the demo plan of `kestrel sim` (takeoff, go_to, follow_path, land) once ready.
+    #[arg(long)]
+    mission_demo: bool,
+    /// Exit when the plan is over: 0 if it succeeded, non-zero with the reason if not.
+    #[arg(long)]
+    exit_when_done: bool,
+    /// Flight log (JSON lines). Default: kestrel-run.jsonl in `drone.log_dir` or here.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Give up (and land) after this many seconds.
+    #[arg(long, default_value_t = 900.0)]
+    max_time_s: f64,
+}
+
+pub fn run(args: RunArgs) -> Result<()> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    runtime.block_on(run_async(args))
+}
+
+fn load_profile(name: &str) -> Result<Profile> {
+    let path = Path::new(name);
+    if !path.exists() {
+        if let Some(p) = Profile::builtin(name) {
+            return Ok(p?);
+        }
+    }
+    Ok(Profile::load(path)?)
+}
+
+async fn run_async(args: RunArgs) -> Result<()> {
+    let mut config = match &args.config {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    if let Some(p) = &args.platform {
+        config.mavlink.platform = p.clone();
+    }
+    if let Some(c) = &args.connection {
+        config.mavlink.connection = c.clone();
+    }
+    config
+        .mavlink
+        .validate()
+        .map_err(|(field, message)| anyhow::anyhow!("{field}: {message}"))?;
+    let profile = load_profile(&config.mavlink.platform)?;
+    let ready_timeout = profile.ready_timeout;
+    println!(
+        "kestrel run: {} over {} (profile {})",
+        profile.name, config.mavlink.connection, config.mavlink.platform
+    );
+    let mut platform = MavlinkPlatform::start(
+        profile,
+        config.mavlink.session_config(),
+        LinkConfig {
+            connection: config.mavlink.connection.clone(),
+            forward: config.mavlink.forward.clone(),
+        },
+    )?;
+    let mut core_config = CoreConfig::new(&config.drone.id);
+    core_config.estimator = config
+        .estimator
+        .plugin
+        .unwrap_or(EstimatorPlugin::AutopilotOdometry);
+    core_config.controller = config.controller;
+    core_config.behaviors = config.behaviors;
+    if let Some(o) = config.drone.geodetic_origin {
+        core_config.geo_origin = GeodeticOrigin(o);
+    }
+    let mut core = DroneCore::new(
+        core_config,
+        platform.capabilities(),
+        Registry::with_motion_behaviors(),
+    );
+    let log_path = args.log.clone().unwrap_or_else(|| {
+        config
+            .drone
+            .log_dir
+            .clone()
+            .unwrap_or_default()
+            .join("kestrel-run.jsonl")
+    });
+    let mut log = FlightLog::create(&log_path)
+        .with_context(|| format!("creating flight log {}", log_path.display()))?;
+    println!("flight log {}", log_path.display());
+
+    let period = Duration::from_secs_f64(1.0 / config.drone.control_rate_hz);
+    let mut interval = tokio::time::interval(period);
+    interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let start = Instant::now();
+    let limit = Duration::from_secs_f64(args.max_time_s.max(1.0));
+    let mut plan = args
+        .mission_demo
+        .then(|| Plan::new(demo_plan(kestrel::types::Vec3::zeros(), 0.0), ready_timeout));
+    let mut watch = StatusWatch::default();
+    let policy = config.mavlink.on_link_regained;
+    let ctrl_c = tokio::signal::ctrl_c();
+    tokio::pin!(ctrl_c);
+    let outcome = loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = &mut ctrl_c => break Err("interrupted".to_string()),
+        }
+        let now = start.elapsed();
+        let feedback = platform.poll(now);
+        let out = core.tick(now, &feedback);
+        platform.command(now, out.setpoint, &out.requests);
+        let state = core.vehicle_state();
+        for line in watch.changes(&state.platform) {
+            say(now, &line);
+            log.event(now, core.drone_id(), "platform", &line);
+        }
+        for r in &feedback.request_results {
+            if let Err(e) = &r.outcome {
+                say(now, &format!("{:?} refused: {e}", r.request));
+            }
+        }
+        let active = active_motion(&core);
+        log.pose(now, &state, active.as_deref());
+        for e in &out.events {
+            say(now, &serde_json::to_string(e).unwrap_or_default());
+            log.behavior(now, core.drone_id(), e);
+        }
+        if let Some(p) = plan.as_mut() {
+            if let Some(result) = p.update(now, &mut core, &state, &out.events, policy) {
+                if args.exit_when_done {
+                    break result;
+                }
+                say(now, &format!("plan over: {result:?}"));
+                plan = None;
+            }
+        }
+        if now > limit {
+            break Err(format!("no end after {:.0} s", limit.as_secs_f64()));
+        }
+    };
+    log.flush();
+    drop(platform);
+    match outcome {
+        Ok(()) => {
+            println!("flight succeeded");
+            Ok(())
+        }
+        Err(e) => bail!("flight failed: {e}"),
+    }
+}
+
+fn say(now: Duration, line: &str) {
+    println!("[{:8.2} s] {line}", now.as_secs_f64());
+}
+
+fn active_motion(core: &DroneCore) -> Option<String> {
+    core.server()
+        .active()
+        .iter()
+        .find(|a| a.state == RunState::Running || a.state == RunState::Paused)
+        .map(|a| a.behavior.clone())
+}
+
+/// Reports link, mode, arming and error changes once each.
+#[derive(Default)]
+struct StatusWatch {
+    last: Option<PlatformStatus>,
+}
+
+impl StatusWatch {
+    fn changes(&mut self, s: &PlatformStatus) -> Vec<String> {
+        let mut out = Vec::new();
+        let prev = self.last.clone().unwrap_or_default();
+        let first = self.last.is_none();
+        if first || prev.link != s.link {
+            out.push(format!("link: {:?}", s.link).to_lowercase());
+        }
+        if prev.mode != s.mode {
+            out.push(format!("mode: {}", s.mode));
+        }
+        if prev.armed != s.armed {
+            out.push(if s.armed { "armed" } else { "disarmed" }.to_string());
+        }
+        if prev.ready_to_fly != s.ready_to_fly {
+            out.push(format!("ready to fly: {}", s.ready_to_fly));
+        }
+        if prev.boot_counter != s.boot_counter {
+            out.push(format!("autopilot reboot #{}", s.boot_counter));
+        }
+        self.last = Some(s.clone());
+        out
+    }
+}
+
+/// A list of behaviors flown in order once the autopilot is ready, restarting the interrupted
+/// one after a link loss when the policy is `resume`, and landing after a failure.
+struct Plan {
+    items: Vec<(String, Value)>,
+    ready_timeout: Duration,
+    phase: Phase,
+    started_at: Option<Duration>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Phase {
+    WaitReady,
+    Running(usize),
+    /// The link dropped during item `usize`; resume it when the link is back.
+    WaitLink(usize, Duration),
+    /// Failed: landing (if airborne) before reporting the reason.
+    Landing(String, Duration, bool),
+}
+
+/// How long the plan waits for a lost link before giving up, and for a landing to finish.
+const LINK_WAIT: Duration = Duration::from_secs(30);
+const LANDING_WAIT: Duration = Duration::from_secs(120);
+
+impl Plan {
+    fn new(items: Vec<(String, Value)>, ready_timeout: Duration) -> Self {
+        Self {
+            items,
+            ready_timeout,
+            phase: Phase::WaitReady,
+            started_at: None,
+        }
+    }
+
+    fn start(&mut self, now: Duration, core: &mut DroneCore, index: usize) -> Option<String> {
+        let Some((behavior, goal)) = self.items.get(index).cloned() else {
+            return Some(format!("no plan item {index}"));
+        };
+        self.phase = Phase::Running(index);
+        let cmd = BehaviorCommand::Start {
+            behavior: behavior.clone(),
+            goal,
+        };
+        match core.command(cmd) {
+            Ok(_) => None,
+            Err(e) => {
+                say(now, &format!("{behavior} refused: {e}"));
+                Some(format!("{behavior}: {e}"))
+            }
+        }
+    }
+
+    fn fail(&mut self, now: Duration, reason: String) {
+        say(now, &format!("plan failed: {reason}"));
+        self.phase = Phase::Landing(reason, now, false);
+    }
+
+    /// Advances; `Some` when the plan is over.
+    fn update(
+        &mut self,
+        now: Duration,
+        core: &mut DroneCore,
+        state: &VehicleState,
+        events: &[BehaviorEvent],
+        policy: LinkPolicy,
+    ) -> Option<Result<(), String>> {
+        let link_ok = state.platform.link == LinkHealth::Ok;
+        match self.phase.clone() {
+            Phase::WaitReady => {
+                let since = *self.started_at.get_or_insert(now);
+                if link_ok && state.platform.ready_to_fly && state.estimate.valid.position {
+                    if let Some(e) = self.start(now, core, 0) {
+                        self.fail(now, e);
+                    }
+                } else if now.saturating_sub(since) > self.ready_timeout + LINK_WAIT {
+                    let why = state
+                        .platform
+                        .last_error
+                        .clone()
+                        .unwrap_or_else(|| format!("link {:?}", state.platform.link));
+                    return Some(Err(format!("the autopilot never became ready: {why}")));
+                }
+            }
+            Phase::Running(index) => {
+                for e in events {
+                    let BehaviorEvent::Finished {
+                        behavior, result, ..
+                    } = e
+                    else {
+                        continue;
+                    };
+                    match result {
+                        BehaviorResult::Succeeded if index + 1 >= self.items.len() => {
+                            return Some(Ok(()));
+                        }
+                        BehaviorResult::Succeeded => {
+                            if let Some(e) = self.start(now, core, index + 1) {
+                                self.fail(now, e);
+                            }
+                        }
+                        BehaviorResult::Failed(r) | BehaviorResult::Aborted(r) => {
+                            if !link_ok && policy == LinkPolicy::Resume {
+                                say(
+                                    now,
+                                    &format!("{behavior} interrupted ({r}): waiting for the link"),
+                                );
+                                self.phase = Phase::WaitLink(index, now);
+                            } else {
+                                self.fail(now, format!("{behavior}: {r}"));
+                            }
+                        }
+                    }
+                    break;
+                }
+            }
+            Phase::WaitLink(index, since) => {
+                if link_ok && state.estimate.valid.position {
+                    if !state.platform.armed {
+                        self.fail(now, "the vehicle landed during the link loss".into());
+                    } else {
+                        say(now, "link back: resuming the plan");
+                        if let Some(e) = self.start(now, core, index) {
+                            self.fail(now, e);
+                        }
+                    }
+                } else if now.saturating_sub(since) > LINK_WAIT {
+                    return Some(Err("the link did not come back".into()));
+                }
+            }
+            Phase::Landing(reason, since, requested) => {
+                if !state.platform.armed || now.saturating_sub(since) > LANDING_WAIT {
+                    return Some(Err(reason));
+                }
+                if link_ok && !requested && core.server().active().is_empty() {
+                    let land = BehaviorCommand::Start {
+                        behavior: "land".into(),
+                        goal: serde_json::json!({}),
+                    };
+                    let started = core.command(land).is_ok();
+                    self.phase = Phase::Landing(reason, since, started);
+                }
+            }
+        }
+        None
+    }
+}

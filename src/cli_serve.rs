@@ -1,0 +1,204 @@
+//! Serving a host: the control loop, the API, event printing and shutdown, shared by
+//! `kestrel sim` and (later) `kestrel run`.
+
+use anyhow::{Context, Result};
+use kestrel::api::{self, ApiState};
+use kestrel::config::ApiSection;
+use kestrel::host::logwriter::LogFile;
+use kestrel::host::runtime::{self, Pace, RuntimeOptions};
+use kestrel::host::status::{EventBody, HostEvent};
+use kestrel::host::Host;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use tokio::sync::watch;
+
+pub struct ServeOptions {
+    pub listen: SocketAddr,
+    /// `listen` is only the default: when it is taken, any free port of the same address does.
+    pub listen_is_default: bool,
+    pub token: Option<String>,
+    pub api: ApiSection,
+    pub pace: Pace,
+    pub state_file: Option<PathBuf>,
+    pub log: Option<LogFile>,
+    /// Missions flown at start: (drone index, mission id).
+    pub flights: Vec<(usize, u32)>,
+    /// Stop when every flight ended (or `max_time` passed).
+    pub exit_when_done: bool,
+    pub max_time: Duration,
+}
+
+/// How the flights at start ended; `None` for a drone still flying.
+pub struct Outcome {
+    pub results: Vec<(String, Option<Result<(), String>>)>,
+    pub simulated_s: f64,
+    pub wall_s: f64,
+}
+
+fn outcomes(host: &Host, flights: &[(usize, u32)]) -> Vec<(String, Option<Result<(), String>>)> {
+    flights
+        .iter()
+        .filter_map(|&(i, id)| {
+            let core = host.cores().get(i)?;
+            let ex = host.executors().get(i)?;
+            Some((core.drone_id().to_string(), ex.status(core).outcome(id)))
+        })
+        .collect()
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut term =
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(t) => t,
+                Err(_) => {
+                    let _ = ctrl_c.await;
+                    return;
+                }
+            };
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = ctrl_c.await;
+    }
+}
+
+fn print_event(e: &HostEvent) {
+    if let HostEvent::Event {
+        drone,
+        t,
+        event: EventBody::Behavior(b),
+    } = e
+    {
+        println!(
+            "[{t:8.2} s] {drone}: {}",
+            serde_json::to_string(b).unwrap_or_default()
+        );
+    }
+}
+
+/// Runs the host and the API until interrupted (or, with `exit_when_done`, until every
+/// flight ended).
+pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
+    api::auth::check_listen(options.listen, options.token.as_deref())?;
+    let listener = match tokio::net::TcpListener::bind(options.listen).await {
+        Ok(l) => l,
+        Err(e) if options.listen_is_default && e.kind() == std::io::ErrorKind::AddrInUse => {
+            println!(
+                "{} is taken; serving the API on a free port instead",
+                options.listen
+            );
+            tokio::net::TcpListener::bind(SocketAddr::new(options.listen.ip(), 0))
+                .await
+                .with_context(|| format!("cannot listen on {}", options.listen.ip()))?
+        }
+        Err(e) => return Err(e).with_context(|| format!("cannot listen on {}", options.listen)),
+    };
+    let address = listener.local_addr().context("reading the API address")?;
+    let flights = options.flights.clone();
+    let max_time = options.max_time;
+    let mut rt = RuntimeOptions::new(options.pace);
+    rt.state_file = options.state_file.clone();
+    if options.exit_when_done {
+        let flights = flights.clone();
+        rt.stop_when = Some(Box::new(move |host: &Host| {
+            host.now() > max_time || outcomes(host, &flights).iter().all(|(_, o)| o.is_some())
+        }));
+    }
+    let (shutdown_tx, shutdown_rx) = watch::channel(false);
+    let wall = Instant::now();
+    let spawned = runtime::spawn(host, rt, shutdown_rx).context("starting the control loop")?;
+    let handle = spawned.handle;
+    let state = ApiState::new(
+        handle.clone(),
+        options.token.clone(),
+        &options.api,
+        options.log.clone(),
+    );
+    let app = api::router(state, &options.api);
+    let mut server_stop = shutdown_tx.subscribe();
+    let server = tokio::spawn(async move {
+        axum::serve(listener, app)
+            .with_graceful_shutdown(async move {
+                let _ = server_stop.wait_for(|stop| *stop).await;
+            })
+            .await
+    });
+    let auth = if options.token.is_some() {
+        "bearer token required"
+    } else {
+        "no token: loopback only"
+    };
+    println!("API on http://{address} ({auth})");
+    let mut events = spawned.events;
+    let printer = tokio::spawn(async move {
+        loop {
+            match events.recv().await {
+                Ok(e) => print_event(&e),
+                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
+                    println!("({n} events not shown)")
+                }
+                Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
+            }
+        }
+    });
+    let thread = spawned.thread;
+    let join = tokio::task::spawn_blocking(move || thread.join());
+    tokio::pin!(join);
+    let mut announced = false;
+    let mut state_rx = handle.watch_state();
+    drop(handle);
+    let finished = loop {
+        tokio::select! {
+            _ = shutdown_signal() => break None,
+            joined = &mut join => break Some(joined),
+            changed = state_rx.changed(), if !announced && !flights.is_empty() => {
+                if changed.is_err() {
+                    continue;
+                }
+                let snap = state_rx.borrow_and_update().clone();
+                let ended = flights.iter().all(|&(i, id)| {
+                    snap.drones
+                        .get(i)
+                        .and_then(|d| d.mission.as_ref())
+                        .and_then(|m| m.outcome(id))
+                        .is_some()
+                });
+                if ended && !options.exit_when_done {
+                    announced = true;
+                    println!(
+                        "flights ended; still serving the API on http://{address} (Ctrl-C to stop)"
+                    );
+                }
+            }
+        }
+    };
+    let _ = shutdown_tx.send(true);
+    let host = match finished {
+        Some(joined) => joined,
+        None => join.await,
+    }
+    .context("waiting for the control loop")?
+    .map_err(|_| anyhow::anyhow!("the control loop panicked"))?;
+    let _ = server.await;
+    drop(state_rx);
+    // Every sender is gone once the server stopped: the printer ends after the last event.
+    if tokio::time::timeout(Duration::from_secs(1), printer)
+        .await
+        .is_err()
+    {
+        tracing::warn!("some events were not printed");
+    }
+    Ok(Outcome {
+        results: outcomes(&host, &flights),
+        simulated_s: host.now().as_secs_f64(),
+        wall_s: wall.elapsed().as_secs_f64(),
+    })
+}

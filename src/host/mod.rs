@@ -1,0 +1,23 @@
+//! The host: runs drone cores, their mission executors and their vehicles, in real time on a
+//! vehicle or in simulated time in the simulator, and talks to the API.
+//!
+//! In: commands from the API (bounded channel, one-shot replies), the vehicles' feedback.
+//! Out: the latest state of every drone (a `watch` channel), events (a `broadcast` channel a
+//! slow reader can only lag on), the flight log, the persisted missions, and systemd
+//! READY/WATCHDOG notifications from the control loop.
+
+pub mod engine;
+pub mod fleet;
+pub mod logwriter;
+pub mod payload;
+pub mod runtime;
+pub mod scenario;
+pub mod sim;
+pub mod status;
+pub mod vehicle;
+
+pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};
+pub use fleet::{Fleet, SimFleet};
+pub use runtime::{HostHandle, Pace, RuntimeOptions};
+pub use sim::simulated_host;
+pub use status::{DroneStatus, HostEvent, HostSnapshot};

@@ -1,0 +1,225 @@
+//! Payload behaviors used by missions when the build has no others: `point_gimbal` (gimbal
+//! resource) and `take_photo` (camera resource). They only send platform requests, so they run
+//! in parallel with motion behaviors (`wait: false`).
+//!
+//! In: goals and the vehicle state. Out: `PointGimbal` / `TakePhoto` platform requests.
+
+use crate::behavior::{
+    Behavior, BehaviorContext, BehaviorSpec, FramedPoint, Goal, Registry, Resource, Step,
+};
+use crate::platform::PlatformRequest;
+use crate::types::{wrap_angle_rad, Vec3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+/// The behaviors missions can use: the motion behaviors plus these payload ones, unless the
+/// build registers its own under the same names.
+pub fn registry() -> Registry {
+    let mut r = Registry::with_motion_behaviors();
+    if r.get("point_gimbal").is_none() {
+        r.register(point_gimbal_spec());
+    }
+    if r.get("take_photo").is_none() {
+        r.register(take_photo_spec());
+    }
+    r
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PointGimbalGoal {
+    /// Point to look at (m) in `frame_id`.
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    /// Frame of the point; `earth` when absent.
+    #[serde(default)]
+    pub frame_id: Option<String>,
+    /// Aerostack2's mode: 0 = point at the target (the only one supported).
+    #[serde(default)]
+    pub mode: u8,
+    /// Keep pointing at the target as the vehicle moves, until stopped; false = point once.
+    #[serde(default)]
+    pub follow: bool,
+}
+
+fn frame_of(frame_id: &Option<String>) -> String {
+    match frame_id {
+        Some(f) if !f.is_empty() => f.clone(),
+        _ => crate::estimator::frames::EARTH.to_string(),
+    }
+}
+
+impl Goal for PointGimbalGoal {
+    fn check(&self) -> Result<(), String> {
+        if ![self.x, self.y, self.z].iter().all(|v| v.is_finite()) {
+            return Err("x, y, z must be finite numbers (m)".into());
+        }
+        if self.mode != 0 {
+            return Err(format!(
+                "mode must be 0 (point at the target), got {}",
+                self.mode
+            ));
+        }
+        Ok(())
+    }
+    fn targets(&self) -> Vec<FramedPoint> {
+        // The vehicle does not fly to the point it looks at: only its frame is checked.
+        Vec::new()
+    }
+}
+
+fn point_gimbal_spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "point_gimbal",
+        "Point the gimbal at a point in any frame, once or following it",
+        Resource::Gimbal,
+        |goal: PointGimbalGoal| PointGimbal {
+            goal,
+            last: None,
+            last_sent: None,
+        },
+    )
+}
+
+pub struct PointGimbal {
+    goal: PointGimbalGoal,
+    last: Option<(f64, f64)>,
+    last_sent: Option<Duration>,
+}
+
+const GIMBAL_PERIOD: Duration = Duration::from_millis(100);
+
+impl PointGimbal {
+    /// (pitch, yaw) in the body frame (FLU: positive pitch looks down), rad.
+    fn angles(&self, ctx: &BehaviorContext) -> Result<(f64, f64), String> {
+        let target = ctx
+            .frames
+            .point_to_earth(
+                &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
+                &frame_of(&self.goal.frame_id),
+                ctx.now,
+            )
+            .map_err(|e| e.to_string())?;
+        let d = target - ctx.position();
+        let pitch = (-d.z).atan2(d.xy().norm());
+        let yaw = wrap_angle_rad(d.y.atan2(d.x) - ctx.yaw());
+        Ok((pitch, yaw))
+    }
+}
+
+impl Behavior for PointGimbal {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+        self.angles(ctx).map(|_| ())
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        let (pitch, yaw) = match self.angles(ctx) {
+            Ok(a) => a,
+            Err(e) => return Step::Failed(e),
+        };
+        let moved = self
+            .last
+            .is_none_or(|(p, y)| (p - pitch).abs() > 0.01 || wrap_angle_rad(y - yaw).abs() > 0.01);
+        let due = self
+            .last_sent
+            .is_none_or(|t| ctx.now.saturating_sub(t) >= GIMBAL_PERIOD);
+        if moved && due {
+            requests.push(PlatformRequest::PointGimbal {
+                pitch_rad: pitch,
+                yaw_rad: yaw,
+            });
+            self.last = Some((pitch, yaw));
+            self.last_sent = Some(ctx.now);
+        }
+        if !self.goal.follow && self.last.is_some() {
+            return Step::Succeeded;
+        }
+        Step::Running {
+            reference: None,
+            feedback: json!({ "pitch_rad": pitch, "yaw_rad": yaw }),
+        }
+    }
+
+    fn resume(&mut self, _ctx: &BehaviorContext) {
+        self.last = None;
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TakePhotoGoal {
+    /// Number of photos.
+    #[serde(default = "one")]
+    pub n: u32,
+    /// Time between photos (s).
+    #[serde(default = "half_second")]
+    pub interval_s: f64,
+}
+
+fn one() -> u32 {
+    1
+}
+fn half_second() -> f64 {
+    0.5
+}
+
+impl Goal for TakePhotoGoal {
+    fn check(&self) -> Result<(), String> {
+        if self.n == 0 || self.n > 10_000 {
+            return Err(format!("n must be 1..=10000 photos, got {}", self.n));
+        }
+        if !(self.interval_s.is_finite() && self.interval_s >= 0.0) {
+            return Err(format!(
+                "interval_s must be >= 0 s, got {}",
+                self.interval_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn take_photo_spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "take_photo",
+        "Take n photos, one every interval_s seconds",
+        Resource::Camera,
+        |goal: TakePhotoGoal| TakePhoto {
+            goal,
+            taken: 0,
+            last: None,
+        },
+    )
+}
+
+pub struct TakePhoto {
+    goal: TakePhotoGoal,
+    taken: u32,
+    last: Option<Duration>,
+}
+
+impl Behavior for TakePhoto {
+    fn activate(&mut self, _ctx: &BehaviorContext) -> Result<(), String> {
+        Ok(())
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        if self.taken >= self.goal.n {
+            return Step::Succeeded;
+        }
+        let due = self.last.is_none_or(|t| {
+            ctx.now.saturating_sub(t) >= Duration::from_secs_f64(self.goal.interval_s)
+        });
+        if due {
+            requests.push(PlatformRequest::TakePhoto);
+            self.taken += 1;
+            self.last = Some(ctx.now);
+        }
+        Step::Running {
+            reference: None,
+            feedback: json!({ "photos_taken": self.taken, "photos": self.goal.n }),
+        }
+    }
+}

@@ -1,0 +1,396 @@
+//! The host's control loop, on a thread of its own, and the handle the API talks to it with.
+//!
+//! In: commands (bounded `mpsc`, one-shot replies), a pace (real time, a speed-up factor, or as
+//! fast as possible), a shutdown signal. Out: the latest [`HostSnapshot`] (`watch`, at most
+//! every `publish_period` and on every mission change), events (`broadcast`: a slow reader
+//! lags and skips, the loop never waits), the persisted state (written by another task), and
+//! systemd READY / WATCHDOG notifications.
+//!
+//! The loop runs in its own single-threaded tokio runtime on a dedicated thread, so WebSocket
+//! clients and HTTP handlers on the main runtime cannot delay a control tick.
+
+use super::engine::{Command, Host, HostError, PersistedState, Reply};
+use super::status::{HostSnapshot, SharedEvent};
+use crate::mission::methods::methods;
+use crate::mission::store;
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+
+/// How simulated (or real) time advances against the wall clock.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pace {
+    /// A real vehicle: one tick per period, stamped with the wall-clock time since start.
+    RealTime,
+    /// The simulator at `factor` simulated seconds per wall-clock second.
+    Factor(f64),
+    /// The simulator as fast as the CPU allows.
+    Max,
+}
+
+/// Checked after every step: true ends the loop.
+pub type StopWhen = Box<dyn FnMut(&Host) -> bool + Send>;
+
+pub struct RuntimeOptions {
+    pub pace: Pace,
+    /// Where loaded missions are kept; `None` = not kept.
+    pub state_file: Option<PathBuf>,
+    pub command_capacity: usize,
+    pub event_capacity: usize,
+    /// Shortest wall-clock time between two published snapshots.
+    pub publish_period: Duration,
+    /// Checked after every step: true ends the loop (e.g. `--exit-when-done`).
+    pub stop_when: Option<StopWhen>,
+}
+
+impl RuntimeOptions {
+    pub fn new(pace: Pace) -> Self {
+        Self {
+            pace,
+            state_file: None,
+            command_capacity: 64,
+            event_capacity: 1024,
+            publish_period: Duration::from_millis(20),
+            stop_when: None,
+        }
+    }
+}
+
+/// A behavior as `GET /api/behaviors` lists it.
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
+pub struct BehaviorInfo {
+    pub name: String,
+    pub description: String,
+    pub resource: String,
+    #[schema(value_type = Object)]
+    pub args_schema: serde_json::Value,
+    pub methods: Vec<String>,
+}
+
+/// What does not change while the host runs.
+#[derive(Debug, Clone)]
+pub struct HostInfo {
+    pub drones: Vec<String>,
+    pub simulated: bool,
+    pub behaviors: Vec<BehaviorInfo>,
+}
+
+/// The API's way to the host. Cheap to clone.
+#[derive(Clone)]
+pub struct HostHandle {
+    commands: mpsc::Sender<Command>,
+    state: watch::Receiver<Arc<HostSnapshot>>,
+    events: broadcast::Sender<SharedEvent>,
+    pub info: Arc<HostInfo>,
+}
+
+/// How long a command may wait for room in the queue before the API answers "busy".
+const QUEUE_WAIT: Duration = Duration::from_millis(500);
+/// How long the API waits for the host's answer.
+const REPLY_WAIT: Duration = Duration::from_secs(5);
+
+impl HostHandle {
+    /// Sends a command built around a reply channel and waits for the answer.
+    pub async fn call<T>(&self, make: impl FnOnce(Reply<T>) -> Command) -> Result<T, HostError> {
+        let (tx, rx) = oneshot::channel();
+        self.commands
+            .send_timeout(make(tx), QUEUE_WAIT)
+            .await
+            .map_err(|e| match e {
+                mpsc::error::SendTimeoutError::Timeout(_) => {
+                    HostError::Unavailable("the control loop is busy; try again".into())
+                }
+                mpsc::error::SendTimeoutError::Closed(_) => {
+                    HostError::Unavailable("the control loop has stopped".into())
+                }
+            })?;
+        match tokio::time::timeout(REPLY_WAIT, rx).await {
+            Ok(Ok(result)) => result,
+            Ok(Err(_)) => Err(HostError::Unavailable(
+                "the control loop stopped before answering".into(),
+            )),
+            Err(_) => Err(HostError::Unavailable(
+                "the control loop did not answer in time".into(),
+            )),
+        }
+    }
+
+    pub fn snapshot(&self) -> Arc<HostSnapshot> {
+        self.state.borrow().clone()
+    }
+
+    pub fn watch_state(&self) -> watch::Receiver<Arc<HostSnapshot>> {
+        self.state.clone()
+    }
+
+    pub fn subscribe_events(&self) -> broadcast::Receiver<SharedEvent> {
+        self.events.subscribe()
+    }
+}
+
+fn host_info(host: &Host) -> HostInfo {
+    let behaviors = host
+        .cores()
+        .first()
+        .map(|c| {
+            c.server()
+                .registry()
+                .iter()
+                .map(|s| BehaviorInfo {
+                    name: s.name.to_string(),
+                    description: s.description.to_string(),
+                    resource: serde_json::to_value(s.resource)
+                        .ok()
+                        .and_then(|v| v.as_str().map(str::to_string))
+                        .unwrap_or_default(),
+                    args_schema: s.args_schema.clone(),
+                    methods: methods(s.name),
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    HostInfo {
+        drones: host.drone_ids(),
+        simulated: host.is_simulated(),
+        behaviors,
+    }
+}
+
+/// A started control loop.
+pub struct Spawned {
+    pub handle: HostHandle,
+    /// Subscribed before the first tick, so it sees every event.
+    pub events: broadcast::Receiver<SharedEvent>,
+    /// Ends (returning the host) when `shutdown` becomes true or `stop_when` says so.
+    pub thread: std::thread::JoinHandle<Host>,
+}
+
+/// Starts the control loop on its own thread.
+pub fn spawn(
+    host: Host,
+    options: RuntimeOptions,
+    shutdown: watch::Receiver<bool>,
+) -> std::io::Result<Spawned> {
+    let (commands, rx) = mpsc::channel(options.command_capacity.max(1));
+    let (state_tx, state) = watch::channel(Arc::new(host.snapshot()));
+    let (events, first_events) = broadcast::channel(options.event_capacity.max(16));
+    let handle = HostHandle {
+        commands,
+        state,
+        events: events.clone(),
+        info: Arc::new(host_info(&host)),
+    };
+    let thread = std::thread::Builder::new()
+        .name("kestrel-control".into())
+        .spawn(move || {
+            let runtime = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build();
+            match runtime {
+                Ok(rt) => rt.block_on(control_loop(host, rx, state_tx, events, options, shutdown)),
+                Err(e) => {
+                    tracing::error!("cannot start the control loop: {e}");
+                    host
+                }
+            }
+        })?;
+    Ok(Spawned {
+        handle,
+        events: first_events,
+        thread,
+    })
+}
+
+/// Most simulated ticks run in one wake-up when the loop is late.
+const MAX_CATCH_UP: u32 = 50;
+/// Ticks per batch at `Pace::Max` before other work (commands, publishing) gets a turn.
+const MAX_BATCH: u32 = 100;
+
+struct Publisher {
+    state_tx: watch::Sender<Arc<HostSnapshot>>,
+    events: broadcast::Sender<SharedEvent>,
+    period: Duration,
+    last: Option<Instant>,
+    persist_tx: Option<watch::Sender<Option<PersistedState>>>,
+    persisted_revision: Option<u64>,
+    log_flushed: Instant,
+}
+
+impl Publisher {
+    fn publish(&mut self, host: &mut Host) {
+        let events = host.drain_events();
+        let due = self.last.is_none_or(|t| t.elapsed() >= self.period);
+        if due || !events.is_empty() {
+            self.state_tx.send_replace(Arc::new(host.snapshot()));
+            self.last = Some(Instant::now());
+        }
+        for e in events {
+            // No subscriber is not an error: nobody is watching.
+            let _ = self.events.send(Arc::new(e));
+        }
+        if let Some(tx) = &self.persist_tx {
+            let revision = host.revision();
+            if self.persisted_revision != Some(revision) {
+                self.persisted_revision = Some(revision);
+                tx.send_replace(Some(host.persisted()));
+            }
+        }
+        if self.log_flushed.elapsed() >= Duration::from_millis(200) {
+            host.flush_log();
+            self.log_flushed = Instant::now();
+        }
+    }
+}
+
+/// Writes the latest persisted state whenever it changes, off the control loop.
+fn spawn_persister(path: PathBuf) -> watch::Sender<Option<PersistedState>> {
+    let (tx, mut rx) = watch::channel::<Option<PersistedState>>(None);
+    tokio::spawn(async move {
+        while rx.changed().await.is_ok() {
+            let Some(state) = rx.borrow_and_update().clone() else {
+                continue;
+            };
+            let path = path.clone();
+            let saved = tokio::task::spawn_blocking(move || store::save(&path, &state)).await;
+            match saved {
+                Ok(Err(e)) => tracing::error!("saving missions: {e}"),
+                Err(e) => tracing::error!("saving missions: {e}"),
+                Ok(Ok(())) => {}
+            }
+        }
+    });
+    tx
+}
+
+struct Watchdog {
+    period: Option<Duration>,
+    last: Instant,
+}
+
+impl Watchdog {
+    fn new() -> Self {
+        let mut usec = 0;
+        let period =
+            sd_notify::watchdog_enabled(false, &mut usec).then(|| Duration::from_micros(usec / 2));
+        Self {
+            period,
+            last: Instant::now(),
+        }
+    }
+
+    /// Pings systemd from the loop, so a stuck loop gets the service restarted.
+    fn ping(&mut self) {
+        if let Some(p) = self.period {
+            if self.last.elapsed() >= p {
+                let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Watchdog]);
+                self.last = Instant::now();
+            }
+        }
+    }
+}
+
+async fn control_loop(
+    mut host: Host,
+    mut rx: mpsc::Receiver<Command>,
+    state_tx: watch::Sender<Arc<HostSnapshot>>,
+    events: broadcast::Sender<SharedEvent>,
+    mut options: RuntimeOptions,
+    mut shutdown: watch::Receiver<bool>,
+) -> Host {
+    let tick = host.tick_period();
+    let wake = match options.pace {
+        Pace::RealTime | Pace::Max => tick,
+        Pace::Factor(f) => tick.div_f64(f.max(1e-3)),
+    }
+    .max(Duration::from_millis(1));
+    let mut ticker = tokio::time::interval(wake);
+    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut publisher = Publisher {
+        state_tx,
+        events,
+        period: options.publish_period,
+        last: None,
+        persist_tx: options.state_file.clone().map(spawn_persister),
+        persisted_revision: None,
+        log_flushed: Instant::now(),
+    };
+    let mut watchdog = Watchdog::new();
+    let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
+    let mut wall_start = Instant::now();
+    let mut sim_start = host.now();
+    let fast = options.pace == Pace::Max;
+    loop {
+        tokio::select! {
+            biased;
+            changed = shutdown.changed() => {
+                if changed.is_err() || *shutdown.borrow() {
+                    break;
+                }
+                continue;
+            }
+            command = rx.recv() => {
+                match command {
+                    Some(c) => host.handle(c),
+                    None => break,
+                }
+                publisher.publish(&mut host);
+                continue;
+            }
+            _ = ticker.tick(), if !fast => {}
+            _ = tokio::task::yield_now(), if fast => {}
+        }
+        let stop = match options.pace {
+            Pace::RealTime => {
+                host.step_at(sim_start + wall_start.elapsed());
+                check_stop(&mut options, &host)
+            }
+            Pace::Factor(f) => {
+                let target = sim_start + wall_start.elapsed().mul_f64(f);
+                let mut steps = 0;
+                let mut stop = false;
+                while host.now() + tick <= target && steps < MAX_CATCH_UP && !stop {
+                    host.step();
+                    steps += 1;
+                    stop = check_stop(&mut options, &host);
+                }
+                if steps == MAX_CATCH_UP {
+                    // Too slow for this factor: run slower than asked rather than in bursts.
+                    wall_start = Instant::now();
+                    sim_start = host.now();
+                }
+                stop
+            }
+            Pace::Max => {
+                let mut stop = false;
+                for _ in 0..MAX_BATCH {
+                    host.step();
+                    stop = check_stop(&mut options, &host);
+                    if stop {
+                        break;
+                    }
+                }
+                stop
+            }
+        };
+        publisher.publish(&mut host);
+        watchdog.ping();
+        if stop {
+            break;
+        }
+    }
+    let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Stopping]);
+    publisher.publish(&mut host);
+    host.flush_log();
+    if let Some(path) = &options.state_file {
+        if let Err(e) = store::save(path, &host.persisted()) {
+            tracing::error!("saving missions: {e}");
+        }
+    }
+    host
+}
+
+fn check_stop(options: &mut RuntimeOptions, host: &Host) -> bool {
+    options.stop_when.as_mut().is_some_and(|f| f(host))
+}

@@ -1,0 +1,52 @@
+//! Scenario files: the frames a mission needs and the mission to fly, for `kestrel sim
+//! --scenario` and `kestrel mission validate|run --scenario`.
+//!
+//! In: a JSON file `{"description", "frames": [FrameRegistration..], "mission": "file.json",
+//! "drones": N}` (the mission path is relative to the scenario file). Out: [`Scenario`].
+
+use super::engine::FrameRegistration;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    #[serde(default)]
+    pub description: String,
+    #[serde(default)]
+    pub frames: Vec<FrameRegistration>,
+    /// Mission file, relative to the scenario file.
+    #[serde(default)]
+    pub mission: Option<PathBuf>,
+    /// Drones the scenario needs (at least).
+    #[serde(default)]
+    pub drones: Option<usize>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("cannot read scenario {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("scenario {path}: {message}")]
+    Parse { path: String, message: String },
+}
+
+impl Scenario {
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let mut s: Scenario = serde_json::from_str(&text).map_err(|e| ScenarioError::Parse {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        if let (Some(m), Some(dir)) = (&s.mission, path.parent()) {
+            s.mission = Some(dir.join(m));
+        }
+        Ok(s)
+    }
+}

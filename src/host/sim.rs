@@ -1,0 +1,69 @@
+//! A host flying the built-in simulator: N drones (`drone_0` ...) in one world.
+//!
+//! In: a world, the number of drones, a seed and the config. Out: a [`Host`] whose vehicles
+//! are the simulator's, stepped in simulated time (deterministic for a seed).
+
+use super::engine::{Host, HostConfig};
+use super::fleet::SimFleet;
+use super::payload;
+use crate::config::Config;
+use crate::core::{CoreConfig, DroneCore};
+use crate::estimator::geodetic::GeodeticOrigin;
+use crate::mission::Limits;
+use crate::platform::Platform;
+use crate::sim::world::World;
+use crate::sim::{Environment, SimWorld};
+use crate::types::Vec3;
+use std::time::Duration;
+
+/// Physics steps per control tick, as the simulator's own runner does.
+const PHYSICS_SUBSTEPS: u32 = 2;
+
+pub fn simulated_host(world: World, drones: usize, seed: u64, config: &Config) -> Host {
+    simulated_host_in(sim_world(world, drones, seed, config), config)
+}
+
+/// The simulator's world with `drones` vehicles and the config's wind and turbulence.
+pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> SimWorld {
+    let environment = Environment {
+        wind_mps: Vec3::from(config.sim.wind_enu_mps),
+        turbulence_mps2: config.sim.turbulence_mps2,
+    };
+    SimWorld::new(world, drones, seed, environment)
+}
+
+/// A host flying the vehicles of an existing simulator world.
+pub fn simulated_host_in(sim: SimWorld, config: &Config) -> Host {
+    let (cores, fleet, host_config) = simulated_parts(sim, config);
+    Host::new(cores, Box::new(fleet), host_config)
+}
+
+/// The pieces of a simulated host, for callers that wrap the fleet (benchmark probes).
+pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFleet, HostConfig) {
+    let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
+    let registry = payload::registry();
+    let cores = sim
+        .vehicles
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let mut c = CoreConfig::new(&format!("drone_{i}"));
+            c.controller = config.controller;
+            c.behaviors = config.behaviors;
+            c.estimator = config.estimator.plugin.unwrap_or_default();
+            if let Some(o) = origin {
+                c.geo_origin = GeodeticOrigin(o);
+            }
+            DroneCore::new(c, v.capabilities(), registry.clone())
+        })
+        .collect();
+    (
+        cores,
+        SimFleet::new(sim, PHYSICS_SUBSTEPS),
+        HostConfig {
+            limits: Limits::from_config(config),
+            switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
+            tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
+        },
+    )
+}

@@ -1,0 +1,135 @@
+//! What the host publishes: each drone's status and telemetry, and the events of a tick.
+//!
+//! In: a drone core and its executor. Out: [`DroneStatus`] (the API's `DroneStatus`) and
+//! [`HostEvent`]s, serialised by the API as they are.
+
+use crate::behavior::{ActiveInfo, BehaviorEvent};
+use crate::core::DroneCore;
+use crate::mission::{Action, MissionExecutor, MissionStatus};
+use crate::types::{FlightStatus, LinkHealth};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct BatteryStatus {
+    pub voltage_v: f64,
+    pub remaining_fraction: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct GeoStatus {
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub alt_m: f64,
+}
+
+/// One drone, as `GET /api/status` and WebSocket telemetry show it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct DroneStatus {
+    pub drone: String,
+    #[schema(value_type = String)]
+    pub link: LinkHealth,
+    pub armed: bool,
+    pub offboard: bool,
+    pub mode: String,
+    #[schema(value_type = String)]
+    pub flight: FlightStatus,
+    pub ready_to_fly: bool,
+    pub battery: Option<BatteryStatus>,
+    pub last_error: Option<String>,
+    pub position_enu_m: [f64; 3],
+    pub yaw_rad: f64,
+    pub velocity_enu_mps: [f64; 3],
+    pub geo: GeoStatus,
+    #[schema(value_type = Vec<Object>)]
+    pub active_behaviors: Vec<ActiveInfo>,
+    /// Absent in telemetry frames (mission status has its own message).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mission: Option<MissionStatus>,
+}
+
+impl DroneStatus {
+    pub fn of(core: &DroneCore, executor: &MissionExecutor) -> Self {
+        let s = core.vehicle_state();
+        let p = s.estimate.pose.position_m;
+        let v = s.estimate.velocity_enu_mps;
+        let geo = core.geo_origin().to_geo(&p);
+        Self {
+            drone: s.drone,
+            link: s.platform.link,
+            armed: s.platform.armed,
+            offboard: s.platform.offboard,
+            mode: s.platform.mode,
+            flight: s.platform.flight,
+            ready_to_fly: s.platform.ready_to_fly,
+            battery: s.platform.battery.map(|b| BatteryStatus {
+                voltage_v: b.voltage_v,
+                remaining_fraction: b.remaining_fraction,
+            }),
+            last_error: s.platform.last_error,
+            position_enu_m: [p.x, p.y, p.z],
+            yaw_rad: s.estimate.pose.yaw_rad(),
+            velocity_enu_mps: [v.x, v.y, v.z],
+            geo: GeoStatus {
+                lat_deg: geo.lat_deg,
+                lon_deg: geo.lon_deg,
+                alt_m: geo.alt_m,
+            },
+            active_behaviors: core.server().active(),
+            mission: Some(executor.status(core)),
+        }
+    }
+}
+
+/// The latest state of every drone; replaced, never queued.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct HostSnapshot {
+    /// Seconds since the host started (simulated time in the simulator).
+    pub t: f64,
+    pub drones: Vec<DroneStatus>,
+}
+
+/// Something that happened, for WebSocket clients and logs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum HostEvent {
+    /// A mission status changed.
+    MissionStatus {
+        drone: String,
+        status: MissionStatus,
+    },
+    Event {
+        drone: String,
+        t: f64,
+        event: EventBody,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum EventBody {
+    /// Behavior started, paused, resumed, modified, finished.
+    Behavior(BehaviorEvent),
+    /// A MissionUpdate and its answer.
+    MissionUpdate {
+        action: Action,
+        mission_id: Option<u32>,
+        accepted: bool,
+        reason: Option<String>,
+    },
+    /// The autopilot's own words (MAVLink STATUSTEXT, a refusal).
+    Autopilot { text: String },
+    /// Link changes, collisions, faults.
+    Alert { message: String },
+}
+
+pub type SharedEvent = Arc<HostEvent>;
+
+/// Link state in words, for alerts.
+pub fn link_word(link: LinkHealth) -> &'static str {
+    match link {
+        LinkHealth::Connecting => "connecting",
+        LinkHealth::Ok => "ok",
+        LinkHealth::Lost => "lost",
+    }
+}

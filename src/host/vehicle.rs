@@ -1,0 +1,78 @@
+//! A host flying real vehicles: one core per [`Platform`] (a MAVLink autopilot), ticked in
+//! real time. `kestrel run` builds its core and platform, then serves this host.
+//!
+//! In: cores and their platforms, the config. Out: a [`Host`] over `Vec<Box<dyn Platform>>`.
+
+use super::engine::{Host, HostConfig};
+use crate::config::Config;
+use crate::core::DroneCore;
+use crate::mission::Limits;
+use crate::platform::Platform;
+use std::time::Duration;
+
+/// `vehicles`: each core with the platform it flies, in order.
+pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Config) -> Host {
+    let (cores, platforms): (Vec<DroneCore>, Vec<Box<dyn Platform>>) = vehicles.into_iter().unzip();
+    Host::new(
+        cores,
+        Box::new(platforms),
+        HostConfig {
+            limits: Limits::from_config(config),
+            switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
+            tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
+        },
+    )
+}
+
+/// The state directory: `--state-dir`, else `$STATE_DIRECTORY` (set by systemd), else the
+/// config's `[mission] state_dir`, else `./kestrel-state`.
+pub fn state_dir(flag: Option<std::path::PathBuf>, config: &Config) -> std::path::PathBuf {
+    flag.or_else(|| {
+        std::env::var_os("STATE_DIRECTORY")
+            .map(std::path::PathBuf::from)
+            // systemd may list several directories separated by ':'; the first is ours.
+            .map(|p| {
+                p.to_string_lossy()
+                    .split(':')
+                    .next()
+                    .map(std::path::PathBuf::from)
+                    .unwrap_or(p)
+            })
+    })
+    .or_else(|| config.mission.state_dir.clone())
+    .unwrap_or_else(|| std::path::PathBuf::from("kestrel-state"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::Registry;
+    use crate::core::CoreConfig;
+    use crate::sim::dynamics::MultirotorParams;
+    use crate::sim::vehicle::SimVehicle;
+    use crate::types::Vec3;
+
+    #[test]
+    fn any_platform_can_be_hosted() {
+        let vehicle = SimVehicle::new(Vec3::zeros(), 0.0, MultirotorParams::default());
+        let core = DroneCore::new(
+            CoreConfig::new("drone_0"),
+            vehicle.capabilities(),
+            Registry::with_motion_behaviors(),
+        );
+        let mut host = vehicle_host(vec![(core, Box::new(vehicle))], &Config::default());
+        host.step_at(Duration::from_millis(10));
+        assert_eq!(host.drone_ids(), ["drone_0"]);
+        assert!(!host.is_simulated());
+    }
+
+    #[test]
+    fn the_flag_wins_over_the_config() {
+        let mut config = Config::default();
+        config.mission.state_dir = Some("/var/lib/kestrel".into());
+        assert_eq!(
+            state_dir(Some("/tmp/x".into()), &config),
+            std::path::PathBuf::from("/tmp/x")
+        );
+    }
+}

@@ -1,0 +1,688 @@
+//! 2D occupancy grid built from range scans (the `scan2occ_grid` plugin).
+//!
+//! In: a [`GridSpec`] and [`RangeScan`]s with [`InsertParams`]. Out: an [`OccupancyGrid`] of
+//! `i8` cells (`-1` unknown, `0..=100` occupancy), the changed [`CellBox`] of each insertion and
+//! [`GridPatch`]es of changed regions.
+//!
+//! Update rule, per scan: every cell a beam passes through before its end is a miss; the end cell
+//! is a hit when the range is below `min(range_max, max_range)`, otherwise (max-range or no return)
+//! it is a miss too and the ray is only cleared. Each cell is updated at most once per scan and a
+//! hit wins over a miss, so a 360-beam scan does not subtract 40 times from the cells next to the
+//! sensor. A hit adds `hit_confidence`, a miss subtracts `miss_confidence`, an unknown cell counts
+//! as 0 before the update, results are clipped to `0..=100`. Cells never touched stay unknown.
+//! Unlike Aerostack2 (which locks cells above 80 at 100 for ever), locking is optional
+//! (`lock_above`), so a moved obstacle can be cleared.
+
+use nalgebra::Vector2;
+use serde::{Deserialize, Serialize};
+
+use super::raycast::{trace_segment, TraceEnd};
+use super::scan::RangeScan;
+use super::MapError;
+
+/// Value of a cell never observed.
+pub const UNKNOWN: i8 = -1;
+/// Largest number of cells a grid may hold (about 268 million, 256 MiB of `i8`).
+pub const MAX_CELLS: u64 = 1 << 28;
+
+/// Geometry of a grid.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    /// Edge of a square cell, metres (> 0).
+    pub resolution_m: f64,
+    pub width_cells: u32,
+    pub height_cells: u32,
+    /// World position of cell (0,0)'s lower-left corner (ENU, metres).
+    pub origin_enu_m: Vector2<f64>,
+}
+
+/// A cell coordinate: `x` along east, `y` along north.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Cell {
+    pub x: u32,
+    pub y: u32,
+}
+
+/// An inclusive rectangle of cells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CellBox {
+    pub min: Cell,
+    pub max: Cell,
+}
+
+impl CellBox {
+    pub fn of_cell(c: Cell) -> Self {
+        CellBox { min: c, max: c }
+    }
+
+    /// Grows the box to contain `c`.
+    pub fn include(&mut self, c: Cell) {
+        self.min.x = self.min.x.min(c.x);
+        self.min.y = self.min.y.min(c.y);
+        self.max.x = self.max.x.max(c.x);
+        self.max.y = self.max.y.max(c.y);
+    }
+
+    /// Smallest box containing both.
+    pub fn union(self, other: CellBox) -> CellBox {
+        let mut b = self;
+        b.include(other.min);
+        b.include(other.max);
+        b
+    }
+
+    pub fn width_cells(&self) -> u32 {
+        self.max.x - self.min.x + 1
+    }
+
+    pub fn height_cells(&self) -> u32 {
+        self.max.y - self.min.y + 1
+    }
+}
+
+/// A rectangular copy of grid cells, row-major from `region.min` (for "changed region" updates).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GridPatch {
+    pub region: CellBox,
+    pub data: Vec<i8>,
+}
+
+impl GridSpec {
+    /// Checks resolution, size and origin.
+    pub fn validate(&self) -> Result<(), MapError> {
+        if !(self.resolution_m.is_finite() && self.resolution_m > 0.0) {
+            return Err(MapError::InvalidSpec(format!(
+                "resolution_m must be > 0, got {}",
+                self.resolution_m
+            )));
+        }
+        let cells = u64::from(self.width_cells) * u64::from(self.height_cells);
+        if cells == 0 || cells > MAX_CELLS {
+            return Err(MapError::InvalidSpec(format!(
+                "grid must have 1..={MAX_CELLS} cells, got {}x{}",
+                self.width_cells, self.height_cells
+            )));
+        }
+        if !(self.origin_enu_m.x.is_finite() && self.origin_enu_m.y.is_finite()) {
+            return Err(MapError::InvalidSpec("origin not finite".into()));
+        }
+        Ok(())
+    }
+
+    pub fn cell_count(&self) -> usize {
+        self.width_cells as usize * self.height_cells as usize
+    }
+
+    /// The cell containing a world point, `None` outside the grid.
+    pub fn cell_at(&self, p: Vector2<f64>) -> Option<Cell> {
+        let gx = ((p.x - self.origin_enu_m.x) / self.resolution_m).floor();
+        let gy = ((p.y - self.origin_enu_m.y) / self.resolution_m).floor();
+        let inside = gx >= 0.0
+            && gy >= 0.0
+            && gx < f64::from(self.width_cells)
+            && gy < f64::from(self.height_cells);
+        inside.then_some(Cell {
+            x: gx as u32,
+            y: gy as u32,
+        })
+    }
+
+    /// World position of a cell's centre.
+    pub fn cell_center_enu_m(&self, c: Cell) -> Vector2<f64> {
+        self.origin_enu_m
+            + Vector2::new(f64::from(c.x) + 0.5, f64::from(c.y) + 0.5) * self.resolution_m
+    }
+
+    /// Flat index (`y * width + x`), `None` outside the grid.
+    pub fn index_of(&self, c: Cell) -> Option<usize> {
+        (c.x < self.width_cells && c.y < self.height_cells)
+            .then(|| c.y as usize * self.width_cells as usize + c.x as usize)
+    }
+
+    /// Cell of a flat index, `None` past the end.
+    pub fn cell_of_index(&self, i: usize) -> Option<Cell> {
+        (i < self.cell_count()).then(|| Cell {
+            x: (i % self.width_cells as usize) as u32,
+            y: (i / self.width_cells as usize) as u32,
+        })
+    }
+
+    /// Whole-grid box.
+    pub fn full_box(&self) -> CellBox {
+        CellBox {
+            min: Cell { x: 0, y: 0 },
+            max: Cell {
+                x: self.width_cells.saturating_sub(1),
+                y: self.height_cells.saturating_sub(1),
+            },
+        }
+    }
+}
+
+/// How scans change the grid. Defaults are Aerostack2's (`hit 40`, `miss 10`) without locking.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InsertParams {
+    /// Added to a cell at a beam's end (0..=100).
+    pub hit_confidence: u8,
+    /// Subtracted from a cell a beam passes through (0..=100).
+    pub miss_confidence: u8,
+    /// Readings are clipped to this range (metres); `None` = the scan's own `range_max_m`.
+    pub max_range_m: Option<f64>,
+    /// Cells above this value are kept at 100 for ever (Aerostack2 uses 80); `None` = never.
+    pub lock_above: Option<u8>,
+}
+
+impl Default for InsertParams {
+    fn default() -> Self {
+        InsertParams {
+            hit_confidence: 40,
+            miss_confidence: 10,
+            max_range_m: None,
+            lock_above: None,
+        }
+    }
+}
+
+/// Per-scan bookkeeping reused between insertions: a stamp per cell (`generation << 1 | hit`)
+/// and the list of cells touched by the current scan.
+#[derive(Debug, Clone, Default)]
+struct RayScratch {
+    mark: Vec<u32>,
+    generation: u32,
+    touched: Vec<u32>,
+}
+
+/// Occupancy grid: `-1` unknown, `0..=100` occupancy probability in percent.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(try_from = "GridJson")]
+pub struct OccupancyGrid {
+    spec: GridSpec,
+    data: Vec<i8>,
+    #[serde(skip)]
+    scratch: RayScratch,
+}
+
+/// The JSON form `{spec, data}` before validation.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GridJson {
+    spec: GridSpec,
+    data: Vec<i8>,
+}
+
+impl TryFrom<GridJson> for OccupancyGrid {
+    type Error = MapError;
+    fn try_from(raw: GridJson) -> Result<Self, MapError> {
+        OccupancyGrid::from_data(raw.spec, raw.data)
+    }
+}
+
+impl PartialEq for OccupancyGrid {
+    fn eq(&self, other: &Self) -> bool {
+        self.spec == other.spec && self.data == other.data
+    }
+}
+
+impl OccupancyGrid {
+    /// An all-unknown grid.
+    pub fn new(spec: GridSpec) -> Result<Self, MapError> {
+        spec.validate()?;
+        Ok(OccupancyGrid {
+            spec,
+            data: vec![UNKNOWN; spec.cell_count()],
+            scratch: RayScratch::default(),
+        })
+    }
+
+    /// A grid from row-major cells (`y * width + x`, row 0 at the south edge).
+    pub fn from_data(spec: GridSpec, data: Vec<i8>) -> Result<Self, MapError> {
+        spec.validate()?;
+        if data.len() != spec.cell_count() {
+            return Err(MapError::DataLength {
+                expected: spec.cell_count(),
+                got: data.len(),
+            });
+        }
+        if let Some(&v) = data.iter().find(|&&v| !(-1..=100).contains(&v)) {
+            return Err(MapError::InvalidValue(v));
+        }
+        Ok(OccupancyGrid {
+            spec,
+            data,
+            scratch: RayScratch::default(),
+        })
+    }
+
+    pub fn spec(&self) -> &GridSpec {
+        &self.spec
+    }
+
+    /// Row-major cells.
+    pub fn data(&self) -> &[i8] {
+        &self.data
+    }
+
+    pub fn get(&self, c: Cell) -> Option<i8> {
+        self.spec
+            .index_of(c)
+            .and_then(|i| self.data.get(i).copied())
+    }
+
+    /// Value at a world point, `None` outside the grid.
+    pub fn get_at(&self, p: Vector2<f64>) -> Option<i8> {
+        self.spec.cell_at(p).and_then(|c| self.get(c))
+    }
+
+    /// Sets one cell (`-1` or `0..=100`).
+    pub fn set(&mut self, c: Cell, value: i8) -> Result<(), MapError> {
+        if !(-1..=100).contains(&value) {
+            return Err(MapError::InvalidValue(value));
+        }
+        let slot = self
+            .spec
+            .index_of(c)
+            .and_then(|i| self.data.get_mut(i))
+            .ok_or(MapError::OutsideMap { x: c.x, y: c.y })?;
+        *slot = value;
+        Ok(())
+    }
+
+    /// Copy of a region (clipped to the grid), `None` if the region misses the grid.
+    pub fn patch(&self, region: CellBox) -> Option<GridPatch> {
+        let full = self.spec.full_box();
+        if region.min.x > full.max.x || region.min.y > full.max.y {
+            return None;
+        }
+        let region = CellBox {
+            min: region.min,
+            max: Cell {
+                x: region.max.x.min(full.max.x),
+                y: region.max.y.min(full.max.y),
+            },
+        };
+        if region.max.x < region.min.x || region.max.y < region.min.y {
+            return None;
+        }
+        let w = self.spec.width_cells as usize;
+        let mut data = Vec::with_capacity((region.width_cells() * region.height_cells()) as usize);
+        for y in region.min.y..=region.max.y {
+            let row = y as usize * w;
+            let cells = self
+                .data
+                .get(row + region.min.x as usize..=row + region.max.x as usize)?;
+            data.extend_from_slice(cells);
+        }
+        Some(GridPatch { region, data })
+    }
+
+    /// Ray-casts a scan into the grid (see the module docs for the rule). Returns the box of cells
+    /// whose value changed, `None` if nothing changed.
+    pub fn insert_scan(
+        &mut self,
+        scan: &RangeScan,
+        params: &InsertParams,
+    ) -> Result<Option<CellBox>, MapError> {
+        scan.validate()?;
+        let limit_m = match params.max_range_m {
+            Some(m) if m.is_finite() && m > 0.0 => m.min(scan.range_max_m),
+            Some(m) => {
+                return Err(MapError::InvalidScan(format!(
+                    "max_range_m must be > 0, got {m}"
+                )))
+            }
+            None => scan.range_max_m,
+        };
+        let gen = self.next_generation();
+        let origin = scan.origin_enu_m.xy();
+        let RayScratch { mark, touched, .. } = &mut self.scratch;
+        for beam in &scan.beams {
+            let (range_m, hit) = match beam.range_m {
+                Some(r) if r.is_nan() || r < scan.range_min_m => continue,
+                Some(r) if r < limit_m => (r, true),
+                _ => (limit_m, false),
+            };
+            let end = origin + scan.beam_direction_enu(beam) * range_m;
+            let traced = trace_segment(&self.spec, origin, end, |i| {
+                if let Some(m) = mark.get_mut(i) {
+                    if *m >> 1 != gen {
+                        *m = gen << 1;
+                        touched.push(i as u32);
+                    }
+                }
+                true
+            });
+            if hit && traced == TraceEnd::EndInside {
+                let end_index = self.spec.cell_at(end).and_then(|c| self.spec.index_of(c));
+                if let Some(m) = end_index.and_then(|i| mark.get_mut(i)) {
+                    *m |= 1;
+                }
+            }
+        }
+        Ok(self.apply_marks(params))
+    }
+
+    fn next_generation(&mut self) -> u32 {
+        let s = &mut self.scratch;
+        if s.mark.len() != self.data.len() {
+            s.mark = vec![0; self.data.len()];
+            s.generation = 0;
+        }
+        s.generation += 1;
+        // Generations use 31 bits; on wrap, clear the stamps so old ones cannot match.
+        if s.generation >= 1 << 31 {
+            s.mark.iter_mut().for_each(|m| *m = 0);
+            s.generation = 1;
+        }
+        s.touched.clear();
+        s.generation
+    }
+
+    fn apply_marks(&mut self, params: &InsertParams) -> Option<CellBox> {
+        let hit = i16::from(params.hit_confidence.min(100));
+        let miss = -i16::from(params.miss_confidence.min(100));
+        let lock = params.lock_above.map(i16::from);
+        let w = self.spec.width_cells;
+        let mut changed: Option<CellBox> = None;
+        for &i in &self.scratch.touched {
+            let i = i as usize;
+            let (Some(&m), Some(cell)) = (self.scratch.mark.get(i), self.data.get_mut(i)) else {
+                continue;
+            };
+            let old = i16::from(*cell);
+            let delta = if m & 1 == 1 { hit } else { miss };
+            let new = if lock.is_some_and(|l| old > l) {
+                100
+            } else {
+                (old.max(0) + delta).clamp(0, 100)
+            };
+            if new != old {
+                *cell = new as i8;
+                let c = Cell {
+                    x: i as u32 % w,
+                    y: i as u32 / w,
+                };
+                match changed.as_mut() {
+                    Some(b) => b.include(c),
+                    None => changed = Some(CellBox::of_cell(c)),
+                }
+            }
+        }
+        changed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mapping::scan::Beam;
+    use nalgebra::Vector3;
+
+    pub(crate) fn spec(w: u32, h: u32, res: f64) -> GridSpec {
+        GridSpec {
+            resolution_m: res,
+            width_cells: w,
+            height_cells: h,
+            origin_enu_m: Vector2::zeros(),
+        }
+    }
+
+    fn scan_at(x: f64, y: f64, beams: Vec<Beam>) -> RangeScan {
+        RangeScan {
+            origin_enu_m: Vector3::new(x, y, 1.0),
+            yaw_rad: 0.0,
+            range_min_m: 0.05,
+            range_max_m: 4.0,
+            beams,
+        }
+    }
+
+    fn row(g: &OccupancyGrid, y: u32) -> Vec<i8> {
+        (0..g.spec().width_cells)
+            .map(|x| g.get(Cell { x, y }).unwrap_or(i8::MIN))
+            .collect()
+    }
+
+    #[test]
+    fn world_cell_conversion_uses_lower_left_origin() {
+        let s = GridSpec {
+            resolution_m: 0.5,
+            width_cells: 4,
+            height_cells: 2,
+            origin_enu_m: Vector2::new(-1.0, 2.0),
+        };
+        assert_eq!(
+            s.cell_at(Vector2::new(-0.9, 2.1)),
+            Some(Cell { x: 0, y: 0 })
+        );
+        assert_eq!(
+            s.cell_at(Vector2::new(0.99, 2.99)),
+            Some(Cell { x: 3, y: 1 })
+        );
+        assert_eq!(s.cell_at(Vector2::new(1.0, 2.5)), None);
+        assert_eq!(s.cell_at(Vector2::new(f64::NAN, 2.5)), None);
+        assert_eq!(
+            s.cell_center_enu_m(Cell { x: 1, y: 1 }),
+            Vector2::new(-0.25, 2.75)
+        );
+        assert_eq!(s.index_of(Cell { x: 3, y: 1 }), Some(7));
+        assert_eq!(s.index_of(Cell { x: 4, y: 0 }), None);
+    }
+
+    #[test]
+    fn single_beam_marks_misses_then_hit() {
+        let mut g = OccupancyGrid::new(spec(8, 2, 1.0)).unwrap();
+        let s = scan_at(
+            0.5,
+            0.5,
+            vec![Beam {
+                angle_rad: 0.0,
+                range_m: Some(3.0),
+            }],
+        );
+        let changed = g.insert_scan(&s, &InsertParams::default()).unwrap();
+        assert_eq!(row(&g, 0), vec![0, 0, 0, 40, -1, -1, -1, -1]);
+        assert_eq!(row(&g, 1), vec![-1; 8]);
+        assert_eq!(
+            changed,
+            Some(CellBox {
+                min: Cell { x: 0, y: 0 },
+                max: Cell { x: 3, y: 0 }
+            })
+        );
+    }
+
+    #[test]
+    fn diagonal_beam_matches_hand_computed_grid() {
+        let mut g = OccupancyGrid::new(spec(6, 4, 1.0)).unwrap();
+        // From (0.5,0.5) to (4.5,2.5): cells (0,0) (1,0) (1,1) (2,1) (3,1) (3,2) then hit (4,2).
+        let mut s = scan_at(
+            0.5,
+            0.5,
+            vec![Beam {
+                angle_rad: 0.5f64.atan(),
+                range_m: Some(20f64.sqrt()),
+            }],
+        );
+        s.range_max_m = 10.0;
+        g.insert_scan(&s, &InsertParams::default()).unwrap();
+        assert_eq!(row(&g, 0), vec![0, 0, -1, -1, -1, -1]);
+        assert_eq!(row(&g, 1), vec![-1, 0, 0, 0, -1, -1]);
+        assert_eq!(row(&g, 2), vec![-1, -1, -1, 0, 40, -1]);
+        assert_eq!(row(&g, 3), vec![-1; 6]);
+    }
+
+    #[test]
+    fn max_range_and_no_return_clear_without_hit() {
+        let mut g = OccupancyGrid::new(spec(8, 3, 1.0)).unwrap();
+        let mut s = scan_at(
+            0.5,
+            1.5,
+            vec![
+                Beam {
+                    angle_rad: 0.0,
+                    range_m: Some(4.0),
+                },
+                Beam {
+                    angle_rad: 0.0,
+                    range_m: Some(9.0),
+                },
+            ],
+        );
+        g.insert_scan(&s, &InsertParams::default()).unwrap();
+        // Cleared to range_max 4.0 m: cells 0..=4 free, no hit anywhere.
+        assert_eq!(row(&g, 1), vec![0, 0, 0, 0, 0, -1, -1, -1]);
+        s.beams = vec![Beam {
+            angle_rad: 0.0,
+            range_m: None,
+        }];
+        let changed = g.insert_scan(&s, &InsertParams::default()).unwrap();
+        assert_eq!(changed, None);
+        // A tighter max_range clips the reading: 3.0 m is beyond 2.5 m, so the ray is cleared to
+        // x = 3.0 (cell 3) and nothing is hit.
+        let mut g2 = OccupancyGrid::new(spec(8, 3, 1.0)).unwrap();
+        s.beams = vec![Beam {
+            angle_rad: 0.0,
+            range_m: Some(3.0),
+        }];
+        let p = InsertParams {
+            max_range_m: Some(2.5),
+            ..InsertParams::default()
+        };
+        g2.insert_scan(&s, &p).unwrap();
+        assert_eq!(row(&g2, 1), vec![0, 0, 0, 0, -1, -1, -1, -1]);
+    }
+
+    #[test]
+    fn confidence_accumulates_and_clips() {
+        let mut g = OccupancyGrid::new(spec(5, 1, 1.0)).unwrap();
+        let hit = scan_at(
+            0.5,
+            0.5,
+            vec![Beam {
+                angle_rad: 0.0,
+                range_m: Some(2.0),
+            }],
+        );
+        let p = InsertParams::default();
+        let mut at2 = Vec::new();
+        for _ in 0..4 {
+            g.insert_scan(&hit, &p).unwrap();
+            at2.push(g.get(Cell { x: 2, y: 0 }).unwrap_or(i8::MIN));
+        }
+        assert_eq!(at2, vec![40, 80, 100, 100]);
+        // A longer beam now passes through (2,0): each scan subtracts 10.
+        let pass = scan_at(
+            0.5,
+            0.5,
+            vec![Beam {
+                angle_rad: 0.0,
+                range_m: Some(3.9),
+            }],
+        );
+        g.insert_scan(&pass, &p).unwrap();
+        g.insert_scan(&pass, &p).unwrap();
+        // Cell 3 was only ever missed (unknown -> 0), cell 4 is hit twice by the longer beam.
+        assert_eq!(row(&g, 0), vec![0, 0, 80, 0, 80]);
+        // With Aerostack2's lock at 80, cells above 80 stay at 100.
+        let mut locked = OccupancyGrid::new(spec(5, 1, 1.0)).unwrap();
+        let lp = InsertParams {
+            lock_above: Some(80),
+            ..p
+        };
+        for _ in 0..3 {
+            locked.insert_scan(&hit, &lp).unwrap();
+        }
+        locked.insert_scan(&pass, &lp).unwrap();
+        assert_eq!(locked.get(Cell { x: 2, y: 0 }), Some(100));
+    }
+
+    #[test]
+    fn overlapping_beams_update_a_cell_once_and_hit_wins() {
+        let mut g = OccupancyGrid::new(spec(6, 1, 1.0)).unwrap();
+        let s = scan_at(
+            0.5,
+            0.5,
+            vec![
+                Beam {
+                    angle_rad: 0.0,
+                    range_m: Some(4.0 - 0.5),
+                },
+                Beam {
+                    angle_rad: 0.0,
+                    range_m: Some(2.0),
+                },
+                Beam {
+                    angle_rad: 0.0,
+                    range_m: Some(3.0),
+                },
+            ],
+        );
+        g.insert_scan(&s, &InsertParams::default()).unwrap();
+        // Cells 2 and 3 are hits of one beam and misses of another: hit wins (+40 once);
+        // cells 0 and 1 are missed by all three beams but lose 10 only once.
+        assert_eq!(row(&g, 0), vec![0, 0, 40, 40, 40, -1]);
+    }
+
+    #[test]
+    fn invalid_scans_are_typed_errors() {
+        let mut g = OccupancyGrid::new(spec(4, 4, 1.0)).unwrap();
+        let mut s = scan_at(0.5, 0.5, vec![]);
+        s.range_max_m = f64::NAN;
+        assert!(matches!(
+            g.insert_scan(&s, &InsertParams::default()),
+            Err(MapError::InvalidScan(_))
+        ));
+    }
+
+    #[test]
+    fn scan_from_outside_the_grid_only_touches_inside_cells() {
+        let mut g = OccupancyGrid::new(spec(4, 1, 1.0)).unwrap();
+        let s = RangeScan {
+            origin_enu_m: Vector3::new(-2.0, 0.5, 0.0),
+            yaw_rad: 0.0,
+            range_min_m: 0.0,
+            range_max_m: 10.0,
+            beams: vec![Beam {
+                angle_rad: 0.0,
+                range_m: Some(4.5),
+            }],
+        };
+        g.insert_scan(&s, &InsertParams::default()).unwrap();
+        assert_eq!(row(&g, 0), vec![0, 0, 40, -1]);
+    }
+
+    #[test]
+    fn json_round_trip_and_validation() {
+        let mut g = OccupancyGrid::new(spec(3, 2, 0.5)).unwrap();
+        g.set(Cell { x: 1, y: 1 }, 77).unwrap();
+        let text = serde_json::to_string(&g).unwrap();
+        let back: OccupancyGrid = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, g);
+        let bad = text.replace("77", "101");
+        assert!(serde_json::from_str::<OccupancyGrid>(&bad).is_err());
+        assert!(g.set(Cell { x: 3, y: 0 }, 0).is_err());
+        assert_eq!(
+            OccupancyGrid::from_data(spec(3, 2, 0.5), vec![0; 5]),
+            Err(MapError::DataLength {
+                expected: 6,
+                got: 5
+            })
+        );
+    }
+
+    #[test]
+    fn patch_extracts_row_major_region() {
+        let data: Vec<i8> = (0..12).collect();
+        let g = OccupancyGrid::from_data(spec(4, 3, 1.0), data).unwrap();
+        let p = g
+            .patch(CellBox {
+                min: Cell { x: 1, y: 1 },
+                max: Cell { x: 9, y: 2 },
+            })
+            .unwrap();
+        assert_eq!(p.region.max, Cell { x: 3, y: 2 });
+        assert_eq!(p.data, vec![5, 6, 7, 9, 10, 11]);
+    }
+}

@@ -1,0 +1,79 @@
+//! The `[mavlink]` section of the config file: where the autopilot is and how to treat it.
+//!
+//! In: TOML (unknown keys refused). Out: the profile path, the connection and forwarding
+//! strings, and the [`SessionConfig`] (our ids, link policy, EKF origin).
+
+use super::session::{LinkPolicy, SessionConfig};
+use crate::estimator::geodetic::GeoPoint;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MavlinkSection {
+    /// Autopilot profile: a file (`platforms/px4.toml`) or a built-in name (`px4`,
+    /// `ardupilot-copter`). `kestrel run --platform` overrides it.
+    pub platform: String,
+    /// `udpin:0.0.0.0:14540`, `udpout:HOST:PORT`, `tcpout:HOST:PORT`, `tcpin:ADDR:PORT`,
+    /// `serial:/dev/ttyACM0:921600`. `kestrel run --connection` overrides it.
+    pub connection: String,
+    /// Our MAVLink system id; absent = the vehicle's (PX4 counts companion heartbeats only then).
+    pub system_id: Option<u8>,
+    /// Our component id (191 = onboard computer).
+    pub component_id: u8,
+    /// Follow only this autopilot system id; absent = the first autopilot heard.
+    pub target_system: Option<u8>,
+    /// When the link returns during a flight: `land`, `hold` or `resume`.
+    pub on_link_regained: LinkPolicy,
+    /// EKF origin for flying without GPS (ArduPilot refuses GUIDED without one).
+    pub ekf_origin: Option<GeoPoint>,
+    /// Ground station endpoints that get the autopilot's stream, e.g. `udpout:127.0.0.1:14550`.
+    pub forward: Vec<String>,
+}
+
+impl Default for MavlinkSection {
+    fn default() -> Self {
+        Self {
+            platform: "platforms/px4.toml".into(),
+            connection: "udpin:0.0.0.0:14540".into(),
+            system_id: None,
+            component_id: 191,
+            target_system: None,
+            on_link_regained: LinkPolicy::default(),
+            ekf_origin: None,
+            forward: Vec::new(),
+        }
+    }
+}
+
+impl MavlinkSection {
+    /// Checks the fields; `Err((field, message))`.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let address = |field: &str, s: &str| {
+            mavlink::ConnectionAddress::parse_address(s)
+                .map(|_| ())
+                .map_err(|e| (field.to_string(), format!("`{s}`: {e}")))
+        };
+        address("mavlink.connection", &self.connection)?;
+        for f in &self.forward {
+            address("mavlink.forward", f)?;
+        }
+        if self.component_id == 0 {
+            return Err(("mavlink.component_id".into(), "must be 1..=255".into()));
+        }
+        if let Some(o) = &self.ekf_origin {
+            o.validate()
+                .map_err(|e| ("mavlink.ekf_origin".to_string(), e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    pub fn session_config(&self) -> SessionConfig {
+        SessionConfig {
+            system_id: self.system_id,
+            component_id: self.component_id,
+            target_system: self.target_system,
+            on_link_regained: self.on_link_regained,
+            ekf_origin: self.ekf_origin,
+        }
+    }
+}

@@ -1,0 +1,740 @@
+//! The vehicle as the autopilot reports it: decoded MAVLink in, Kestrel's view out.
+//!
+//! In: every [`MavMessage`] from the autopilot with its header and arrival time. Out: a
+//! [`PlatformStatus`] (link, mode, armed, landed state, readiness, battery, last error), the
+//! latest [`Measurement::AutopilotOdometry`] in ENU/FLU, range scans, and the
+//! [`ModelEvent`]s the session reacts to (first contact, reboot, texts). Pure: no I/O, no clock;
+//! replay tests feed it recorded messages.
+
+use super::events::{self, AutopilotText};
+use super::frames;
+use super::profile::Profile;
+use crate::estimator::Measurement;
+use crate::mapping::scan::{self, ObstacleSectors, RangeScan, SectorFrame};
+use crate::types::{Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3};
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavFrame, MavLandedState, MavMessage, MavModeFlag,
+};
+use mavlink::MavHeader;
+use nalgebra::UnitQuaternion;
+use std::collections::VecDeque;
+use std::time::Duration;
+
+/// A position or attitude older than this is no longer valid.
+const ESTIMATE_TIMEOUT: Duration = Duration::from_millis(500);
+/// Texts kept for explaining refusals.
+const TEXT_HISTORY: usize = 64;
+/// Scans kept between two polls; older ones are dropped (and counted).
+const SCAN_BUFFER: usize = 256;
+/// The boot clock going back by more than this means the autopilot restarted.
+const REBOOT_BACKSTEP_MS: u32 = 500;
+const SYS_STATUS_PREARM_CHECK: u32 = 0x1000_0000;
+
+/// What the session must react to after a message.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelEvent {
+    /// The first HEARTBEAT of the autopilot (or the first after a link loss).
+    Contact {
+        system_id: u8,
+        component_id: u8,
+    },
+    /// The autopilot restarted (its boot clock went back).
+    Rebooted,
+    Text(AutopilotText),
+}
+
+#[derive(Debug, Clone, Copy)]
+struct LocalPosition {
+    position_enu_m: Vec3,
+    velocity_enu_mps: Vec3,
+    at: Duration,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Attitude {
+    orientation: UnitQuaternion<f64>,
+    rates_flu_radps: Vec3,
+    at: Duration,
+}
+
+pub struct VehicleModel {
+    profile: Profile,
+    /// Only this system id is followed when set (config); otherwise the first autopilot heard.
+    wanted_system: Option<u8>,
+    autopilot: Option<(u8, u8)>,
+    wrong_autopilot: Option<String>,
+    /// Last message of any kind from the autopilot: on a lossy link telemetry proves life too.
+    last_seen: Option<Duration>,
+    /// Set when the link times out; only a HEARTBEAT clears it.
+    link_lost: bool,
+    custom_mode: Option<u32>,
+    armed: bool,
+    landed_state: Option<MavLandedState>,
+    battery: Option<Battery>,
+    ekf_flags: Option<u16>,
+    prearm_ok: Option<bool>,
+    position: Option<LocalPosition>,
+    attitude: Option<Attitude>,
+    home_enu_m: Option<Vec3>,
+    home_amsl_m: Option<f64>,
+    origin_seen: bool,
+    boot_ms: Option<u32>,
+    boot_counter: u32,
+    reset_counter: u32,
+    texts: VecDeque<AutopilotText>,
+    last_error: Option<String>,
+    scans: VecDeque<RangeScan>,
+    dropped_scans: u64,
+}
+
+impl VehicleModel {
+    pub fn new(profile: Profile, wanted_system: Option<u8>) -> Self {
+        Self {
+            profile,
+            wanted_system,
+            autopilot: None,
+            wrong_autopilot: None,
+            last_seen: None,
+            link_lost: false,
+            custom_mode: None,
+            armed: false,
+            landed_state: None,
+            battery: None,
+            ekf_flags: None,
+            prearm_ok: None,
+            position: None,
+            attitude: None,
+            home_enu_m: None,
+            home_amsl_m: None,
+            origin_seen: false,
+            boot_ms: None,
+            boot_counter: 0,
+            reset_counter: 0,
+            texts: VecDeque::new(),
+            last_error: None,
+            scans: VecDeque::new(),
+            dropped_scans: 0,
+        }
+    }
+
+    pub fn profile(&self) -> &Profile {
+        &self.profile
+    }
+
+    /// (system id, component id) of the autopilot followed, once heard.
+    pub fn autopilot(&self) -> Option<(u8, u8)> {
+        self.autopilot
+    }
+
+    pub fn custom_mode(&self) -> Option<u32> {
+        self.custom_mode
+    }
+
+    pub fn armed(&self) -> bool {
+        self.armed
+    }
+
+    /// True when the autopilot is in the profile's offboard mode.
+    pub fn offboard(&self) -> bool {
+        self.custom_mode == Some(self.profile.roles.offboard.custom_mode)
+    }
+
+    pub fn landed_state(&self) -> Option<MavLandedState> {
+        self.landed_state
+    }
+
+    pub fn home_enu_m(&self) -> Option<Vec3> {
+        self.home_enu_m
+    }
+
+    /// Altitude of home above mean sea level (HOME_POSITION), for PX4's NAV_TAKEOFF.
+    pub fn home_amsl_m(&self) -> Option<f64> {
+        self.home_amsl_m
+    }
+
+    /// The autopilot's last refusal or fault in its own words (or Kestrel's, e.g. a reboot).
+    pub fn last_problem(&self) -> Option<String> {
+        self.last_error.clone()
+    }
+
+    /// GPS_GLOBAL_ORIGIN was reported: the autopilot has an EKF origin.
+    pub fn origin_seen(&self) -> bool {
+        self.origin_seen
+    }
+
+    pub fn texts(&self) -> impl Iterator<Item = &AutopilotText> {
+        self.texts.iter()
+    }
+
+    pub fn dropped_scans(&self) -> u64 {
+        self.dropped_scans
+    }
+
+    /// Records a refusal or fault in the autopilot's (or Kestrel's) words.
+    pub fn set_error(&mut self, error: String) {
+        self.last_error = Some(error);
+    }
+
+    pub fn link(&self, now: Duration) -> LinkHealth {
+        match self.last_seen {
+            None => LinkHealth::Connecting,
+            Some(_) if self.link_lost => LinkHealth::Lost,
+            Some(t) if now.saturating_sub(t) > self.profile.heartbeat_timeout => LinkHealth::Lost,
+            Some(_) => LinkHealth::Ok,
+        }
+    }
+
+    /// Called by the session each tick; returns true once when the link has just been lost.
+    pub fn check_link(&mut self, now: Duration) -> bool {
+        let newly = !self.link_lost && self.link(now) == LinkHealth::Lost;
+        self.link_lost |= newly;
+        newly
+    }
+
+    fn fresh(at: Duration, now: Duration) -> bool {
+        now.saturating_sub(at) <= ESTIMATE_TIMEOUT
+    }
+
+    /// `Ok` when the autopilot can arm and fly offboard, else why not.
+    pub fn readiness(&self, now: Duration) -> Result<(), String> {
+        if let Some(e) = &self.wrong_autopilot {
+            return Err(e.clone());
+        }
+        if self.link(now) != LinkHealth::Ok {
+            return Err("no heartbeat from the autopilot".into());
+        }
+        let r = self.profile.readiness;
+        if r.ekf_flags_required != 0 || r.ekf_flags_forbidden != 0 {
+            let flags = self.ekf_flags.unwrap_or(0);
+            if flags & r.ekf_flags_required != r.ekf_flags_required
+                || flags & r.ekf_flags_forbidden != 0
+            {
+                return Err(format!(
+                    "no position estimate yet (EKF_STATUS_REPORT flags {flags:#x})"
+                ));
+            }
+        }
+        if r.prearm_check_bit && self.prearm_ok == Some(false) && !self.armed {
+            return Err("pre-arm checks failing".into());
+        }
+        match self.position {
+            Some(p) if Self::fresh(p.at, now) => Ok(()),
+            _ => Err("no local position estimate from the autopilot".into()),
+        }
+    }
+
+    fn flight(&self) -> FlightStatus {
+        if !self.armed {
+            return FlightStatus::Disarmed;
+        }
+        match self.landed_state {
+            Some(MavLandedState::MAV_LANDED_STATE_IN_AIR) => FlightStatus::Flying,
+            Some(MavLandedState::MAV_LANDED_STATE_TAKEOFF) => FlightStatus::TakingOff,
+            Some(MavLandedState::MAV_LANDED_STATE_LANDING) => FlightStatus::Landing,
+            _ => FlightStatus::Landed,
+        }
+    }
+
+    pub fn status(&self, now: Duration) -> PlatformStatus {
+        PlatformStatus {
+            link: self.link(now),
+            armed: self.armed,
+            offboard: self.offboard(),
+            flight: self.flight(),
+            mode: self
+                .custom_mode
+                .map(|m| self.profile.mode_name(m))
+                .unwrap_or_default(),
+            ready_to_fly: self.readiness(now).is_ok(),
+            battery: self.battery,
+            last_error: self.last_error.clone(),
+            boot_counter: self.boot_counter,
+        }
+    }
+
+    /// The autopilot's latest estimate, or `None` before the first local position.
+    pub fn odometry(&self, now: Duration) -> Option<Measurement> {
+        let p = self.position?;
+        let att = self.attitude;
+        let orientation = att.map_or_else(UnitQuaternion::identity, |a| a.orientation);
+        let position_ok = Self::fresh(p.at, now);
+        let attitude_ok = att.is_some_and(|a| Self::fresh(a.at, now));
+        Some(Measurement::AutopilotOdometry {
+            pose: Pose {
+                position_m: p.position_enu_m,
+                orientation,
+            },
+            velocity_enu_mps: p.velocity_enu_mps,
+            angular_velocity_flu_radps: att.map_or_else(Vec3::zeros, |a| a.rates_flu_radps),
+            valid: Validity {
+                position: position_ok,
+                velocity: position_ok,
+                attitude: attitude_ok,
+            },
+            reset_counter: self.reset_counter,
+        })
+    }
+
+    pub fn take_scans(&mut self) -> Vec<RangeScan> {
+        self.scans.drain(..).collect()
+    }
+
+    /// Forgets the vehicle's state after a reboot or a link loss that outlived it.
+    fn forget_estimate(&mut self) {
+        self.position = None;
+        self.attitude = None;
+        self.ekf_flags = None;
+        self.landed_state = None;
+        self.origin_seen = false;
+        self.reset_counter += 1;
+    }
+
+    fn is_from_autopilot(&self, header: &MavHeader) -> bool {
+        self.autopilot.is_some_and(|(sys, comp)| {
+            header.system_id == u32::from(sys) && header.component_id == comp
+        })
+    }
+
+    /// Updates the model with one message; returns what the session must react to.
+    pub fn ingest(
+        &mut self,
+        now: Duration,
+        header: &MavHeader,
+        msg: &MavMessage,
+    ) -> Option<ModelEvent> {
+        if let MavMessage::HEARTBEAT(hb) = msg {
+            return self.heartbeat(now, header, hb);
+        }
+        if !self.is_from_autopilot(header) {
+            return None;
+        }
+        self.last_seen = Some(now);
+        match msg {
+            MavMessage::ATTITUDE(a) => {
+                self.attitude = Some(Attitude {
+                    orientation: frames::attitude_from_euler_ned(
+                        f64::from(a.roll),
+                        f64::from(a.pitch),
+                        f64::from(a.yaw),
+                    ),
+                    rates_flu_radps: frames::frd_to_flu(
+                        f64::from(a.rollspeed),
+                        f64::from(a.pitchspeed),
+                        f64::from(a.yawspeed),
+                    ),
+                    at: now,
+                });
+                return self.boot_time(a.time_boot_ms);
+            }
+            MavMessage::ATTITUDE_QUATERNION(a) => {
+                if let Some(q) = frames::attitude_from_mav_quaternion([a.q1, a.q2, a.q3, a.q4]) {
+                    self.attitude = Some(Attitude {
+                        orientation: q,
+                        rates_flu_radps: frames::frd_to_flu(
+                            f64::from(a.rollspeed),
+                            f64::from(a.pitchspeed),
+                            f64::from(a.yawspeed),
+                        ),
+                        at: now,
+                    });
+                }
+                return self.boot_time(a.time_boot_ms);
+            }
+            MavMessage::LOCAL_POSITION_NED(p) => {
+                let v = [p.x, p.y, p.z, p.vx, p.vy, p.vz];
+                if v.iter().all(|x| x.is_finite()) {
+                    self.position = Some(LocalPosition {
+                        position_enu_m: frames::ned_to_enu(p.x.into(), p.y.into(), p.z.into()),
+                        velocity_enu_mps: frames::ned_to_enu(p.vx.into(), p.vy.into(), p.vz.into()),
+                        at: now,
+                    });
+                }
+                return self.boot_time(p.time_boot_ms);
+            }
+            MavMessage::ODOMETRY(o) => self.odometry_message(now, o),
+            MavMessage::GLOBAL_POSITION_INT(g) => return self.boot_time(g.time_boot_ms),
+            MavMessage::SYSTEM_TIME(t) => return self.boot_time(t.time_boot_ms),
+            MavMessage::EXTENDED_SYS_STATE(s) => self.landed_state = Some(s.landed_state),
+            MavMessage::SYS_STATUS(s) => {
+                let present = s.onboard_control_sensors_present.bits();
+                if present & SYS_STATUS_PREARM_CHECK != 0 {
+                    let healthy = s.onboard_control_sensors_health.bits();
+                    self.prearm_ok = Some(healthy & SYS_STATUS_PREARM_CHECK != 0);
+                }
+                if s.voltage_battery != u16::MAX && s.voltage_battery > 0 {
+                    self.battery = Some(Battery {
+                        voltage_v: f64::from(s.voltage_battery) / 1000.0,
+                        remaining_fraction: fraction(s.battery_remaining),
+                    });
+                }
+            }
+            MavMessage::BATTERY_STATUS(b) => {
+                let mv: u32 = b
+                    .voltages
+                    .iter()
+                    .filter(|v| **v != u16::MAX)
+                    .map(|v| u32::from(*v))
+                    .sum();
+                if mv > 0 {
+                    self.battery = Some(Battery {
+                        voltage_v: f64::from(mv) / 1000.0,
+                        remaining_fraction: fraction(b.battery_remaining),
+                    });
+                }
+            }
+            MavMessage::EKF_STATUS_REPORT(e) => self.ekf_flags = Some(e.flags.bits()),
+            MavMessage::HOME_POSITION(h) => {
+                self.home_enu_m = Some(frames::ned_to_enu(h.x.into(), h.y.into(), h.z.into()));
+                self.home_amsl_m = Some(f64::from(h.altitude) / 1000.0);
+            }
+            MavMessage::GPS_GLOBAL_ORIGIN(_) => self.origin_seen = true,
+            MavMessage::DISTANCE_SENSOR(d) => {
+                let beam = scan::beam_from_distance_sensor(
+                    d.orientation as u8,
+                    d.current_distance,
+                    d.min_distance,
+                    d.max_distance,
+                );
+                if let (Some(beam), Some(p)) = (beam, self.position) {
+                    self.push_scan(RangeScan {
+                        origin_enu_m: p.position_enu_m,
+                        yaw_rad: self.yaw_enu_rad(),
+                        range_min_m: f64::from(d.min_distance) / 100.0,
+                        range_max_m: f64::from(d.max_distance) / 100.0,
+                        beams: vec![beam],
+                    });
+                }
+            }
+            MavMessage::OBSTACLE_DISTANCE(o) => {
+                if let Some(p) = self.position {
+                    let increment_deg = if o.increment_f > 0.0 {
+                        f64::from(o.increment_f)
+                    } else {
+                        f64::from(o.increment)
+                    };
+                    let frame = if o.frame == MavFrame::MAV_FRAME_BODY_FRD {
+                        SectorFrame::BodyFrd
+                    } else {
+                        SectorFrame::LocalNed
+                    };
+                    let sectors = ObstacleSectors {
+                        distances_cm: &o.distances,
+                        increment_deg,
+                        angle_offset_deg: f64::from(o.angle_offset),
+                        min_distance_cm: o.min_distance,
+                        max_distance_cm: o.max_distance,
+                        frame,
+                    };
+                    let scan = scan::from_obstacle_distance(
+                        p.position_enu_m,
+                        self.yaw_enu_rad(),
+                        &sectors,
+                    );
+                    self.push_scan(scan);
+                }
+            }
+            MavMessage::STATUSTEXT(s) => {
+                let text = events::status_text(now, s.severity as u8, &s.text[..]);
+                return self.text(text);
+            }
+            MavMessage::EVENT(e) => {
+                return events::px4_event(now, e.id, e.log_levels).and_then(|t| self.text(t));
+            }
+            _ => {}
+        }
+        None
+    }
+
+    fn yaw_enu_rad(&self) -> f64 {
+        self.attitude
+            .map_or(0.0, |a| a.orientation.euler_angles().2)
+    }
+
+    fn push_scan(&mut self, scan: RangeScan) {
+        if self.scans.len() >= SCAN_BUFFER {
+            self.scans.pop_front();
+            self.dropped_scans += 1;
+        }
+        self.scans.push_back(scan);
+    }
+
+    fn text(&mut self, text: AutopilotText) -> Option<ModelEvent> {
+        if self.texts.len() >= TEXT_HISTORY {
+            self.texts.pop_front();
+        }
+        if text.is_problem() {
+            self.last_error = Some(text.text.clone());
+        }
+        self.texts.push_back(text.clone());
+        Some(ModelEvent::Text(text))
+    }
+
+    fn odometry_message(
+        &mut self,
+        now: Duration,
+        o: &mavlink::dialects::ardupilotmega::ODOMETRY_DATA,
+    ) {
+        let q = frames::attitude_from_mav_quaternion(o.q);
+        let local = matches!(
+            o.frame_id,
+            MavFrame::MAV_FRAME_LOCAL_NED | MavFrame::MAV_FRAME_LOCAL_FRD
+        );
+        let p = [o.x, o.y, o.z, o.vx, o.vy, o.vz];
+        if !local || !p.iter().all(|x| x.is_finite()) {
+            return;
+        }
+        let v_frd = Vec3::new(o.vx.into(), o.vy.into(), o.vz.into());
+        let velocity_enu_mps = match (o.child_frame_id, q) {
+            (MavFrame::MAV_FRAME_BODY_FRD, Some(q_enu_flu)) => {
+                // Body FRD velocity → FLU → ENU with the vehicle's attitude.
+                q_enu_flu * Vec3::new(v_frd.x, -v_frd.y, -v_frd.z)
+            }
+            (MavFrame::MAV_FRAME_BODY_FRD, None) => return,
+            _ => frames::ned_to_enu(v_frd.x, v_frd.y, v_frd.z),
+        };
+        self.position = Some(LocalPosition {
+            position_enu_m: frames::ned_to_enu(o.x.into(), o.y.into(), o.z.into()),
+            velocity_enu_mps,
+            at: now,
+        });
+        if let Some(orientation) = q {
+            self.attitude = Some(Attitude {
+                orientation,
+                rates_flu_radps: frames::frd_to_flu(
+                    o.rollspeed.into(),
+                    o.pitchspeed.into(),
+                    o.yawspeed.into(),
+                ),
+                at: now,
+            });
+        }
+    }
+
+    fn boot_time(&mut self, time_boot_ms: u32) -> Option<ModelEvent> {
+        let previous = self.boot_ms.replace(time_boot_ms);
+        match previous {
+            Some(prev) if time_boot_ms.saturating_add(REBOOT_BACKSTEP_MS) < prev => {
+                self.boot_counter += 1;
+                self.forget_estimate();
+                self.last_error = Some("the autopilot rebooted".into());
+                Some(ModelEvent::Rebooted)
+            }
+            _ => None,
+        }
+    }
+
+    fn heartbeat(
+        &mut self,
+        now: Duration,
+        header: &MavHeader,
+        hb: &mavlink::dialects::ardupilotmega::HEARTBEAT_DATA,
+    ) -> Option<ModelEvent> {
+        if hb.autopilot == MavAutopilot::MAV_AUTOPILOT_INVALID {
+            return None; // a GCS, camera, gimbal or another companion
+        }
+        let Ok(system_id) = u8::try_from(header.system_id) else {
+            return None;
+        };
+        if self.wanted_system.is_some_and(|s| s != system_id) {
+            return None;
+        }
+        match self.autopilot {
+            Some((sys, comp)) if sys != system_id || comp != header.component_id => return None,
+            _ => {}
+        }
+        let expected = self.profile.autopilot.mav_autopilot();
+        if hb.autopilot as u8 != expected {
+            let e = format!(
+                "profile `{}` expects MAV_AUTOPILOT {expected}, the vehicle reports {:?}",
+                self.profile.name, hb.autopilot
+            );
+            self.last_error = Some(e.clone());
+            self.wrong_autopilot = Some(e);
+        } else {
+            self.wrong_autopilot = None;
+        }
+        let first =
+            self.autopilot.is_none() || self.link_lost || self.link(now) == LinkHealth::Lost;
+        self.autopilot = Some((system_id, header.component_id));
+        self.last_seen = Some(now);
+        self.link_lost = false;
+        self.custom_mode = Some(hb.custom_mode);
+        self.armed = hb
+            .base_mode
+            .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED);
+        first.then_some(ModelEvent::Contact {
+            system_id,
+            component_id: header.component_id,
+        })
+    }
+}
+
+fn fraction(percent: i8) -> Option<f64> {
+    (0..=100)
+        .contains(&percent)
+        .then(|| f64::from(percent) / 100.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::platform::mavlink::testutil::{self, hb, px4_profile};
+    use mavlink::dialects::ardupilotmega::*;
+
+    fn ap() -> MavHeader {
+        testutil::autopilot_header()
+    }
+
+    #[test]
+    fn heartbeat_gives_mode_armed_and_link() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        assert_eq!(m.link(Duration::ZERO), LinkHealth::Connecting);
+        let ev = m.ingest(Duration::ZERO, &ap(), &hb(0x0006_0000, true));
+        assert!(matches!(ev, Some(ModelEvent::Contact { system_id: 1, .. })));
+        let s = m.status(Duration::from_millis(100));
+        assert_eq!(s.mode, "OFFBOARD");
+        assert!(s.armed && s.offboard);
+        assert_eq!(s.link, LinkHealth::Ok);
+        assert_eq!(m.link(Duration::from_secs(2)), LinkHealth::Lost);
+        assert!(m.check_link(Duration::from_secs(2)));
+        assert!(!m.check_link(Duration::from_secs(3)));
+    }
+
+    #[test]
+    fn wrong_autopilot_is_reported() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        let mut h = hb(4, false);
+        if let MavMessage::HEARTBEAT(d) = &mut h {
+            d.autopilot = MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA;
+        }
+        m.ingest(Duration::ZERO, &ap(), &h);
+        let reason = m.readiness(Duration::ZERO).unwrap_err();
+        assert!(reason.contains("expects MAV_AUTOPILOT 12"), "{reason}");
+    }
+
+    #[test]
+    fn local_position_and_attitude_become_enu_odometry() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        m.ingest(Duration::ZERO, &ap(), &hb(0, false));
+        let lp = MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+            time_boot_ms: 1000,
+            x: 10.0,
+            y: 5.0,
+            z: -3.0,
+            vx: 1.0,
+            vy: 0.0,
+            vz: 0.5,
+        });
+        let att = MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: 1000,
+            yaw: 0.0,
+            yawspeed: 0.2,
+            ..ATTITUDE_DATA::DEFAULT
+        });
+        m.ingest(Duration::ZERO, &ap(), &lp);
+        m.ingest(Duration::ZERO, &ap(), &att);
+        let Some(Measurement::AutopilotOdometry {
+            pose,
+            velocity_enu_mps,
+            angular_velocity_flu_radps,
+            valid,
+            ..
+        }) = m.odometry(Duration::from_millis(10))
+        else {
+            panic!("no odometry");
+        };
+        assert_eq!(pose.position_m, Vec3::new(5.0, 10.0, 3.0));
+        assert_eq!(velocity_enu_mps, Vec3::new(0.0, 1.0, -0.5));
+        assert!((pose.yaw_rad() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+        assert!((angular_velocity_flu_radps.z + 0.2).abs() < 1e-6);
+        assert!(valid.all());
+        assert!(m.readiness(Duration::from_millis(10)).is_ok());
+        let stale = m.odometry(Duration::from_secs(1));
+        assert!(
+            matches!(stale, Some(Measurement::AutopilotOdometry { valid, .. }) if !valid.position)
+        );
+    }
+
+    #[test]
+    fn boot_clock_going_back_is_a_reboot() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        m.ingest(Duration::ZERO, &ap(), &hb(0, false));
+        let at = |ms| {
+            MavMessage::ATTITUDE(ATTITUDE_DATA {
+                time_boot_ms: ms,
+                ..ATTITUDE_DATA::DEFAULT
+            })
+        };
+        assert_eq!(m.ingest(Duration::ZERO, &ap(), &at(60_000)), None);
+        assert_eq!(m.ingest(Duration::ZERO, &ap(), &at(59_990)), None);
+        assert_eq!(
+            m.ingest(Duration::ZERO, &ap(), &at(300)),
+            Some(ModelEvent::Rebooted)
+        );
+        let s = m.status(Duration::ZERO);
+        assert_eq!(s.boot_counter, 1);
+        assert_eq!(s.last_error.as_deref(), Some("the autopilot rebooted"));
+    }
+
+    #[test]
+    fn ekf_flags_gate_readiness_on_ardupilot() {
+        let mut m = VehicleModel::new(testutil::ardupilot_profile(), None);
+        let mut h = hb(4, false);
+        if let MavMessage::HEARTBEAT(d) = &mut h {
+            d.autopilot = MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA;
+        }
+        m.ingest(Duration::ZERO, &ap(), &h);
+        let lp = MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA::DEFAULT);
+        m.ingest(Duration::ZERO, &ap(), &lp);
+        let ekf = |bits| {
+            MavMessage::EKF_STATUS_REPORT(EKF_STATUS_REPORT_DATA {
+                flags: EkfStatusFlags::from_bits_truncate(bits),
+                ..EKF_STATUS_REPORT_DATA::DEFAULT
+            })
+        };
+        m.ingest(Duration::ZERO, &ap(), &ekf(0xA7));
+        assert!(m.readiness(Duration::ZERO).unwrap_err().contains("0xa7"));
+        m.ingest(Duration::ZERO, &ap(), &ekf(0x33F));
+        assert!(m.readiness(Duration::ZERO).is_ok());
+    }
+
+    #[test]
+    fn problem_texts_become_last_error_and_landed_state_flight() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        m.ingest(Duration::ZERO, &ap(), &hb(0, true));
+        let ev = MavMessage::EVENT(EVENT_DATA {
+            id: 16_910_493,
+            log_levels: 0x62,
+            ..EVENT_DATA::DEFAULT
+        });
+        assert!(matches!(
+            m.ingest(Duration::ZERO, &ap(), &ev),
+            Some(ModelEvent::Text(_))
+        ));
+        let ess = MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+            landed_state: MavLandedState::MAV_LANDED_STATE_LANDING,
+            ..EXTENDED_SYS_STATE_DATA::DEFAULT
+        });
+        m.ingest(Duration::ZERO, &ap(), &ess);
+        let s = m.status(Duration::ZERO);
+        assert_eq!(s.flight, FlightStatus::Landing);
+        assert_eq!(
+            s.last_error.as_deref(),
+            Some("Arming denied: Resolve system health failures first")
+        );
+    }
+
+    #[test]
+    fn messages_from_other_systems_are_ignored() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        m.ingest(Duration::ZERO, &ap(), &hb(0, false));
+        let gcs = MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence: 0,
+        };
+        let lp = MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA::DEFAULT);
+        m.ingest(Duration::ZERO, &gcs, &lp);
+        assert!(m.odometry(Duration::ZERO).is_none());
+    }
+}

@@ -1,0 +1,486 @@
+//! Autopilot profiles: what differs between PX4 and ArduPilot, as data (`platforms/*.toml`).
+//!
+//! In: the TOML text of a profile. Out: a validated [`Profile`] (mode numbers by name, the role
+//! each mode plays, how to take off and land, message rates, timeouts). Unknown keys are
+//! refused; every duration is in seconds and every rate in hertz, as the key names say.
+
+use mavlink::dialects::ardupilotmega::MavMessage;
+use mavlink::Message;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Duration;
+
+/// Which autopilot family a profile is written for; checked against HEARTBEAT.autopilot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AutopilotKind {
+    /// MAV_AUTOPILOT_PX4 (12): `custom_mode = main << 16 | sub << 24`.
+    Px4,
+    /// MAV_AUTOPILOT_ARDUPILOTMEGA (3): `custom_mode` is the mode number.
+    Ardupilot,
+}
+
+impl AutopilotKind {
+    /// The HEARTBEAT.autopilot value of this family.
+    pub fn mav_autopilot(self) -> u8 {
+        match self {
+            Self::Px4 => 12,
+            Self::Ardupilot => 3,
+        }
+    }
+}
+
+/// How the vehicle leaves the ground.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TakeoffMethod {
+    /// Climb on Kestrel's own setpoints in the offboard mode (PX4 OFFBOARD).
+    OffboardSetpoints,
+    /// MAV_CMD_NAV_TAKEOFF (ArduPilot GUIDED; PX4 AUTO.TAKEOFF).
+    NavTakeoff,
+}
+
+/// What NAV_TAKEOFF's param 7 means for this autopilot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TakeoffAltitude {
+    /// Height above the takeoff point (ArduPilot).
+    Relative,
+    /// Altitude above mean sea level (PX4).
+    Amsl,
+}
+
+/// How the autopilot is asked to land.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LandMethod {
+    /// Switch to the mode with role `land`.
+    Mode,
+    /// MAV_CMD_NAV_LAND.
+    NavLand,
+}
+
+/// What to do when SET_MESSAGE_INTERVAL is refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntervalFallback {
+    None,
+    /// REQUEST_DATA_STREAM (all streams) at the highest requested rate.
+    RequestDataStream,
+}
+
+/// How a gimbal is pointed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GimbalProtocol {
+    /// Gimbal protocol v2 (MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW), MAV_CMD_DO_MOUNT_CONTROL if refused.
+    ManagerV2,
+    /// MAV_CMD_DO_MOUNT_CONTROL only (older ArduPilot mounts).
+    MountControl,
+}
+
+/// One mode as the profile file writes it: `{ main = 4, sub = 6 }` (PX4) or `{ number = 9 }`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMode {
+    main: Option<u8>,
+    sub: Option<u8>,
+    number: Option<u32>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRoles {
+    offboard: String,
+    land: String,
+    hold: String,
+    rtl: Option<String>,
+    takeoff: Option<String>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawReadiness {
+    #[serde(default)]
+    ekf_flags_required: u16,
+    #[serde(default)]
+    ekf_flags_forbidden: u16,
+    #[serde(default)]
+    prearm_check_bit: bool,
+}
+
+/// The `platform` key every file in `platforms/` starts with; this module reads `mavlink` ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum PlatformKey {
+    Mavlink,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProfile {
+    platform: PlatformKey,
+    name: String,
+    autopilot: AutopilotKind,
+    takeoff: TakeoffMethod,
+    takeoff_altitude: TakeoffAltitude,
+    land: LandMethod,
+    arm_in_offboard_mode: bool,
+    setpoint_rate_hz: f64,
+    setpoint_max_age_s: f64,
+    offboard_prestream_s: f64,
+    offboard_loss_timeout_s: f64,
+    heartbeat_timeout_s: f64,
+    command_timeout_s: f64,
+    command_retries: u8,
+    mode_confirm_timeout_s: f64,
+    ready_timeout_s: f64,
+    message_interval_fallback: IntervalFallback,
+    gimbal: GimbalProtocol,
+    camera_component: u8,
+    readiness: RawReadiness,
+    modes: BTreeMap<String, RawMode>,
+    roles: RawRoles,
+    message_intervals_hz: BTreeMap<String, f64>,
+}
+
+/// A named autopilot mode with its HEARTBEAT `custom_mode` value.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Mode {
+    pub name: String,
+    pub custom_mode: u32,
+}
+
+/// The modes Kestrel switches to.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Roles {
+    /// Follows Kestrel's setpoints (PX4 OFFBOARD, ArduPilot GUIDED).
+    pub offboard: Mode,
+    pub land: Mode,
+    /// Holds position on its own (PX4 AUTO.LOITER, ArduPilot LOITER/BRAKE).
+    pub hold: Mode,
+    pub rtl: Option<Mode>,
+    /// Mode entered by NAV_TAKEOFF (PX4 AUTO.TAKEOFF); `None` when takeoff stays in offboard.
+    pub takeoff: Option<Mode>,
+}
+
+/// When the autopilot is ready to arm and fly offboard (besides a local position estimate).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Readiness {
+    /// EKF_STATUS_REPORT flags that must all be set (ArduPilot: 0x10 absolute position).
+    pub ekf_flags_required: u16,
+    /// EKF_STATUS_REPORT flags that must all be clear (ArduPilot: 0x80 constant position mode).
+    pub ekf_flags_forbidden: u16,
+    /// Require SYS_STATUS's pre-arm check bit to be healthy when the autopilot reports it.
+    pub prearm_check_bit: bool,
+}
+
+/// A validated autopilot profile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Profile {
+    pub name: String,
+    pub autopilot: AutopilotKind,
+    pub takeoff: TakeoffMethod,
+    pub takeoff_altitude: TakeoffAltitude,
+    pub land: LandMethod,
+    /// Enter the offboard mode before arming (ArduPilot arms in GUIDED, then NAV_TAKEOFF).
+    pub arm_in_offboard_mode: bool,
+    /// Setpoint stream period while a fresh setpoint is available.
+    pub setpoint_period: Duration,
+    /// A setpoint older than this is never sent again: the stream stops and the autopilot's own
+    /// offboard-loss failsafe acts when Kestrel's control loop stalls.
+    pub setpoint_max_age: Duration,
+    /// Stream setpoints this long before asking for the offboard mode (PX4 needs about 1 s).
+    pub offboard_prestream: Duration,
+    /// The autopilot leaves offboard this long after the last setpoint (PX4 COM_OF_LOSS_T,
+    /// ArduPilot GUID_TIMEOUT for velocity targets).
+    pub offboard_loss_timeout: Duration,
+    /// The link is lost after this long without HEARTBEAT or telemetry from the autopilot; only
+    /// a HEARTBEAT brings it back.
+    pub heartbeat_timeout: Duration,
+    /// Wait this long for a COMMAND_ACK before re-sending with `confirmation` + 1.
+    pub command_timeout: Duration,
+    pub command_retries: u8,
+    /// A mode change is done when HEARTBEAT shows it, within this time after the ack.
+    pub mode_confirm_timeout: Duration,
+    /// An arm request waits this long for readiness before failing with the autopilot's reason.
+    pub ready_timeout: Duration,
+    pub message_interval_fallback: IntervalFallback,
+    pub gimbal: GimbalProtocol,
+    /// Component id that takes camera commands (100 = MAV_COMP_ID_CAMERA, 1 = the autopilot).
+    pub camera_component: u8,
+    pub readiness: Readiness,
+    /// Every mode the autopilot may report, for naming HEARTBEAT's `custom_mode`.
+    pub modes: Vec<Mode>,
+    pub roles: Roles,
+    /// (message id, rate) pairs requested with SET_MESSAGE_INTERVAL on connection.
+    pub message_intervals: Vec<(u32, f64)>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ProfileError {
+    #[error("cannot read profile {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("profile {path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("profile {path}: {field}: {message}")]
+    Invalid {
+        path: String,
+        field: String,
+        message: String,
+    },
+}
+
+impl Profile {
+    pub fn load(path: &Path) -> Result<Self, ProfileError> {
+        let p = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
+            path: p.clone(),
+            source,
+        })?;
+        Self::parse(&text, &p)
+    }
+
+    /// The profiles shipped in `platforms/`, by file stem (`px4`, `ardupilot-copter`).
+    pub fn builtin(name: &str) -> Option<Result<Self, ProfileError>> {
+        let text = match name {
+            "px4" => include_str!("../../../platforms/px4.toml"),
+            "ardupilot-copter" => include_str!("../../../platforms/ardupilot-copter.toml"),
+            _ => return None,
+        };
+        Some(Self::parse(text, &format!("built-in {name}")))
+    }
+
+    /// Parses and validates a profile; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<Self, ProfileError> {
+        let raw: RawProfile = toml::from_str(text).map_err(|e| ProfileError::Parse {
+            path: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        validate(raw).map_err(|(field, message)| ProfileError::Invalid {
+            path: origin.to_string(),
+            field,
+            message,
+        })
+    }
+
+    /// The name of a HEARTBEAT `custom_mode`, or its number when the profile does not list it.
+    pub fn mode_name(&self, custom_mode: u32) -> String {
+        self.modes
+            .iter()
+            .find(|m| m.custom_mode == custom_mode)
+            .map_or_else(
+                || format!("custom_mode {custom_mode:#x}"),
+                |m| m.name.clone(),
+            )
+    }
+
+    /// DO_SET_MODE parameters 2 and 3 for a mode (PX4: main and sub mode; ArduPilot: number).
+    pub fn set_mode_params(&self, mode: &Mode) -> (f32, f32) {
+        match self.autopilot {
+            AutopilotKind::Px4 => (
+                ((mode.custom_mode >> 16) & 0xff) as f32,
+                ((mode.custom_mode >> 24) & 0xff) as f32,
+            ),
+            AutopilotKind::Ardupilot => (mode.custom_mode as f32, 0.0),
+        }
+    }
+}
+
+type Invalid = (String, String);
+
+fn seconds(field: &str, v: f64, min: f64, max: f64) -> Result<Duration, Invalid> {
+    if v.is_finite() && (min..=max).contains(&v) {
+        Ok(Duration::from_secs_f64(v))
+    } else {
+        Err((
+            field.into(),
+            format!("must be within {min}..={max} s, got {v}"),
+        ))
+    }
+}
+
+fn mode_value(kind: AutopilotKind, name: &str, raw: RawMode) -> Result<u32, Invalid> {
+    let field = format!("modes.{name}");
+    match (kind, raw) {
+        (
+            AutopilotKind::Px4,
+            RawMode {
+                main: Some(main),
+                sub,
+                number: None,
+            },
+        ) => Ok((u32::from(main) << 16) | (u32::from(sub.unwrap_or(0)) << 24)),
+        (
+            AutopilotKind::Ardupilot,
+            RawMode {
+                main: None,
+                sub: None,
+                number: Some(n),
+            },
+        ) => Ok(n),
+        (AutopilotKind::Px4, _) => Err((field, "PX4 modes are `{ main = M, sub = S }`".into())),
+        (AutopilotKind::Ardupilot, _) => {
+            Err((field, "ArduPilot modes are `{ number = N }`".into()))
+        }
+    }
+}
+
+fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
+    let PlatformKey::Mavlink = raw.platform;
+    let mut modes = Vec::with_capacity(raw.modes.len());
+    for (name, m) in &raw.modes {
+        modes.push(Mode {
+            name: name.clone(),
+            custom_mode: mode_value(raw.autopilot, name, *m)?,
+        });
+    }
+    let find = |role: &str, name: &str| -> Result<Mode, Invalid> {
+        modes
+            .iter()
+            .find(|m| m.name == name)
+            .cloned()
+            .ok_or_else(|| {
+                (
+                    format!("roles.{role}"),
+                    format!("no mode `{name}` in [modes]"),
+                )
+            })
+    };
+    let roles = Roles {
+        offboard: find("offboard", &raw.roles.offboard)?,
+        land: find("land", &raw.roles.land)?,
+        hold: find("hold", &raw.roles.hold)?,
+        rtl: raw
+            .roles
+            .rtl
+            .as_deref()
+            .map(|n| find("rtl", n))
+            .transpose()?,
+        takeoff: raw
+            .roles
+            .takeoff
+            .as_deref()
+            .map(|n| find("takeoff", n))
+            .transpose()?,
+    };
+    if !(raw.setpoint_rate_hz.is_finite() && (2.0..=200.0).contains(&raw.setpoint_rate_hz)) {
+        return Err((
+            "setpoint_rate_hz".into(),
+            format!("must be within 2..=200 Hz, got {}", raw.setpoint_rate_hz),
+        ));
+    }
+    let setpoint_period = Duration::from_secs_f64(1.0 / raw.setpoint_rate_hz);
+    let offboard_loss_timeout = seconds(
+        "offboard_loss_timeout_s",
+        raw.offboard_loss_timeout_s,
+        0.1,
+        60.0,
+    )?;
+    let setpoint_max_age = seconds("setpoint_max_age_s", raw.setpoint_max_age_s, 0.005, 5.0)?;
+    if setpoint_max_age >= offboard_loss_timeout || setpoint_period * 2 >= offboard_loss_timeout {
+        return Err((
+            "setpoint_max_age_s".into(),
+            "the setpoint period and maximum age must stay well below offboard_loss_timeout_s"
+                .into(),
+        ));
+    }
+    let mut message_intervals = Vec::with_capacity(raw.message_intervals_hz.len());
+    for (name, hz) in &raw.message_intervals_hz {
+        let field = format!("message_intervals_hz.{name}");
+        let id = MavMessage::message_id_from_name(name)
+            .ok_or_else(|| (field.clone(), "no such MAVLink message".to_string()))?;
+        if !(hz.is_finite() && *hz > 0.0 && *hz <= 500.0) {
+            return Err((field, format!("must be within 0..=500 Hz, got {hz}")));
+        }
+        message_intervals.push((id, *hz));
+    }
+    if raw.takeoff == TakeoffMethod::NavTakeoff
+        && raw.autopilot == AutopilotKind::Px4
+        && roles.takeoff.is_none()
+    {
+        return Err((
+            "roles.takeoff".into(),
+            "PX4 NAV_TAKEOFF needs the takeoff mode (AUTO.TAKEOFF)".into(),
+        ));
+    }
+    Ok(Profile {
+        name: raw.name,
+        autopilot: raw.autopilot,
+        takeoff: raw.takeoff,
+        takeoff_altitude: raw.takeoff_altitude,
+        land: raw.land,
+        arm_in_offboard_mode: raw.arm_in_offboard_mode,
+        setpoint_period,
+        setpoint_max_age,
+        offboard_prestream: seconds("offboard_prestream_s", raw.offboard_prestream_s, 0.0, 10.0)?,
+        offboard_loss_timeout,
+        heartbeat_timeout: seconds("heartbeat_timeout_s", raw.heartbeat_timeout_s, 0.2, 30.0)?,
+        command_timeout: seconds("command_timeout_s", raw.command_timeout_s, 0.01, 30.0)?,
+        command_retries: raw.command_retries,
+        mode_confirm_timeout: seconds(
+            "mode_confirm_timeout_s",
+            raw.mode_confirm_timeout_s,
+            0.1,
+            60.0,
+        )?,
+        ready_timeout: seconds("ready_timeout_s", raw.ready_timeout_s, 0.0, 600.0)?,
+        message_interval_fallback: raw.message_interval_fallback,
+        gimbal: raw.gimbal,
+        camera_component: raw.camera_component,
+        readiness: Readiness {
+            ekf_flags_required: raw.readiness.ekf_flags_required,
+            ekf_flags_forbidden: raw.readiness.ekf_flags_forbidden,
+            prearm_check_bit: raw.readiness.prearm_check_bit,
+        },
+        modes,
+        roles,
+        message_intervals,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(name: &str) -> Profile {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("platforms")
+            .join(name);
+        Profile::load(&path).unwrap()
+    }
+
+    #[test]
+    fn shipped_profiles_load() {
+        let px4 = load("px4.toml");
+        assert_eq!(px4.autopilot, AutopilotKind::Px4);
+        assert_eq!(px4.roles.offboard.custom_mode, 0x0006_0000);
+        assert_eq!(px4.roles.land.custom_mode, 0x0604_0000);
+        assert_eq!(px4.mode_name(0x0304_0000), "AUTO.LOITER");
+        assert_eq!(px4.set_mode_params(&px4.roles.land), (4.0, 6.0));
+        let ap = load("ardupilot-copter.toml");
+        assert_eq!(ap.roles.offboard.custom_mode, 4);
+        assert_eq!(ap.mode_name(9), "LAND");
+        assert_eq!(ap.set_mode_params(&ap.roles.offboard), (4.0, 0.0));
+        assert_eq!(ap.takeoff, TakeoffMethod::NavTakeoff);
+        assert!(ap.message_intervals.iter().any(|(id, _)| *id == 32));
+    }
+
+    #[test]
+    fn unknown_keys_and_wrong_mode_forms_are_refused() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("platforms/px4.toml");
+        let text = std::fs::read_to_string(path).unwrap();
+        let e = Profile::parse(&format!("colour = 3\n{text}"), "t").unwrap_err();
+        assert!(e.to_string().contains("colour"), "{e}");
+        let bad = text.replace("OFFBOARD = { main = 6 }", "OFFBOARD = { number = 6 }");
+        let e = Profile::parse(&bad, "t").unwrap_err();
+        assert!(e.to_string().contains("modes.OFFBOARD"), "{e}");
+        let bad = text.replace("setpoint_max_age_s = 0.1", "setpoint_max_age_s = 2.0");
+        let e = Profile::parse(&bad, "t").unwrap_err();
+        assert!(e.to_string().contains("setpoint_max_age_s"), "{e}");
+    }
+}

@@ -1,0 +1,606 @@
+//! One autopilot session, without I/O: messages and control outputs in, messages out.
+//!
+//! In: decoded messages from the link ([`Session::on_message`]), each control tick's setpoint
+//! and requests ([`Session::on_control`]), and a housekeeping tick ([`Session::on_tick`]), all
+//! with the time. Out: the messages to send ([`Session::drain_outgoing`]: HEARTBEAT at 1 Hz,
+//! COMMAND_LONGs, setpoints, stream requests) and the [`PlatformFeedback`] for the core. The
+//! async transport in `link.rs` only moves bytes; tests and replay drive this directly.
+
+use super::actions::{Action, Ctx, Origin};
+use super::commands::{CommandId, CommandOutcome, CommandSpec, CommandTracker};
+use super::legacy;
+use super::model::{ModelEvent, VehicleModel};
+use super::profile::{IntervalFallback, Profile, TakeoffMethod};
+use super::setpoint::{self, SetpointStreamer};
+use crate::control::{AcceptedSetpoints, Setpoint};
+use crate::estimator::geodetic::GeoPoint;
+use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
+use crate::types::LinkHealth;
+use mavlink::dialects::ardupilotmega::{
+    MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, HEARTBEAT_DATA,
+};
+use mavlink::MavHeader;
+use serde::{Deserialize, Serialize};
+use std::mem::discriminant;
+use std::time::Duration;
+
+const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
+/// SET_GPS_GLOBAL_ORIGIN is re-sent at this period until GPS_GLOBAL_ORIGIN confirms it.
+const ORIGIN_PERIOD: Duration = Duration::from_secs(2);
+const ORIGIN_ATTEMPTS: u8 = 10;
+
+/// What the platform does when the link to the autopilot comes back during a flight.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinkPolicy {
+    /// Ask the autopilot to land where it is.
+    #[default]
+    Land,
+    /// Switch the autopilot to its own position hold and wait for new orders.
+    Hold,
+    /// Re-enter offboard as soon as setpoints stream again (the runner restarts the behavior).
+    Resume,
+}
+
+/// Settings of a session besides the profile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionConfig {
+    /// Our system id; `None` = the vehicle's (PX4 counts companion heartbeats only from it).
+    pub system_id: Option<u8>,
+    /// Our component id (191 = MAV_COMP_ID_ONBOARD_COMPUTER).
+    pub component_id: u8,
+    /// Follow only this autopilot system id; `None` = the first one heard.
+    pub target_system: Option<u8>,
+    pub on_link_regained: LinkPolicy,
+    /// EKF origin sent with SET_GPS_GLOBAL_ORIGIN (indoors, without GPS).
+    pub ekf_origin: Option<GeoPoint>,
+}
+
+impl Default for SessionConfig {
+    fn default() -> Self {
+        Self {
+            system_id: None,
+            component_id: 191,
+            target_system: None,
+            on_link_regained: LinkPolicy::default(),
+            ekf_origin: None,
+        }
+    }
+}
+
+/// Counters for logs and benchmarks.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SessionStats {
+    pub messages_in: u64,
+    pub setpoints_sent: u64,
+    pub commands_sent: u64,
+    pub link_losses: u64,
+}
+
+pub struct Session {
+    profile: Profile,
+    config: SessionConfig,
+    model: VehicleModel,
+    tracker: CommandTracker,
+    streamer: SetpointStreamer,
+    actions: Vec<Action>,
+    results: Vec<RequestResult>,
+    outgoing: Vec<(MavHeader, MavMessage)>,
+    next_heartbeat: Duration,
+    stream_setup: Vec<CommandId>,
+    stream_fallback_needed: bool,
+    origin_attempts: u8,
+    next_origin_at: Option<Duration>,
+    link_was_lost: bool,
+    stats: SessionStats,
+}
+
+impl Session {
+    pub fn new(profile: Profile, config: SessionConfig) -> Self {
+        Self {
+            model: VehicleModel::new(profile.clone(), config.target_system),
+            tracker: CommandTracker::new(profile.command_timeout, profile.command_retries),
+            streamer: SetpointStreamer::new(profile.setpoint_period, profile.setpoint_max_age),
+            profile,
+            config,
+            actions: Vec::new(),
+            results: Vec::new(),
+            outgoing: Vec::new(),
+            next_heartbeat: Duration::ZERO,
+            stream_setup: Vec::new(),
+            stream_fallback_needed: false,
+            origin_attempts: 0,
+            next_origin_at: None,
+            link_was_lost: false,
+            stats: SessionStats::default(),
+        }
+    }
+
+    pub fn capabilities(&self) -> Capabilities {
+        Capabilities {
+            setpoints: AcceptedSetpoints {
+                velocity: true,
+                position: true,
+            },
+            native_takeoff: self.profile.takeoff == TakeoffMethod::NavTakeoff,
+            native_land: true,
+        }
+    }
+
+    pub fn model(&self) -> &VehicleModel {
+        &self.model
+    }
+
+    pub fn stats(&self) -> SessionStats {
+        self.stats
+    }
+
+    fn our_system(&self) -> Option<u8> {
+        self.config
+            .system_id
+            .or_else(|| self.model.autopilot().map(|(s, _)| s))
+    }
+
+    fn push(&mut self, msg: MavMessage) {
+        if let Some(system) = self.our_system() {
+            let header = MavHeader {
+                system_id: u32::from(system),
+                component_id: self.config.component_id,
+                sequence: 0,
+            };
+            self.outgoing.push((header, msg));
+        }
+    }
+
+    /// Messages to send, in order.
+    pub fn drain_outgoing(&mut self) -> Vec<(MavHeader, MavMessage)> {
+        std::mem::take(&mut self.outgoing)
+    }
+
+    /// The transport failed (connect or read error): visible in the status until the link is up.
+    pub fn note_transport_error(&mut self, error: String) {
+        self.model.set_error(format!("connection: {error}"));
+    }
+
+    /// One message from the link.
+    pub fn on_message(&mut self, now: Duration, header: &MavHeader, msg: &MavMessage) {
+        self.stats.messages_in += 1;
+        let event = self.model.ingest(now, header, msg);
+        if let MavMessage::COMMAND_ACK(ack) = msg {
+            if self
+                .model
+                .autopilot()
+                .is_some_and(|(s, _)| u32::from(s) == header.system_id)
+            {
+                let ours = self.our_system().unwrap_or(0);
+                self.tracker
+                    .on_ack(now, ack, ours, self.config.component_id);
+            }
+        }
+        match event {
+            Some(ModelEvent::Text(text)) => {
+                tracing::info!(target: "mavlink", "autopilot: {}", text.text);
+                self.tracker.on_text(&text);
+            }
+            Some(ModelEvent::Contact {
+                system_id,
+                component_id,
+            }) => {
+                tracing::info!(
+                    target: "mavlink",
+                    "autopilot {system_id}/{component_id} heard ({})",
+                    self.profile.name
+                );
+                self.configure(now);
+                if std::mem::take(&mut self.link_was_lost) {
+                    self.link_regained();
+                }
+            }
+            Some(ModelEvent::Rebooted) => {
+                tracing::warn!(target: "mavlink", "the autopilot rebooted");
+                self.fail_all("the autopilot rebooted");
+                self.configure(now);
+            }
+            None => {}
+        }
+    }
+
+    /// The control tick's outputs: the setpoint (`None`: nothing to command) and requests.
+    pub fn on_control(
+        &mut self,
+        now: Duration,
+        setpoint: Option<Setpoint>,
+        requests: &[PlatformRequest],
+    ) {
+        let link_ok = self.model.link(now) == LinkHealth::Ok;
+        self.streamer.offer(now, setpoint.filter(|_| link_ok));
+        for r in requests {
+            self.request(now, *r);
+        }
+        self.stream_setpoint(now);
+    }
+
+    /// Timers: link health, heartbeat, retries, actions, stream re-sends.
+    pub fn on_tick(&mut self, now: Duration) {
+        if self.model.check_link(now) {
+            tracing::warn!(target: "mavlink", "link to the autopilot lost (no HEARTBEAT for {:?})", self.profile.heartbeat_timeout);
+            self.stats.link_losses += 1;
+            self.link_was_lost = true;
+            self.streamer.stop();
+            self.fail_all("link to the autopilot lost");
+        }
+        let link_ok = self.model.link(now) == LinkHealth::Ok;
+        if now >= self.next_heartbeat && self.our_system().is_some() {
+            self.next_heartbeat = now + HEARTBEAT_PERIOD;
+            self.push(our_heartbeat());
+        }
+        if link_ok {
+            self.send_origin(now);
+            self.run_actions(now);
+            self.check_stream_setup();
+            if let Some((system, _)) = self.model.autopilot() {
+                for cmd in self.tracker.poll(now, system) {
+                    self.stats.commands_sent += 1;
+                    self.push(MavMessage::COMMAND_LONG(cmd));
+                }
+            }
+        }
+        self.stream_setpoint(now);
+    }
+
+    /// Status, the latest odometry, scans and finished requests since the last call.
+    pub fn feedback(&mut self, now: Duration) -> PlatformFeedback {
+        PlatformFeedback {
+            status: self.model.status(now),
+            measurements: self.model.odometry(now).into_iter().collect(),
+            scans: self.model.take_scans(),
+            request_results: std::mem::take(&mut self.results),
+        }
+    }
+
+    fn stream_setpoint(&mut self, now: Duration) {
+        if self.model.link(now) != LinkHealth::Ok {
+            return;
+        }
+        let Some((system, component)) = self.model.autopilot() else {
+            return;
+        };
+        if let Some(sp) = self.streamer.poll(now) {
+            let boot_ms = u32::try_from(now.as_millis()).unwrap_or(u32::MAX);
+            self.stats.setpoints_sent += 1;
+            let msg = setpoint::encode(&sp, boot_ms, system, component);
+            self.push(MavMessage::SET_POSITION_TARGET_LOCAL_NED(msg));
+        }
+    }
+
+    fn request(&mut self, now: Duration, request: PlatformRequest) {
+        let done = match request {
+            PlatformRequest::Arm => self.model.armed(),
+            PlatformRequest::Disarm => !self.model.armed(),
+            PlatformRequest::StartOffboard => self.model.offboard(),
+            _ => false,
+        };
+        let same = |a: &Action| {
+            a.request()
+                .is_some_and(|r| discriminant(&r) == discriminant(&request))
+        };
+        if self.actions.iter().any(same) {
+            if !matches!(request, PlatformRequest::PointGimbal { .. }) {
+                return; // already in progress (behaviors repeat their requests)
+            }
+            self.cancel(same, "replaced by a newer gimbal request");
+        }
+        if done {
+            self.results.push(RequestResult {
+                request,
+                outcome: Ok(()),
+            });
+            return;
+        }
+        match request {
+            PlatformRequest::Land | PlatformRequest::Disarm => self.cancel(
+                |a| {
+                    matches!(
+                        a.request(),
+                        Some(
+                            PlatformRequest::Arm
+                                | PlatformRequest::StartOffboard
+                                | PlatformRequest::Takeoff { .. }
+                        )
+                    )
+                },
+                "superseded by a landing or disarm request",
+            ),
+            PlatformRequest::Arm => self.cancel(
+                |a| a.request() == Some(PlatformRequest::Disarm),
+                "superseded by an arm request",
+            ),
+            _ => {}
+        }
+        if self.model.link(now) != LinkHealth::Ok {
+            self.finish(
+                Origin::Request(request),
+                Err("no link to the autopilot".into()),
+            );
+            return;
+        }
+        match Action::plan(
+            Origin::Request(request),
+            request,
+            &self.profile,
+            &self.model,
+        ) {
+            Ok(a) => self.actions.push(a),
+            Err(e) => self.finish(Origin::Request(request), Err(e)),
+        }
+    }
+
+    fn cancel(&mut self, which: impl Fn(&Action) -> bool, why: &str) {
+        let (cancelled, kept): (Vec<_>, Vec<_>) = self.actions.drain(..).partition(|a| which(a));
+        self.actions = kept;
+        for a in cancelled {
+            a.abandon(&mut self.tracker);
+            self.finish(a.origin, Err(why.to_string()));
+        }
+    }
+
+    fn fail_all(&mut self, why: &str) {
+        self.tracker.fail_all();
+        self.cancel(|_| true, why);
+        self.stream_setup.clear();
+    }
+
+    fn finish(&mut self, origin: Origin, outcome: Result<(), String>) {
+        if let Err(e) = &outcome {
+            tracing::debug!(target: "mavlink", "{origin:?}: {e}");
+            self.model.set_error(e.clone());
+        }
+        if let Origin::Request(request) = origin {
+            self.results.push(RequestResult { request, outcome });
+        }
+    }
+
+    fn run_actions(&mut self, now: Duration) {
+        let mut finished = Vec::new();
+        let mut ctx = Ctx {
+            now,
+            profile: &self.profile,
+            model: &self.model,
+            tracker: &mut self.tracker,
+            streamer: &self.streamer,
+        };
+        self.actions.retain_mut(|a| match a.tick(&mut ctx) {
+            Some(outcome) => {
+                finished.push((a.origin, outcome));
+                false
+            }
+            None => true,
+        });
+        for (origin, outcome) in finished {
+            self.finish(origin, outcome);
+        }
+    }
+
+    /// Asks for the profile's message rates and sends the EKF origin: on first contact, after a
+    /// reboot and after a link loss (ArduPilot's rates are per link and not saved).
+    fn configure(&mut self, now: Duration) {
+        self.stream_setup.clear();
+        self.stream_fallback_needed = false;
+        let intervals = self.profile.message_intervals.clone();
+        for (id, hz) in intervals {
+            let spec = CommandSpec {
+                command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                params: [id as f32, (1e6 / hz) as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
+                target_component: 1,
+            };
+            self.stream_setup.push(self.tracker.submit(spec));
+        }
+        if self.config.ekf_origin.is_some() {
+            self.origin_attempts = 0;
+            self.next_origin_at = Some(now);
+        }
+    }
+
+    fn check_stream_setup(&mut self) {
+        let mut remaining = Vec::new();
+        for id in std::mem::take(&mut self.stream_setup) {
+            match self.tracker.take_outcome(id) {
+                None => remaining.push(id),
+                Some(CommandOutcome::Accepted) => {}
+                Some(CommandOutcome::Rejected {
+                    result: MavResult::MAV_RESULT_UNSUPPORTED,
+                    ..
+                })
+                | Some(CommandOutcome::TimedOut { .. }) => self.stream_fallback_needed = true,
+                Some(other) => {
+                    tracing::warn!(target: "mavlink", "message interval: {:?}", other);
+                }
+            }
+        }
+        self.stream_setup = remaining;
+        let fallback =
+            self.profile.message_interval_fallback == IntervalFallback::RequestDataStream;
+        if self.stream_setup.is_empty()
+            && std::mem::take(&mut self.stream_fallback_needed)
+            && fallback
+        {
+            let rate = self
+                .profile
+                .message_intervals
+                .iter()
+                .map(|(_, hz)| *hz)
+                .fold(1.0_f64, f64::max);
+            if let Some((system, component)) = self.model.autopilot() {
+                tracing::info!(target: "mavlink", "SET_MESSAGE_INTERVAL refused: REQUEST_DATA_STREAM at {rate} Hz");
+                let rate_hz = rate.round().clamp(1.0, f64::from(u16::MAX)) as u16;
+                self.push(legacy::request_all_streams(system, component, rate_hz));
+            }
+        }
+    }
+
+    fn send_origin(&mut self, now: Duration) {
+        let (Some(origin), Some(at)) = (self.config.ekf_origin, self.next_origin_at) else {
+            return;
+        };
+        if self.model.origin_seen() || self.origin_attempts >= ORIGIN_ATTEMPTS {
+            self.next_origin_at = None;
+            return;
+        }
+        if now < at {
+            return;
+        }
+        let Some((system, _)) = self.model.autopilot() else {
+            return;
+        };
+        self.origin_attempts += 1;
+        self.next_origin_at = Some(now + ORIGIN_PERIOD);
+        self.push(legacy::set_gps_global_origin(system, &origin));
+    }
+
+    fn link_regained(&mut self) {
+        if !self.model.armed() {
+            return;
+        }
+        let policy = self.config.on_link_regained;
+        tracing::info!(target: "mavlink", "link back while armed: {policy:?}");
+        let action = match policy {
+            LinkPolicy::Land => Action::plan(
+                Origin::LinkPolicy,
+                PlatformRequest::Land,
+                &self.profile,
+                &self.model,
+            ),
+            LinkPolicy::Hold => Ok(Action::set_mode(
+                Origin::LinkPolicy,
+                self.profile.roles.hold.clone(),
+            )),
+            LinkPolicy::Resume => Action::plan(
+                Origin::LinkPolicy,
+                PlatformRequest::StartOffboard,
+                &self.profile,
+                &self.model,
+            ),
+        };
+        match action {
+            Ok(a) => self.actions.push(a),
+            Err(e) => self.finish(Origin::LinkPolicy, Err(e)),
+        }
+    }
+}
+
+fn our_heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::YawTarget;
+    use crate::platform::mavlink::testutil::{autopilot_header, hb, px4_profile};
+    use crate::types::Vec3;
+    use mavlink::dialects::ardupilotmega::COMMAND_ACK_DATA;
+    use mavlink::Message;
+
+    const MS: fn(u64) -> Duration = Duration::from_millis;
+
+    fn names(out: &[(MavHeader, MavMessage)]) -> Vec<&'static str> {
+        out.iter().map(|(_, m)| m.message_name()).collect()
+    }
+
+    fn sp() -> Setpoint {
+        Setpoint::Position {
+            position_enu_m: Vec3::new(0.0, 0.0, 3.0),
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Angle(0.0),
+        }
+    }
+
+    #[test]
+    fn silent_until_the_vehicle_is_heard_then_heartbeat_and_intervals() {
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        s.on_tick(MS(0));
+        assert!(
+            s.drain_outgoing().is_empty(),
+            "our system id is the vehicle's: unknown yet"
+        );
+        s.on_message(MS(10), &autopilot_header(), &hb(0x0304_0000, false));
+        s.on_tick(MS(20));
+        let out = s.drain_outgoing();
+        assert_eq!(out[0].1.message_name(), "HEARTBEAT");
+        assert_eq!(out[0].0.system_id, 1);
+        assert_eq!(out[0].0.component_id, 191);
+        assert!(names(&out).contains(&"COMMAND_LONG"), "{:?}", names(&out));
+    }
+
+    #[test]
+    fn setpoints_stream_only_with_a_link_and_a_fresh_setpoint() {
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        s.on_control(MS(0), Some(sp()), &[]);
+        assert!(s.drain_outgoing().is_empty(), "no autopilot yet");
+        s.on_message(MS(0), &autopilot_header(), &hb(0x0006_0000, true));
+        s.drain_outgoing();
+        s.on_control(MS(20), Some(sp()), &[]);
+        assert_eq!(
+            names(&s.drain_outgoing()),
+            vec!["SET_POSITION_TARGET_LOCAL_NED"]
+        );
+        // The control loop stalls: re-sent while fresh, then silence.
+        let mut resent = 0;
+        for t in (40..400).step_by(20) {
+            s.on_tick(MS(t));
+            resent += names(&s.drain_outgoing())
+                .iter()
+                .filter(|n| **n == "SET_POSITION_TARGET_LOCAL_NED")
+                .count();
+        }
+        assert_eq!(resent, 5, "only within the 100 ms maximum age");
+        // Link lost: nothing goes out even with fresh setpoints.
+        s.on_tick(MS(2000));
+        s.drain_outgoing();
+        s.on_control(MS(2010), Some(sp()), &[]);
+        assert!(s.drain_outgoing().is_empty());
+        assert_eq!(s.feedback(MS(2010)).status.link, LinkHealth::Lost);
+    }
+
+    #[test]
+    fn arm_is_sent_tracked_and_reported_once() {
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        s.on_message(MS(0), &autopilot_header(), &hb(0x0304_0000, false));
+        let lp = MavMessage::LOCAL_POSITION_NED(
+            mavlink::dialects::ardupilotmega::LOCAL_POSITION_NED_DATA::DEFAULT,
+        );
+        s.on_message(MS(0), &autopilot_header(), &lp);
+        s.on_control(MS(1), None, &[PlatformRequest::Arm, PlatformRequest::Arm]);
+        s.on_tick(MS(2));
+        let arms = s
+            .drain_outgoing()
+            .into_iter()
+            .filter(|(_, m)| matches!(m, MavMessage::COMMAND_LONG(c) if c.command == MavCmd::MAV_CMD_COMPONENT_ARM_DISARM))
+            .count();
+        assert_eq!(arms, 1, "duplicates are ignored while in progress");
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+            result: MavResult::MAV_RESULT_ACCEPTED,
+            ..COMMAND_ACK_DATA::DEFAULT
+        });
+        s.on_message(MS(10), &autopilot_header(), &ack);
+        s.on_message(MS(20), &autopilot_header(), &hb(0x0304_0000, true));
+        s.on_tick(MS(30));
+        let fb = s.feedback(MS(30));
+        assert_eq!(
+            fb.request_results,
+            vec![RequestResult {
+                request: PlatformRequest::Arm,
+                outcome: Ok(())
+            }]
+        );
+        assert!(fb.status.armed);
+    }
+}

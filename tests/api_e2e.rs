@@ -1,0 +1,562 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! End to end: the real `kestrel sim` process, driven through its HTTP and WebSocket API.
+
+use futures::{SinkExt, StreamExt};
+use serde_json::{json, Value};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use tokio_tungstenite::tungstenite::Message;
+
+const TOKEN: &str = "e2e-secret";
+
+struct Kestrel {
+    child: Child,
+    base: String,
+    port: u16,
+}
+
+impl Drop for Kestrel {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+async fn start(dir: &Path, extra: &[&str]) -> Kestrel {
+    let port = free_port();
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_kestrel"));
+    cmd.args(["sim", "--no-demo", "--speedup", "20", "--listen"])
+        .arg(format!("127.0.0.1:{port}"))
+        .arg("--state-dir")
+        .arg(dir.join("state"))
+        .arg("--log")
+        .arg(dir.join("flight.jsonl"))
+        .args(extra)
+        .env("KESTREL_API_TOKEN", TOKEN)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    let child = cmd.spawn().unwrap();
+    let k = Kestrel {
+        child,
+        base: format!("http://127.0.0.1:{port}"),
+        port,
+    };
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while Instant::now() < deadline {
+        if let Ok(r) = reqwest::get(format!("{}/api/health", k.base)).await {
+            if r.status().is_success() {
+                return k;
+            }
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    panic!("kestrel did not come up");
+}
+
+fn client() -> reqwest::Client {
+    reqwest::Client::new()
+}
+
+async fn get(k: &Kestrel, path: &str) -> (u16, Value) {
+    let r = client()
+        .get(format!("{}{path}", k.base))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap();
+    let status = r.status().as_u16();
+    (status, r.json().await.unwrap_or(Value::Null))
+}
+
+async fn post(k: &Kestrel, path: &str, body: &Value) -> (u16, Value) {
+    let r = client()
+        .post(format!("{}{path}", k.base))
+        .bearer_auth(TOKEN)
+        .json(body)
+        .send()
+        .await
+        .unwrap();
+    let status = r.status().as_u16();
+    (status, r.json().await.unwrap_or(Value::Null))
+}
+
+async fn update(k: &Kestrel, body: Value) -> Value {
+    let (code, v) = post(k, "/api/mission_update", &body).await;
+    assert_eq!(code, 200, "{body} -> {v}");
+    assert_eq!(v["accepted"], true, "{v}");
+    v
+}
+
+fn takeoff_go_land() -> Value {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/missions/takeoff_go_land.json"
+    ))
+    .unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Polls the status until `done` holds for drone `i`.
+async fn wait_status(k: &Kestrel, i: usize, max_s: f64, done: impl Fn(&Value) -> bool) -> Value {
+    let deadline = Instant::now() + Duration::from_secs_f64(max_s);
+    loop {
+        let (_, s) = get(k, "/api/status").await;
+        let d = s["drones"][i].clone();
+        if done(&d) {
+            return d;
+        }
+        assert!(Instant::now() < deadline, "timed out; last status {d}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+type Ws =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+async fn ws(k: &Kestrel) -> Ws {
+    let (socket, _) =
+        tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{}/api/ws?token={TOKEN}", k.port))
+            .await
+            .unwrap();
+    socket
+}
+
+async fn next_json(socket: &mut Ws) -> Value {
+    loop {
+        match tokio::time::timeout(Duration::from_secs(10), socket.next()).await {
+            Ok(Some(Ok(Message::Text(t)))) => return serde_json::from_str(t.as_str()).unwrap(),
+            Ok(Some(Ok(_))) => continue,
+            other => panic!("websocket ended: {other:?}"),
+        }
+    }
+}
+
+#[tokio::test]
+async fn a_client_uploads_takeoff_go_land_and_follows_it_over_websocket() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let mut socket = ws(&k).await;
+    socket
+        .send(Message::Text(
+            json!({"type": "subscribe", "telemetry_rate_hz": 20, "request_id": 1})
+                .to_string()
+                .into(),
+        ))
+        .await
+        .unwrap();
+    let (code, up) = post(&k, "/api/missions", &takeoff_go_land()).await;
+    assert_eq!(code, 201, "{up}");
+    let id = up["mission_id"].as_u64().unwrap();
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": id, "item_id": 0, "action": 2, "mission": ""}),
+    )
+    .await;
+    let mut states: Vec<(u64, Option<u64>)> = Vec::new();
+    let mut started = Vec::new();
+    let mut telemetry = 0;
+    let mut replied = false;
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        assert!(Instant::now() < deadline, "mission did not end: {states:?}");
+        let m = next_json(&mut socket).await;
+        match m["type"].as_str().unwrap() {
+            "telemetry" => {
+                telemetry += 1;
+                assert_eq!(m["drones"][0]["drone"], "drone_0");
+                assert!(m["drones"][0].get("mission").is_none());
+            }
+            "reply" => replied = m["accepted"] == true,
+            "event" => {
+                if m["event"]["kind"] == "behavior" && m["event"]["event"] == "started" {
+                    started.push(m["event"]["behavior"].as_str().unwrap().to_string());
+                }
+            }
+            "mission_status" => {
+                let s = &m["status"];
+                if s["mission_id"] == json!(id) {
+                    let entry = (s["state"].as_u64().unwrap(), s["item_index"].as_u64());
+                    if states.last() != Some(&entry) {
+                        states.push(entry);
+                    }
+                    if s["state"] == 0 && s["done_items"] == 3 {
+                        assert_eq!(s["last_error"], Value::Null);
+                        break;
+                    }
+                }
+            }
+            other => panic!("unexpected message {other}"),
+        }
+    }
+    assert!(replied, "subscribe was not answered");
+    // 20 Hz of wall-clock time over a 16 s flight at 20x is about 16 frames.
+    assert!(telemetry >= 10, "only {telemetry} telemetry frames");
+    assert_eq!(started, ["takeoff", "go_to", "land"]);
+    // The periodic status may show the mission loaded and idle before START.
+    if states.first() == Some(&(0, None)) {
+        states.remove(0);
+    }
+    assert_eq!(
+        states,
+        [(1, Some(0)), (1, Some(1)), (1, Some(2)), (0, None)]
+    );
+    let log = client()
+        .get(format!("{}/api/log?drone=drone_0", k.base))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    let behaviors = log
+        .lines()
+        .filter(|l| l.contains("\"type\":\"behavior\""))
+        .count();
+    assert!(behaviors >= 6, "{behaviors} behavior records in the log");
+}
+
+#[tokio::test]
+async fn requests_without_the_token_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let c = client();
+    let routes = [
+        ("GET", "/api/status"),
+        ("GET", "/api/missions"),
+        ("POST", "/api/missions"),
+        ("GET", "/api/missions/1"),
+        ("DELETE", "/api/missions/1"),
+        ("POST", "/api/mission_update"),
+        ("GET", "/api/behaviors"),
+        ("POST", "/api/frames"),
+        ("GET", "/api/frames"),
+        ("GET", "/api/log"),
+        ("POST", "/api/sim/fault"),
+        ("GET", "/api/ws"),
+    ];
+    for (method, path) in routes {
+        for token in [None, Some("wrong")] {
+            let mut r = c.request(method.parse().unwrap(), format!("{}{path}", k.base));
+            if let Some(t) = token {
+                r = r.bearer_auth(t);
+            }
+            let r = r.json(&takeoff_go_land()).send().await.unwrap();
+            assert_eq!(r.status().as_u16(), 401, "{method} {path} with {token:?}");
+            let body: Value = r.json().await.unwrap();
+            assert_eq!(body["error"]["code"], "unauthorized");
+        }
+    }
+    let bad =
+        tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{}/api/ws?token=nope", k.port))
+            .await;
+    assert!(bad.is_err());
+    assert_eq!(
+        c.get(format!("{}/api/health", k.base))
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        200
+    );
+    let (_, missions) = get(&k, "/api/missions").await;
+    assert_eq!(missions, json!([]), "nothing was loaded");
+}
+
+#[tokio::test]
+async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let patrol = json!({"target": "drone_0", "plan": [
+        {"behavior": "takeoff", "args": {"height": 3.0, "speed": 1.0}},
+        {"behavior": "go_to", "args": {"x": 0.0, "y": 10.0, "z": 3.0, "speed": 1.0}},
+        {"behavior": "go_to", "args": {"x": 10.0, "y": 10.0, "z": 3.0, "speed": 2.0}},
+        {"behavior": "land", "args": {"speed": 1.0}}]});
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 1, "action": 0, "mission": patrol.to_string()}),
+    )
+    .await;
+    wait_status(&k, 0, 30.0, |d| d["mission"]["item_index"] == 1).await;
+    // MODIFY the running go_to: climb to 5 m on the way.
+    let new_goal = json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 0.0, "y": 10.0, "z": 5.0, "speed": 2.0}}]});
+    update(&k, json!({"drone_id": "drone_0", "mission_id": 1, "item_id": 1, "action": 9, "mission": new_goal})).await;
+    // INSERT a detour after the running item, MODIFY the pending leg.
+    let detour = json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": -4.0, "y": 10.0, "z": 5.0, "speed": 2.0}}]});
+    update(&k, json!({"drone_id": "drone_0", "mission_id": 1, "item_id": 1, "action": 8, "mission": detour})).await;
+    let leg = json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 6.0, "y": 10.0, "z": 5.0, "speed": 2.0}}]});
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 1, "item_id": 3, "action": 9, "mission": leg}),
+    )
+    .await;
+    let d = wait_status(&k, 0, 30.0, |d| d["mission"]["item_index"] == 3).await;
+    let p = &d["position_enu_m"];
+    assert!(
+        (p[0].as_f64().unwrap() + 4.0).abs() < 0.5 && (p[2].as_f64().unwrap() - 5.0).abs() < 0.5,
+        "{p}"
+    );
+    // On-demand inspection takes over: LOAD it, START it while patrol runs.
+    let inspect = json!({"target": "drone_0", "plan": [
+        {"behavior": "go_to", "args": {"x": 2.0, "y": 2.0, "z": 4.0, "speed": 2.0}},
+        {"behavior": "land", "args": {"speed": 1.0}}]});
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 2, "action": 1, "mission": inspect}),
+    )
+    .await;
+    let v = update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 2, "action": 2}),
+    )
+    .await;
+    assert_eq!(v["status"]["mission_id"], 2);
+    let d = wait_status(&k, 0, 60.0, |d| {
+        d["mission"]["state"] == 0 && d["mission"]["mission_id"] == 2
+    })
+    .await;
+    assert_eq!(d["mission"]["last_error"], Value::Null, "{d}");
+    let p = &d["position_enu_m"];
+    assert!(
+        (p[0].as_f64().unwrap() - 2.0).abs() < 0.5 && p[2].as_f64().unwrap() < 0.2,
+        "{p}"
+    );
+    let (_, missions) = get(&k, "/api/missions").await;
+    let patrol_view = missions
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["mission_id"] == 1)
+        .unwrap();
+    assert_eq!(patrol_view["items"], 5);
+    assert_eq!(patrol_view["state"], 0);
+}
+
+#[tokio::test]
+async fn mission_updates_over_the_websocket_are_answered() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let mut socket = ws(&k).await;
+    let msg = json!({"type": "mission_update", "request_id": 7, "drone_id": "drone_0", "mission_id": 3, "action": 1, "mission": takeoff_go_land()});
+    socket
+        .send(Message::Text(msg.to_string().into()))
+        .await
+        .unwrap();
+    let refuse = json!({"type": "mission_update", "request_id": 8, "drone_id": "drone_0", "mission_id": 3, "action": 3});
+    socket
+        .send(Message::Text(refuse.to_string().into()))
+        .await
+        .unwrap();
+    let mut answers = Vec::new();
+    while answers.len() < 2 {
+        let m = next_json(&mut socket).await;
+        if m["type"] == "reply" {
+            answers.push(m);
+        }
+    }
+    assert_eq!(
+        (
+            answers[0]["request_id"].clone(),
+            answers[0]["accepted"].clone()
+        ),
+        (json!(7), json!(true))
+    );
+    assert_eq!(
+        (
+            answers[1]["request_id"].clone(),
+            answers[1]["accepted"].clone()
+        ),
+        (json!(8), json!(false))
+    );
+    assert!(answers[1]["reason"]
+        .as_str()
+        .unwrap()
+        .contains("no mission is running"));
+}
+
+async fn huge_upload_status(port: u16) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut tcp = tokio::net::TcpStream::connect(("127.0.0.1", port))
+        .await
+        .unwrap();
+    let head = format!(
+        "POST /api/missions HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {TOKEN}\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
+        50 << 20
+    );
+    tcp.write_all(head.as_bytes()).await.unwrap();
+    let mut buf = vec![0u8; 512];
+    let n = tokio::time::timeout(Duration::from_secs(5), tcp.read(&mut buf))
+        .await
+        .unwrap()
+        .unwrap();
+    String::from_utf8_lossy(&buf[..n]).to_string()
+}
+
+#[tokio::test]
+async fn bad_requests_are_rejected_precisely_and_nothing_moves() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let c = client();
+    // A huge body is refused from its Content-Length, before it is sent.
+    let answer = huge_upload_status(k.port).await;
+    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
+    let r = c
+        .post(format!("{}/api/missions", k.base))
+        .bearer_auth(TOKEN)
+        .body("{\"target\": ")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 400);
+    let (code, v) = post(&k, "/api/missions", &json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 0, "y": 0, "z": 300, "speed": 1}}]})).await;
+    assert_eq!(code, 422);
+    assert_eq!(v["error"]["details"][0]["pointer"], "/plan/0/args/z");
+    let (code, v) = post(
+        &k,
+        "/api/mission_update",
+        &json!({"drone_id": "drone_0", "action": 42}),
+    )
+    .await;
+    assert_eq!((code, v["accepted"].clone()), (422, json!(false)), "{v}");
+    let (code, _) = post(
+        &k,
+        "/api/mission_update",
+        &json!({"drone_id": "drone_9", "action": 2}),
+    )
+    .await;
+    assert_eq!(code, 404);
+    let (code, v) = post(
+        &k,
+        "/api/frames",
+        &json!({"frame_id": "a b", "parent": "earth"}),
+    )
+    .await;
+    assert_eq!(
+        (code, v["error"]["code"].clone()),
+        (422, json!("invalid_frame"))
+    );
+    let (code, _) = post(
+        &k,
+        "/api/frames",
+        &json!({"frame_id": "x", "parent": "nowhere"}),
+    )
+    .await;
+    assert_eq!(code, 422);
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (code, s) = get(&k, "/api/status").await;
+    assert_eq!(code, 200, "process alive");
+    assert_eq!(s["drones"][0]["armed"], false);
+    assert!(s["drones"][0]["position_enu_m"][2].as_f64().unwrap() < 0.05);
+}
+
+#[tokio::test]
+async fn a_restart_keeps_loaded_missions_and_does_not_resume_them() {
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let k = start(dir.path(), &[]).await;
+        post(&k, "/api/missions", &takeoff_go_land()).await;
+        update(&k, json!({"drone_id": "drone_0", "mission_id": 5, "action": 0, "mission": takeoff_go_land()})).await;
+        wait_status(&k, 0, 30.0, |d| d["mission"]["item_index"] == 1).await;
+        let (code, _) = post(
+            &k,
+            "/api/frames",
+            &json!({"frame_id": "panel_x", "translation_m": [5, 5, 0]}),
+        )
+        .await;
+        assert_eq!(code, 200);
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    } // killed here (SIGKILL): only what was already saved survives
+    let k = start(dir.path(), &[]).await;
+    let (_, missions) = get(&k, "/api/missions").await;
+    let ids: Vec<u64> = missions
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["mission_id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [1, 5]);
+    let (_, status) = get(&k, "/api/status").await;
+    let m = &status["drones"][0]["mission"];
+    assert_eq!(m["state"], 0);
+    assert!(
+        m["last_error"].as_str().unwrap().contains("not resumed"),
+        "{m}"
+    );
+    let (_, frames) = get(&k, "/api/frames").await;
+    assert_eq!(frames[0]["frame_id"], "panel_x");
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (_, status) = get(&k, "/api/status").await;
+    assert_eq!(status["drones"][0]["armed"], false);
+}
+
+#[tokio::test]
+async fn several_drones_share_one_api_and_a_lost_link_shows() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &["--drones", "2"]).await;
+    let mut mission = takeoff_go_land();
+    mission["target"] = json!("drone_1");
+    let (code, up) = post(&k, "/api/missions", &mission).await;
+    assert_eq!((code, up["drone"].clone()), (201, json!("drone_1")));
+    let (code, v) = post(
+        &k,
+        "/api/mission_update",
+        &json!({"mission_id": 1, "action": 2}),
+    )
+    .await;
+    assert_eq!((code, v["code"].clone()), (400, json!("drone_id_required")));
+    update(
+        &k,
+        json!({"drone_id": "drone_1", "mission_id": 1, "action": 2}),
+    )
+    .await;
+    let d = wait_status(&k, 1, 30.0, |d| d["flight"] == "flying").await;
+    assert_eq!(d["drone"], "drone_1");
+    let (_, s) = get(&k, "/api/status").await;
+    assert_eq!(
+        s["drones"][0]["armed"], false,
+        "drone_0 stays on the ground"
+    );
+    let (code, _) = post(
+        &k,
+        "/api/sim/fault",
+        &json!({"drone_id": "drone_1", "fault": "link_lost"}),
+    )
+    .await;
+    assert_eq!(code, 200);
+    let d = wait_status(&k, 1, 10.0, |d| d["link"] == "lost").await;
+    assert!(
+        d["mission"]["last_error"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("link"),
+        "{d}"
+    );
+    post(
+        &k,
+        "/api/sim/fault",
+        &json!({"drone_id": "drone_1", "fault": "link_restored"}),
+    )
+    .await;
+    wait_status(&k, 1, 10.0, |d| d["link"] == "ok").await;
+}
+
+#[test]
+fn listening_beyond_loopback_without_a_token_is_refused_at_start() {
+    let out = Command::new(env!("CARGO_BIN_EXE_kestrel"))
+        .args(["sim", "--no-demo", "--listen", "0.0.0.0:0"])
+        .env_remove("KESTREL_API_TOKEN")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("without an API token"), "{err}");
+}

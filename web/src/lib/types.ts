@@ -1,0 +1,181 @@
+// JSON shapes of the Kestrel API (docs/API.md). Units are in the field names, ENU world frame.
+
+export type Vec3 = [number, number, number];
+export type Vec2 = [number, number];
+
+export type LinkState = 'ok' | 'connecting' | 'lost';
+export type FlightState =
+  | 'disarmed'
+  | 'landed'
+  | 'taking_off'
+  | 'flying'
+  | 'landing'
+  | 'crashed';
+
+export interface ActiveBehavior {
+  id: number;
+  behavior: string;
+  state: string;
+  goal?: unknown;
+  feedback?: Record<string, unknown>;
+}
+
+export interface MissionItem {
+  behavior: string;
+  method?: string;
+  args: Record<string, unknown>;
+}
+
+export interface Mission {
+  target: string;
+  plan: MissionItem[];
+}
+
+export interface DoneResult {
+  item: number;
+  behavior: string;
+  result: string;
+}
+
+/** Mission executor status; `state` 0 idle, 1 running, 2 paused. */
+export interface MissionStatus {
+  state: number;
+  pending_items: number;
+  done_items: number;
+  current_item: MissionItem | null;
+  feedback_current: Record<string, unknown> | null;
+  mission_id: number | null;
+  item_index: number | null;
+  done_results: DoneResult[];
+  last_error: string | null;
+}
+
+export interface DroneStatus {
+  drone: string;
+  link: LinkState;
+  armed: boolean;
+  offboard: boolean;
+  mode: string;
+  flight: FlightState | string;
+  ready_to_fly: boolean;
+  battery: { voltage_v: number; remaining_fraction: number } | null;
+  last_error: string | null;
+  position_enu_m: Vec3;
+  yaw_rad: number;
+  velocity_enu_mps: Vec3;
+  geo: { lat_deg: number; lon_deg: number; alt_m: number } | null;
+  active_behaviors: ActiveBehavior[];
+  mission?: MissionStatus | null;
+}
+
+export interface BehaviorInfo {
+  name: string;
+  description: string;
+  resource: string;
+  args_schema: JsonSchema;
+  methods: string[];
+}
+
+export interface JsonSchema {
+  type?: string | string[];
+  properties?: Record<string, JsonSchema>;
+  required?: string[];
+  description?: string;
+  default?: unknown;
+  enum?: unknown[];
+  const?: unknown;
+  oneOf?: JsonSchema[];
+  anyOf?: JsonSchema[];
+  allOf?: JsonSchema[];
+  items?: JsonSchema | JsonSchema[];
+  minItems?: number;
+  maxItems?: number;
+  format?: string;
+  $ref?: string;
+  definitions?: Record<string, JsonSchema>;
+  $defs?: Record<string, JsonSchema>;
+  title?: string;
+  minimum?: number;
+  maximum?: number;
+  exclusiveMinimum?: number;
+  exclusiveMaximum?: number;
+}
+
+export interface ErrorDetail {
+  pointer: string;
+  message: string;
+}
+
+export interface ApiErrorBody {
+  code: string;
+  message: string;
+  details: ErrorDetail[];
+}
+
+/** MissionUpdate actions, numbered as the thesis's table. */
+export const ACTIONS = {
+  EXECUTE: 0,
+  LOAD: 1,
+  START: 2,
+  PAUSE: 3,
+  RESUME: 4,
+  STOP: 5,
+  NEXT_ITEM: 6,
+  JUMP_TO: 7,
+  INSERT: 8,
+  MODIFY: 9,
+  REMOVE: 10,
+  RESET: 11,
+} as const;
+export type ActionName = keyof typeof ACTIONS;
+
+export interface MissionUpdate {
+  drone_id: string;
+  mission_id: number | null;
+  item_id: number | null;
+  action: number;
+  mission: Mission | null;
+}
+
+export interface MissionUpdateAnswer {
+  accepted: boolean;
+  status?: MissionStatus;
+  reason?: string;
+}
+
+export interface FrameInfo {
+  frame_id: string;
+  parent: string;
+  translation_m?: Vec3;
+  yaw_rad?: number;
+  drone_id?: string | null;
+  [key: string]: unknown;
+}
+
+export interface CoverageRequest {
+  polygon_enu_m: Vec2[];
+  street_spacing_m: number;
+  angle_deg: number | null;
+  drones: string[];
+  height_m: number;
+}
+
+export interface CoverageAnswer {
+  angle_deg: number;
+  per_drone: Record<string, Vec3[]>;
+  lengths_m: Record<string, number>;
+}
+
+/** WebSocket messages from the server. */
+export type ServerMessage =
+  | { type: 'telemetry'; t: number; drones: DroneStatus[] }
+  | { type: 'mission_status'; drone: string; status: MissionStatus }
+  | { type: 'event'; drone: string | null; t: number; event: Record<string, unknown> }
+  | {
+      type: 'map_update';
+      drone: string | null;
+      bbox: [number, number, number, number];
+      spec: Record<string, unknown>;
+      data: number[];
+    }
+  | { type: 'reply'; request_id: number; accepted: boolean; reason?: string | null };

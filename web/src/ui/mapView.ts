@@ -1,0 +1,319 @@
+// Leaflet glue: the local ENU map (simple CRS, x east = lng, y north = lat) or, in geographic
+// mode, Web Mercator around the ENU origin. Drones, behavior-coloured trails, planned paths, the
+// plan being drawn, occupancy grid, frames and geofence are layers; clicks go to the active tool.
+
+import L from 'leaflet';
+import 'leaflet/dist/leaflet.css';
+import { behaviorColor, trailRuns } from '../lib/colors';
+import type { DroneView, LinkView } from '../lib/fleet';
+import { enuToGeo, geoToEnu, type GeoOrigin } from '../lib/geo';
+import { gridBounds, gridPixels, type Grid } from '../lib/grid';
+import type { FrameInfo, Vec2, Vec3 } from '../lib/types';
+
+export type Tool = 'pan' | 'waypoint' | 'path' | 'polygon';
+
+export interface MapCallbacks {
+  waypoint(p: Vec2): void;
+  finish(tool: 'path' | 'polygon', points: Vec2[]): void;
+  drawingChanged(tool: Tool, points: Vec2[]): void;
+  frameClicked(frameId: string): void;
+}
+
+export interface DroneDraw {
+  key: string;
+  name: string;
+  view: DroneView;
+  link: LinkView;
+  color: string;
+}
+
+const DRONE_COLORS = ['#0b3d91', '#b30059', '#006d2c', '#7a4100', '#4b0082', '#00607a'];
+export const droneColor = (i: number): string => DRONE_COLORS[i % DRONE_COLORS.length];
+
+export class MapView {
+  readonly map: L.Map;
+  private readonly layers = {
+    axes: L.layerGroup(),
+    grid: L.layerGroup(),
+    geofence: L.layerGroup(),
+    frames: L.layerGroup(),
+    past: L.layerGroup(),
+    planned: L.layerGroup(),
+    trails: L.layerGroup(),
+    draft: L.layerGroup(),
+    drawing: L.layerGroup(),
+    drones: L.layerGroup(),
+  };
+  private markers = new Map<string, L.Marker>();
+  private trailDrawn = new Map<string, { n: number; group: L.LayerGroup }>();
+  private gridUrl: string | null = null;
+  tool: Tool = 'pan';
+  drawing: Vec2[] = [];
+
+  constructor(
+    el: HTMLElement,
+    private readonly cb: MapCallbacks,
+    readonly origin: GeoOrigin | null,
+    basemapUrl: string | null,
+  ) {
+    const geo = origin !== null;
+    this.map = L.map(el, {
+      crs: geo ? L.CRS.EPSG3857 : L.CRS.Simple,
+      minZoom: geo ? 3 : -3,
+      maxZoom: geo ? 22 : 6,
+      zoomSnap: 0.25,
+      attributionControl: geo && !!basemapUrl,
+      doubleClickZoom: false,
+    });
+    if (geo && basemapUrl) {
+      L.tileLayer(basemapUrl, { maxZoom: 22, maxNativeZoom: 19, attribution: 'basemap' }).addTo(this.map);
+    }
+    for (const layer of Object.values(this.layers)) layer.addTo(this.map);
+    if (!geo) this.drawAxes();
+    L.control
+      .layers(undefined, {
+        'Occupancy grid': this.layers.grid,
+        Geofence: this.layers.geofence,
+        Frames: this.layers.frames,
+        Trails: this.layers.trails,
+        'Planned paths': this.layers.planned,
+        'Past flight': this.layers.past,
+        'Grid lines': this.layers.axes,
+      }, { collapsed: true })
+      .addTo(this.map);
+    L.control.scale({ imperial: false }).addTo(this.map);
+    this.map.setView(this.ll(0, 0), geo ? 19 : 3);
+    this.map.on('click', (e: L.LeafletMouseEvent) => this.onClick(e.latlng));
+    this.map.on('dblclick', () => this.finishDrawing());
+  }
+
+  /** ENU metres to the map's coordinates. */
+  ll(x: number, y: number): L.LatLng {
+    if (this.origin) {
+      const [lat, lon] = enuToGeo(this.origin, x, y);
+      return L.latLng(lat, lon);
+    }
+    return L.latLng(y, x);
+  }
+
+  enu(ll: L.LatLng): Vec2 {
+    if (this.origin) return geoToEnu(this.origin, ll.lat, ll.lng);
+    return [ll.lng, ll.lat];
+  }
+
+  setTool(tool: Tool): void {
+    this.tool = tool;
+    this.drawing = [];
+    this.map.getContainer().classList.toggle('drawing', tool !== 'pan');
+    this.renderDrawing();
+    this.cb.drawingChanged(tool, this.drawing);
+  }
+
+  private onClick(ll: L.LatLng): void {
+    const [x, y] = this.enu(ll);
+    const p: Vec2 = [Math.round(x * 100) / 100, Math.round(y * 100) / 100];
+    if (this.tool === 'waypoint') this.cb.waypoint(p);
+    else if (this.tool === 'path' || this.tool === 'polygon') {
+      this.drawing.push(p);
+      this.renderDrawing();
+      this.cb.drawingChanged(this.tool, this.drawing);
+    }
+  }
+
+  finishDrawing(): void {
+    if (this.tool !== 'path' && this.tool !== 'polygon') return;
+    const need = this.tool === 'path' ? 1 : 3;
+    if (this.drawing.length < need) return;
+    const points = this.drawing;
+    const tool = this.tool;
+    this.drawing = [];
+    this.renderDrawing();
+    this.cb.finish(tool, points);
+    this.cb.drawingChanged(this.tool, this.drawing);
+  }
+
+  undoPoint(): void {
+    this.drawing.pop();
+    this.renderDrawing();
+    this.cb.drawingChanged(this.tool, this.drawing);
+  }
+
+  private renderDrawing(): void {
+    const g = this.layers.drawing;
+    g.clearLayers();
+    const lls = this.drawing.map(([x, y]) => this.ll(x, y));
+    if (lls.length > 1) {
+      const style = { color: '#0050d0', weight: 3, dashArray: '6 4' };
+      (this.tool === 'polygon' ? L.polygon(lls, { ...style, fillOpacity: 0.15 }) : L.polyline(lls, style)).addTo(g);
+    }
+    lls.forEach((ll) => L.circleMarker(ll, { radius: 5, color: '#0050d0', fillOpacity: 1 }).addTo(g));
+  }
+
+  private drawAxes(): void {
+    const g = this.layers.axes;
+    const span = 200;
+    for (let v = -span; v <= span; v += 10) {
+      const major = v === 0;
+      const style = { color: major ? '#555' : '#d0d0d0', weight: major ? 1.5 : 1, interactive: false };
+      L.polyline([this.ll(v, -span), this.ll(v, span)], style).addTo(g);
+      L.polyline([this.ll(-span, v), this.ll(span, v)], style).addTo(g);
+    }
+    L.marker(this.ll(0, 0), {
+      interactive: false,
+      icon: L.divIcon({ className: 'axis-label', html: 'origin (0, 0) · x east, y north', iconSize: [220, 16], iconAnchor: [-4, 18] }),
+    }).addTo(g);
+  }
+
+  renderDrones(drones: DroneDraw[]): void {
+    const seen = new Set<string>();
+    for (const d of drones) {
+      const s = d.view.status;
+      if (!s) continue;
+      seen.add(d.key);
+      const [x, y, z] = s.position_enu_m;
+      const ll = s.geo && this.origin ? L.latLng(s.geo.lat_deg, s.geo.lon_deg) : this.ll(x, y);
+      let m = this.markers.get(d.key);
+      if (!m) {
+        m = L.marker(ll, {
+          icon: L.divIcon({
+            className: 'drone-icon',
+            html: `<div class="drone-glyph" data-drone="${d.name}" style="--c:${d.color}"><svg viewBox="-12 -12 24 24" width="28" height="28"><path d="M11 0 L-8 -8 L-4 0 L-8 8 Z"/></svg><span class="drone-label"></span></div>`,
+            iconSize: [28, 28],
+            iconAnchor: [14, 14],
+          }),
+          keyboard: false,
+        }).addTo(this.layers.drones);
+        this.markers.set(d.key, m);
+      }
+      m.setLatLng(ll);
+      const el = m.getElement()?.querySelector<HTMLElement>('.drone-glyph');
+      if (el) {
+        el.dataset.x = x.toFixed(2);
+        el.dataset.y = y.toFixed(2);
+        el.classList.toggle('lost', d.link.state !== 'ok');
+        el.querySelector('svg')?.setAttribute('style', `transform: rotate(${(-s.yaw_rad * 180) / Math.PI}deg)`);
+        const label = el.querySelector('.drone-label');
+        if (label) label.textContent = `${d.name}${d.link.state === 'lost' ? ' LOST' : ''} ${z.toFixed(1)} m`;
+      }
+    }
+    for (const [key, m] of this.markers) {
+      if (!seen.has(key)) {
+        m.remove();
+        this.markers.delete(key);
+      }
+    }
+    this.renderTrails(drones);
+  }
+
+  private renderTrails(drones: DroneDraw[]): void {
+    for (const d of drones) {
+      const trail = d.view.trail;
+      let drawn = this.trailDrawn.get(d.key);
+      if (drawn && drawn.n === trail.length) continue;
+      if (!drawn) {
+        drawn = { n: 0, group: L.layerGroup().addTo(this.layers.trails) };
+        this.trailDrawn.set(d.key, drawn);
+      }
+      drawn.group.clearLayers();
+      for (const run of trailRuns(trail)) {
+        L.polyline(run.points.map((p) => this.ll(p.x, p.y)), {
+          color: behaviorColor(run.behavior),
+          weight: 4,
+          opacity: 0.9,
+          interactive: false,
+        }).addTo(drawn.group);
+      }
+      drawn.n = trail.length;
+    }
+  }
+
+  clearTrails(): void {
+    this.layers.trails.clearLayers();
+    this.trailDrawn.clear();
+  }
+
+  /** The plan being edited: dashed black line with numbered go_to points. */
+  setDraft(points: Vec3[], items: number[]): void {
+    const g = this.layers.draft;
+    g.clearLayers();
+    if (points.length < 2) return;
+    const lls = points.map(([x, y]) => this.ll(x, y));
+    L.polyline(lls, { color: '#111', weight: 3, dashArray: '8 6', interactive: false }).addTo(g);
+    lls.forEach((ll, i) => {
+      if (items[i] < 0 || items[i] === items[i + 1]) return;
+      L.marker(ll, {
+        interactive: false,
+        icon: L.divIcon({ className: 'wp-icon', html: `<span>${items[i]}</span>`, iconSize: [22, 22], iconAnchor: [11, 11] }),
+      }).addTo(g);
+    });
+  }
+
+  /** Missions loaded on drones, and coverage sweeps, in each drone's colour. */
+  setPlanned(paths: { color: string; points: Vec3[]; label: string }[]): void {
+    const g = this.layers.planned;
+    g.clearLayers();
+    for (const p of paths) {
+      if (p.points.length < 2) continue;
+      L.polyline(p.points.map(([x, y]) => this.ll(x, y)), { color: p.color, weight: 2, dashArray: '4 6' })
+        .bindTooltip(p.label)
+        .addTo(g);
+    }
+  }
+
+  setFrames(frames: FrameInfo[]): void {
+    const g = this.layers.frames;
+    g.clearLayers();
+    for (const f of frames) {
+      const t = f.translation_m;
+      if (!Array.isArray(t) || f.frame_id === 'earth' || f.parent !== 'earth') continue;
+      const m = L.marker(this.ll(t[0], t[1]), {
+        icon: L.divIcon({ className: 'frame-icon', html: `<span>◆ ${f.frame_id}</span>`, iconSize: [120, 18], iconAnchor: [6, 9] }),
+      });
+      m.on('click', () => this.cb.frameClicked(f.frame_id));
+      m.addTo(g);
+    }
+  }
+
+  setGeofence(polygon: Vec2[] | null): void {
+    const g = this.layers.geofence;
+    g.clearLayers();
+    if (!polygon || polygon.length < 3) return;
+    L.polygon(polygon.map(([x, y]) => this.ll(x, y)), { color: '#c00000', weight: 3, dashArray: '10 6', fill: false, interactive: false }).addTo(g);
+  }
+
+  setGrid(grid: Grid | null): void {
+    const g = this.layers.grid;
+    g.clearLayers();
+    if (!grid) return;
+    const canvas = document.createElement('canvas');
+    canvas.width = grid.spec.width;
+    canvas.height = grid.spec.height;
+    const ctx = canvas.getContext('2d');
+    if (!ctx) return;
+    ctx.putImageData(new ImageData(gridPixels(grid) as Uint8ClampedArray<ArrayBuffer>, grid.spec.width, grid.spec.height), 0, 0);
+    this.gridUrl = canvas.toDataURL();
+    const [[s, w], [n, e]] = gridBounds(grid.spec);
+    L.imageOverlay(this.gridUrl, L.latLngBounds(this.ll(w, s), this.ll(e, n)), { className: 'pixelated', interactive: false }).addTo(g);
+  }
+
+  /** A past flight's poses, coloured by behavior. */
+  setPast(tracks: { x: number; y: number; behavior: string | null }[][]): void {
+    const g = this.layers.past;
+    g.clearLayers();
+    for (const track of tracks) {
+      for (const run of trailRuns(track)) {
+        L.polyline(run.points.map((p) => this.ll(p.x, p.y)), { color: behaviorColor(run.behavior), weight: 3, opacity: 0.6, dashArray: '2 4' }).addTo(g);
+      }
+    }
+  }
+
+  fitTo(points: Vec2[]): void {
+    if (points.length === 0) return;
+    const b = L.latLngBounds(points.map(([x, y]) => this.ll(x, y)));
+    this.map.fitBounds(b.pad(0.5), { maxZoom: this.origin ? 20 : 4 });
+  }
+
+  destroy(): void {
+    this.map.remove();
+  }
+}
