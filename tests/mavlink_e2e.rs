@@ -222,3 +222,118 @@ fn px4_reboot_is_detected_and_the_link_comes_back() {
         "{out}"
     );
 }
+
+/// The autopilot process goes away and comes back on the same port: Kestrel reconnects (TCP:
+/// a new connection; UDP: the new peer is answered) and sees a fresh boot.
+fn reconnects_after_the_autopilot_restarts(p: Personality) {
+    let _one = serial();
+    let mut fake = Fake::start(p, &[]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--max-time-s", "14"]);
+    kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
+    std::thread::sleep(Duration::from_secs(2));
+    fake.restart(Duration::from_secs(2));
+    let lost = kestrel.wait_line("link: lost", Duration::from_secs(5));
+    kestrel.wait(Duration::from_secs(30));
+    let out = kestrel.output();
+    assert!(kestrel.line_after("link: ok", lost).is_some(), "{out}");
+    // ArduPilot streams only what this connection asked for: telemetry again means the
+    // message rates were requested again after reconnecting.
+    let ready_again = kestrel.line_after("ready to fly: true", lost);
+    assert!(
+        ready_again.is_some(),
+        "no telemetry after reconnecting:\n{out}"
+    );
+    assert_eq!(fake.state()["boot_count"], 1, "a new process");
+}
+
+#[test]
+fn px4_reconnects_after_the_autopilot_restarts() {
+    reconnects_after_the_autopilot_restarts(Personality::Px4);
+}
+
+#[test]
+fn ardupilot_reconnects_after_the_autopilot_restarts() {
+    reconnects_after_the_autopilot_restarts(Personality::Ardupilot);
+}
+
+/// Kestrel between the autopilot and a ground station: the GCS gets the autopilot's own frames
+/// and its commands reach the autopilot, whose answer comes back to it.
+#[test]
+fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
+    use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
+    use mavlink::{MavHeader, MavlinkReader};
+    let _one = serial();
+    let p = Personality::Px4;
+    let fake = Fake::start(p, &[]);
+    let gcs = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let port = gcs.local_addr().unwrap().port();
+    let config = format!("[mavlink]\nforward = [\"udpout:127.0.0.1:{port}\"]\n");
+    let _kestrel = Kestrel::run(p, &fake.connection, &config, &["--max-time-s", "20"]);
+    let mut buf = [0u8; 2048];
+    let recv = |buf: &mut [u8]| -> Option<(std::net::SocketAddr, MavHeader, MavMessage)> {
+        let (n, from) = gcs.recv_from(buf).ok()?;
+        let (h, m) = MavlinkReader::new(&buf[..n])
+            .read_any_message::<MavMessage>()
+            .ok()?;
+        Some((from, h, m))
+    };
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let kestrel_addr = loop {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no autopilot HEARTBEAT forwarded"
+        );
+        if let Some((from, h, MavMessage::HEARTBEAT(_))) = recv(&mut buf) {
+            if h.system_id == 1 && h.component_id == 1 {
+                break from;
+            }
+        }
+    };
+    let request = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: 148.0, // AUTOPILOT_VERSION
+        command: MavCmd::MAV_CMD_REQUEST_MESSAGE,
+        target_system: 1,
+        target_component: 1,
+        ..COMMAND_LONG_DATA::DEFAULT
+    });
+    let gcs_header = MavHeader {
+        system_id: 255,
+        component_id: 190,
+        sequence: 0,
+    };
+    let mut frame = Vec::new();
+    mavlink::write_v2_msg(&mut frame, gcs_header, &request).unwrap();
+    gcs.send_to(&frame, kestrel_addr).unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no answer to the GCS command"
+        );
+        if let Some((_, _, MavMessage::AUTOPILOT_VERSION(v))) = recv(&mut buf) {
+            assert_eq!(
+                v.uid,
+                0x4B45_5354_5245_4C00 + 1,
+                "the fake's version record"
+            );
+            break;
+        }
+    }
+}
+
+/// `platforms/sim.toml`: the same `kestrel run` loop over the built-in simulator in real time.
+#[test]
+fn run_flies_the_demo_on_the_simulator_platform() {
+    let _one = serial();
+    let mut kestrel = Kestrel::run_with_platform("platforms/sim.toml", "udpin:0.0.0.0:0", "", DEMO);
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    assert!(status.success(), "{}", kestrel.output());
+    let log = kestrel.flight_log();
+    let finished = log
+        .iter()
+        .filter(|r| r["type"] == "behavior" && r["event"] == "finished")
+        .count();
+    assert_eq!(finished, 4, "takeoff, go_to, follow_path, land");
+}

@@ -75,7 +75,8 @@ class Px4Vehicle(Vehicle):
     def default_streams(self):
         hz = self.opts.attitude_hz
         return {0: 1.0, 1: 0.2, 2: 1.0, 24: 0.125, 30: 1.0 / hz, 31: 2.0 / hz, 32: 1 / 30, 33: 1.0 / hz,
-                331: 1 / 30, 132: 0.1, 245: 0.2, 242: 2.0, 147: 2.0, 436: 2.0, 411: 3.0, 74: 0.2, 85: 0.1}
+                331: 1 / 30, 132: 0.1, 245: 0.2, 242: 2.0, 147: 2.0, 436: 2.0, 411: 3.0, 74: 0.2, 85: 0.1,
+                111: 0.1}
 
     def set_message_interval(self, msg_id, interval_us):
         if msg_id == 0:
@@ -84,7 +85,8 @@ class Px4Vehicle(Vehicle):
 
     def generators(self):
         g = super().generators()
-        g.update({331: self.msg_odometry, 436: self.msg_current_mode, 411: self.msg_event_sequence})
+        g.update({331: self.msg_odometry, 436: self.msg_current_mode, 411: self.msg_event_sequence,
+                  111: self.msg_timesync_request})
         return g
 
     def personality_boot(self):
@@ -145,6 +147,10 @@ class Px4Vehicle(Vehicle):
         self.event_seq = (self.event_seq + 1) & 0xFFFF
         self.send(EventMsg(0, 0, eid, self.boot_ms(), self.event_seq, levels, args))
         self.note("event", name, id=eid, sequence=self.event_seq)
+
+    def msg_timesync_request(self):
+        """PX4 asks its peers for time sync at 10 Hz (tc1 = 0, ts1 = its time in ns)."""
+        return M.MAVLink_timesync_message(0, self.boot_us() * 1000)
 
     def msg_event_sequence(self):
         return CurrentEventSequenceMsg(self.event_seq, 0)

@@ -1,6 +1,8 @@
 """Personality-independent part of a simulated vehicle: boot, link I/O with faults,
 stream scheduling, frames, common telemetry, sensors and the control-channel view."""
+import json
 import math
+import sys
 import time
 from collections import deque
 
@@ -146,6 +148,10 @@ class Vehicle:
         entry = {"t": round(self.clock.now(), 3), "kind": kind, "text": text}
         entry.update(extra)
         self.log.append(entry)
+        sink = getattr(self.opts, "log_sink", None)
+        if sink is not None:
+            sink.write(json.dumps({"vehicle": self.index, **entry}) + "\n")
+            sink.flush()
 
     # ------------------------------------------------------------------ I/O
     ack_before_replies = False  # PX4 emits a command's EVENTs after its COMMAND_ACK
@@ -199,7 +205,9 @@ class Vehicle:
         try:
             self._dispatch(msg, wall)
         except Exception as exc:  # a malformed request must never kill the fake
-            self.note("error", f"{msg.get_type()}: {type(exc).__name__}: {exc}")
+            text = f"{msg.get_type()}: {type(exc).__name__}: {exc}"
+            self.note("error", text)
+            sys.stderr.write(f"fake autopilot vehicle {self.index}: error handling {text}\n")
 
     def _dispatch(self, msg, wall):
         t = msg.get_type()
@@ -244,7 +252,7 @@ class Vehicle:
                     self._send_param(name, list(self.params).index(name))
         elif t == "TIMESYNC":
             if msg.tc1 == 0:
-                self.send(M.MAVLink_timesync_message(int(time.monotonic() * 1e9), msg.ts1, msg.get_srcSystem(), msg.get_srcComponent()))
+                self.send(M.MAVLink_timesync_message(int(time.monotonic() * 1e9), msg.ts1))
         else:
             self.handle_other(msg)
 

@@ -44,7 +44,7 @@ def test_arm_needs_position_estimate(fake_factory):
 
 
 def test_guided_takeoff_goto_velocity_timeout_land(fake_factory):
-    f = fake_factory("ardupilot", "--ekf-delay", "1", speed=2.0)
+    f = fake_factory("ardupilot", "--ekf-delay", "1", speed=3.0)
     link = f.connect()
     request_streams(link)
     link.recv("EKF_STATUS_REPORT", 5, lambda m: m.flags & 0x10)

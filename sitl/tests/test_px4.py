@@ -39,23 +39,23 @@ def test_offboard_refused_without_stream_then_arm_rejected(fake_factory):
 
 
 def test_offboard_takeoff_goto_and_loss_failsafe_lands(fake_factory):
-    f = fake_factory("px4")
+    f = fake_factory("px4", speed=2.0)  # 10 Hz wall = 5 Hz simulated setpoints
     link = f.connect()
-    stream(link, 1.2, x=0, y=0, z=-5)
+    stream(link, 0.8, x=0, y=0, z=-5)
     assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
     assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
-    stream(link, 6.0, x=0, y=0, z=-5)
+    stream(link, 4.0, x=0, y=0, z=-5)
     hb = link.heartbeat_until(lambda h: True, 2)
     assert hb.base_mode == 145 and hb.custom_mode == OFFBOARD and hb.system_status == 4
     st = f.control(cmd="state")
     assert abs(st["local_ned_m"][2] + 5) < 0.5 and st["landed_state"] == 2
-    stream(link, 4.0, x=10, y=5, z=-5)
+    stream(link, 2.5, x=10, y=5, z=-5)
     st = f.control(cmd="state")
     assert abs(st["local_ned_m"][0] - 10) < 1.0 and abs(st["local_ned_m"][1] - 5) < 1.0
     # ENU truth: north 10, east 5 -> x=5, y=10
     assert abs(st["position_enu_m"][0] - 5) < 1.0 and abs(st["position_enu_m"][1] - 10) < 1.0
     stats = f.control(cmd="setpoint_stats")
-    assert stats["count"] > 50 and 80 < stats["p50_ms"] < 130
+    assert stats["count"] > 30 and 80 < stats["p50_ms"] < 130  # wall-clock gaps
     # stop the stream: PX4 leaves OFFBOARD ~1 s later and lands
     t_stop = time.time()
     hb = link.heartbeat_until(lambda h: h.custom_mode == LAND, 4)
@@ -65,7 +65,7 @@ def test_offboard_takeoff_goto_and_loss_failsafe_lands(fake_factory):
     assert fs, log
     mode_change = [e for e in log if e["kind"] == "mode" and "AUTO.LAND" in e["text"]][-1]
     assert 0.04 < mode_change["t"] - fs[0]["t"] < 0.1  # switch ~60 ms after detection, as captured
-    assert 0.9 < time.time() - t_stop < 4.0
+    assert 0.45 < time.time() - t_stop < 3.0  # 1.06 s simulated
     names = [e["text"] for e in log if e["kind"] == "event"]
     assert "commander_failsafe_enter_generic" in names
     ext = link.recv("EXTENDED_SYS_STATE", 2, lambda m: m.landed_state == 4)
@@ -221,3 +221,22 @@ def test_offboard_yaw_and_frames(fake_factory):
     assert abs(gp.hdg - 9000) < 300 and abs(gp.relative_alt - 4000) < 300
     lp = link.recv("LOCAL_POSITION_NED", 2)
     assert abs(lp.x - 2) < 0.3 and abs(lp.y + 3) < 0.3 and abs(lp.z + 4) < 0.3
+
+
+def test_timesync_and_params(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    req = link.recv("TIMESYNC", 2, lambda m: m.tc1 == 0)  # PX4 asks at 10 Hz
+    assert req is not None and req.ts1 > 0
+    link.m.mav.timesync_send(0, 123456789)
+    reply = link.recv("TIMESYNC", 2, lambda m: m.ts1 == 123456789)
+    assert reply is not None and reply.tc1 > 0
+    link.m.mav.param_request_read_send(1, 1, b"COM_OF_LOSS_T", -1)
+    pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OF_LOSS_T")
+    assert pv.param_value == 1.0 and pv.param_type == M.MAV_PARAM_TYPE_REAL32
+    link.m.mav.param_set_send(1, 1, b"COM_OF_LOSS_T", 0.5, M.MAV_PARAM_TYPE_REAL32)
+    assert link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OF_LOSS_T").param_value == 0.5
+    link.m.mav.param_request_read_send(1, 1, b"COM_OBL_RC_ACT", -1)
+    pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OBL_RC_ACT")
+    import struct
+    assert struct.unpack("<i", struct.pack("<f", pv.param_value))[0] == 4  # PX4 ints are bytewise

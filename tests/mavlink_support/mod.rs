@@ -67,6 +67,7 @@ impl Personality {
 /// The fake autopilot process.
 pub struct Fake {
     child: Child,
+    args: Vec<String>,
     pub control_port: u16,
     /// Kestrel's connection string for this fake.
     pub connection: String,
@@ -75,44 +76,39 @@ pub struct Fake {
 impl Fake {
     pub fn start(personality: Personality, extra: &[&str]) -> Self {
         let control_port = free_tcp_port();
-        let mut cmd = Command::new(python());
-        cmd.arg(repo().join("sitl/fake_autopilot.py"))
-            .args(["--control-port", &control_port.to_string()]);
+        let mut args: Vec<String> = vec!["--control-port".into(), control_port.to_string()];
         let connection = match personality {
             Personality::Px4 => {
                 let listen = free_udp_port();
                 let remote = free_udp_port();
-                cmd.args(["--personality", "px4"])
-                    .args(["--px4-listen-base", &listen.to_string()])
-                    .args(["--px4-remote-base", &remote.to_string()]);
+                args.extend(["--personality".into(), "px4".into()]);
+                args.extend(["--px4-listen-base".into(), listen.to_string()]);
+                args.extend(["--px4-remote-base".into(), remote.to_string()]);
                 format!("udpin:127.0.0.1:{remote}")
             }
             Personality::Ardupilot => {
                 let tcp = free_tcp_port();
-                cmd.args(["--personality", "ardupilot"])
-                    .args(["--ardupilot-tcp-base", &tcp.to_string()]);
+                args.extend(["--personality".into(), "ardupilot".into()]);
+                args.extend(["--ardupilot-tcp-base".into(), tcp.to_string()]);
                 format!("tcpout:127.0.0.1:{tcp}")
             }
         };
-        let mut child = cmd
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("starting the fake autopilot");
-        let mut ready = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut ready)
-            .unwrap();
-        assert!(
-            ready.contains("\"ready\": true"),
-            "fake did not start: {ready}"
-        );
+        args.extend(extra.iter().map(|s| s.to_string()));
         Self {
-            child,
+            child: spawn_fake(&args),
+            args,
             control_port,
             connection,
         }
+    }
+
+    /// Kills the process and starts a new one on the same ports (an autopilot power cycle,
+    /// or a serial cable pulled and plugged back).
+    pub fn restart(&mut self, off_for: Duration) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        std::thread::sleep(off_for);
+        self.child = spawn_fake(&self.args);
     }
 
     /// One control-channel request; panics on `ok: false`.
@@ -144,6 +140,25 @@ impl Fake {
             handle: Some(handle),
         }
     }
+}
+
+fn spawn_fake(args: &[String]) -> Child {
+    let mut child = Command::new(python())
+        .arg(repo().join("sitl/fake_autopilot.py"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("starting the fake autopilot");
+    let mut ready = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut ready)
+        .unwrap();
+    assert!(
+        ready.contains("\"ready\": true"),
+        "fake did not start: {ready}"
+    );
+    child
 }
 
 impl Drop for Fake {
@@ -195,6 +210,16 @@ pub struct Kestrel {
 impl Kestrel {
     /// `kestrel run --platform P --connection C --log L <extra>`; `config` is written to a file.
     pub fn run(personality: Personality, connection: &str, config: &str, extra: &[&str]) -> Self {
+        Self::run_with_platform(personality.profile(), connection, config, extra)
+    }
+
+    /// `kestrel run` with any platform file.
+    pub fn run_with_platform(
+        platform: &str,
+        connection: &str,
+        config: &str,
+        extra: &[&str],
+    ) -> Self {
         let dir = tempfile::tempdir().unwrap();
         let config_path = dir.path().join("kestrel.toml");
         std::fs::write(&config_path, config).unwrap();
@@ -205,7 +230,7 @@ impl Kestrel {
             .env("RUST_BACKTRACE", "0")
             .arg("run")
             .args(["--config", config_path.to_str().unwrap()])
-            .args(["--platform", personality.profile()])
+            .args(["--platform", platform])
             .args(["--connection", connection])
             .args(["--log", log.to_str().unwrap()])
             .args(extra)
