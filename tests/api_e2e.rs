@@ -569,33 +569,101 @@ async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
     assert_eq!((code, up["mission_id"].clone()), (201, json!(42)));
     let (code, m) = get(&k, "/api/missions/42").await;
     assert_eq!(code, 200);
-    assert_eq!(m["plan"], takeoff_go_land()["plan"].clone().as_array().map(|p| {
-        let mut p = p.clone();
-        p[0]["method"] = json!("__call__");
-        p[2]["method"] = json!("__call__");
-        Value::Array(p)
-    }).unwrap());
+    assert_eq!(
+        m["plan"]["plan"],
+        takeoff_go_land()["plan"]
+            .clone()
+            .as_array()
+            .map(|p| {
+                let mut p = p.clone();
+                p[0]["method"] = json!("__call__");
+                p[2]["method"] = json!("__call__");
+                Value::Array(p)
+            })
+            .unwrap()
+    );
     assert_eq!(m["progress"]["cursor"], 0);
     let (code, _) = get(&k, "/api/missions/7").await;
     assert_eq!(code, 404);
-    update(&k, json!({"drone_id": "drone_0", "mission_id": 42, "action": 2})).await;
-    let r = client().delete(format!("{}/api/missions/42", k.base)).bearer_auth(TOKEN).send().await.unwrap();
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 42, "action": 2}),
+    )
+    .await;
+    let r = client()
+        .delete(format!("{}/api/missions/42", k.base))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status().as_u16(), 409, "running missions stay");
-    update(&k, json!({"drone_id": "drone_0", "mission_id": 42, "action": 5})).await;
-    let r = client().delete(format!("{}/api/missions/42", k.base)).bearer_auth(TOKEN).send().await.unwrap();
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 42, "action": 5}),
+    )
+    .await;
+    let r = client()
+        .delete(format!("{}/api/missions/42", k.base))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status().as_u16(), 204);
     let (_, list) = get(&k, "/api/missions").await;
     assert_eq!(list, json!([]));
     let (_, behaviors) = get(&k, "/api/behaviors").await;
-    let go_to = behaviors.as_array().unwrap().iter().find(|b| b["name"] == "go_to").unwrap();
+    let go_to = behaviors
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|b| b["name"] == "go_to")
+        .unwrap();
     assert_eq!(go_to["resource"], "motion");
-    assert!(go_to["methods"].as_array().unwrap().contains(&json!("go_to_point_with_yaw")));
-    assert_eq!(go_to["args_schema"]["required"], json!(["x", "y", "z", "speed"]));
-    for name in ["takeoff", "land", "follow_path", "rtl", "point_gimbal", "take_photo"] {
-        assert!(behaviors.as_array().unwrap().iter().any(|b| b["name"] == name), "{name}");
+    assert!(go_to["methods"]
+        .as_array()
+        .unwrap()
+        .contains(&json!("go_to_point_with_yaw")));
+    assert_eq!(
+        go_to["args_schema"]["required"],
+        json!(["x", "y", "z", "speed"])
+    );
+    for name in [
+        "takeoff",
+        "land",
+        "follow_path",
+        "rtl",
+        "point_gimbal",
+        "take_photo",
+    ] {
+        assert!(
+            behaviors
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|b| b["name"] == name),
+            "{name}"
+        );
     }
-    let spec: Value = reqwest::get(format!("{}/api/openapi.json", k.base)).await.unwrap().json().await.unwrap();
-    for route in ["/api/health", "/api/status", "/api/missions", "/api/missions/{id}", "/api/mission_update", "/api/behaviors", "/api/frames", "/api/log", "/api/sim/fault"] {
-        assert!(spec["paths"].get(route).is_some(), "{route} missing from the OpenAPI spec");
+    let spec: Value = reqwest::get(format!("{}/api/openapi.json", k.base))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    for route in [
+        "/api/health",
+        "/api/status",
+        "/api/missions",
+        "/api/missions/{id}",
+        "/api/mission_update",
+        "/api/behaviors",
+        "/api/frames",
+        "/api/log",
+        "/api/sim/fault",
+    ] {
+        assert!(
+            spec["paths"].get(route).is_some(),
+            "{route} missing from the OpenAPI spec"
+        );
     }
 }
