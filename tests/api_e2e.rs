@@ -667,3 +667,46 @@ async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
         );
     }
 }
+
+#[tokio::test]
+async fn mission_run_flies_a_file_on_a_running_kestrel_and_validate_reports_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let bin = env!("CARGO_BIN_EXE_kestrel");
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/missions/takeoff_go_land.json");
+    let out = tokio::process::Command::new(bin)
+        .args(["mission", "run", file, "--api", &k.base])
+        .env("KESTREL_API_TOKEN", TOKEN)
+        .output()
+        .await
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("succeeded"), "{stdout}");
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 1}}]}"#,
+    )
+    .unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["mission", "validate"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("/plan/0/args/y: missing argument `y`"),
+        "{stdout}"
+    );
+    let out = std::process::Command::new(bin)
+        .args(["mission", "validate", file])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+}
