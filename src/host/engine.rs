@@ -210,6 +210,7 @@ pub struct Host {
     published: Vec<u64>,
     links: Vec<LinkHealth>,
     errors: Vec<Option<String>>,
+    modes: Vec<String>,
 }
 
 impl Host {
@@ -232,6 +233,7 @@ impl Host {
             published: vec![u64::MAX; n],
             links: vec![LinkHealth::Connecting; n],
             errors: vec![None; n],
+            modes: vec![String::new(); n],
         }
     }
 
@@ -375,6 +377,31 @@ impl Host {
             }
             for e in out.events {
                 self.event(i, EventBody::Behavior(e));
+            }
+            for r in &feedback.request_results {
+                if let Err(reason) = &r.outcome {
+                    let request = serde_json::to_value(r.request)
+                        .ok()
+                        .and_then(|v| v.get("request").and_then(Value::as_str).map(str::to_string))
+                        .unwrap_or_default();
+                    self.event(
+                        i,
+                        EventBody::Autopilot {
+                            text: format!("{request} refused: {reason}"),
+                        },
+                    );
+                }
+            }
+            if self.modes.get(i) != Some(&status.mode) {
+                if let Some(m) = self.modes.get_mut(i) {
+                    m.clone_from(&status.mode);
+                }
+                self.event(
+                    i,
+                    EventBody::Alert {
+                        message: format!("mode {}", status.mode),
+                    },
+                );
             }
             if self.links.get(i) != Some(&status.link) {
                 if let Some(l) = self.links.get_mut(i) {
