@@ -300,11 +300,27 @@ async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
     )
     .await;
     let d = wait_status(&k, 0, 30.0, |d| d["mission"]["item_index"] == 3).await;
-    let p = &d["position_enu_m"];
-    assert!(
-        (p[0].as_f64().unwrap() + 4.0).abs() < 0.5 && (p[2].as_f64().unwrap() - 5.0).abs() < 0.5,
-        "{p}"
+    // The modified item 1 and the inserted detour (item 2) were flown and reached.
+    let done = &d["mission"]["done_results"];
+    assert_eq!(
+        (done[1]["item"].clone(), done[1]["result"].clone()),
+        (json!(1), json!("succeeded")),
+        "{d}"
     );
+    assert_eq!(
+        (done[2]["item"].clone(), done[2]["result"].clone()),
+        (json!(2), json!("succeeded")),
+        "{d}"
+    );
+    assert!(
+        (d["position_enu_m"][2].as_f64().unwrap() - 5.0).abs() < 0.5,
+        "{d}"
+    );
+    let (_, view) = get(&k, "/api/missions/1").await;
+    let plan = &view["plan"]["plan"];
+    assert_eq!(plan[1]["args"]["z"], 5.0);
+    assert_eq!(plan[2]["args"]["x"], -4.0);
+    assert_eq!(plan[3]["args"]["x"], 6.0);
     // On-demand inspection takes over: LOAD it, START it while patrol runs.
     let inspect = json!({"target": "drone_0", "plan": [
         {"behavior": "go_to", "args": {"x": 2.0, "y": 2.0, "z": 4.0, "speed": 2.0}},
