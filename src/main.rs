@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 mod cli_mission;
+mod cli_remote;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;
