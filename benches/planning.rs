@@ -1,10 +1,13 @@
 //! Planning benchmarks on a 500 x 500 grid (0.1 m cells) with 10 % random obstacles, corner to
 //! corner: A*, Dijkstra and Voronoi (median time per plan, including pruning), the `pathfinding`
-//! crate's A* on the same grid and moves as a baseline, and a 4-drone coverage plan.
+//! crate's A* on the same grid and moves as a baseline, and a 4-drone coverage plan. Also the
+//! thesis's "medium" Gazebo world (50 m x 50 m, 315 poles of 0.25 m radius, `sitl/worlds`) at
+//! 0.1 m with the Gazebo configuration's 0.4 m safety distance, between two drone starts.
 //!
 //! Run: `cargo bench --bench planning -- --quick`
 
 use std::hint::black_box;
+use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::{Vector2, Vector3};
@@ -138,6 +141,96 @@ fn grid_planners(c: &mut Criterion) {
     c.bench_function("plan/pathfinding crate a_star 500x500 10%", |b| {
         b.iter(|| black_box(run()))
     });
+
+    // The machine is shared, so also time both planners alternately (30 rounds, fastest run of
+    // each): the ratio holds even when the load changes between criterion's groups.
+    let req = request(PlannerKind::AStar);
+    let (mut ours, mut theirs) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..30 {
+        let t = Instant::now();
+        black_box(must(planners.plan(&req, &map, &budget)));
+        ours = ours.min(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        black_box(run());
+        theirs = theirs.min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    println!(
+        "paired fastest of 30: kestrel a_star {ours:.2} ms, pathfinding a_star {theirs:.2} ms, ratio {:.2}",
+        ours / theirs
+    );
+}
+
+/// The thesis's medium world rasterised at 0.1 m: cells whose centre is inside a pole.
+fn medium_world() -> (OccupancyGrid, Vector2<f64>, Vector2<f64>) {
+    let text = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/sitl/worlds/medium.json"
+    ));
+    let world: serde_json::Value = must(serde_json::from_str(text));
+    let radius = world["pole_radius_m"].as_f64().unwrap_or(0.25);
+    let poles: Vec<Vector2<f64>> = world["poles_xy_m"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|p| Some(Vector2::new(p[0].as_f64()?, p[1].as_f64()?)))
+                .collect()
+        })
+        .unwrap_or_default();
+    let xy = |v: &serde_json::Value| {
+        Vector2::new(v[0].as_f64().unwrap_or(0.0), v[1].as_f64().unwrap_or(0.0))
+    };
+    let starts = &world["starts_xy_yaw"]["2"];
+    let spec = GridSpec {
+        resolution_m: 0.1,
+        width_cells: N,
+        height_cells: N,
+        origin_enu_m: Vector2::new(-25.0, -25.0),
+    };
+    let mut grid = must(OccupancyGrid::new(spec));
+    for y in 0..N {
+        for x in 0..N {
+            let c = kestrel::mapping::Cell { x, y };
+            let p = spec.cell_center_enu_m(c);
+            let hit = poles.iter().any(|q| (p - q).norm() <= radius);
+            must(grid.set(c, if hit { 100 } else { 0 }));
+        }
+    }
+    (grid, xy(&starts[0]), xy(&starts[1]))
+}
+
+fn thesis_world(c: &mut Criterion) {
+    let (grid, from, to) = medium_world();
+    let map = PlanningMap::new(grid, 50);
+    let planners = Planners::default();
+    let budget = PlanBudget::default();
+    for (name, kind) in [
+        (
+            "plan/a_star thesis medium world, 0.4 m safety",
+            PlannerKind::AStar,
+        ),
+        (
+            "plan/voronoi thesis medium world, 0.4 m safety",
+            PlannerKind::Voronoi,
+        ),
+    ] {
+        let req = PlanRequest {
+            start_enu_m: Vector3::new(from.x, from.y, 1.0),
+            goal_enu_m: Vector3::new(to.x, to.y, 1.0),
+            safety_distance_m: 0.4,
+            ..request(kind)
+        };
+        let p = must(planners.plan(&req, &map, &budget));
+        println!(
+            "{name}: length {:.2} m, {} raw cells, {} waypoints, min clearance {:.2} m",
+            p.length_m,
+            p.raw_cells,
+            p.waypoints_enu_m.len(),
+            p.min_clearance_m
+        );
+        c.bench_function(name, |b| {
+            b.iter(|| must(planners.plan(black_box(&req), &map, &budget)))
+        });
+    }
 }
 
 fn coverage(c: &mut Criterion) {
@@ -156,5 +249,5 @@ fn coverage(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, grid_planners, coverage);
+criterion_group!(benches, grid_planners, thesis_world, coverage);
 criterion_main!(benches);

@@ -2,21 +2,26 @@
 //! behaviors as the simulator, ticked in real time by a tokio interval.
 //!
 //! In: `--config FILE` (TOML), `--platform` and `--connection` overriding its `[mavlink]`
-//! section. Out: the flight (with `--mission-demo`, the simulator's demo plan), a JSON-lines
+//! section (`--platform platforms/sim.toml` flies the built-in simulator in real time instead). Out: the flight (with `--mission-demo`, the simulator's demo plan), a JSON-lines
 //! flight log, one stdout line per behavior event and platform change.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::behavior::{BehaviorEvent, BehaviorResult, Registry, RunState};
 use kestrel::config::Config;
+use kestrel::control::{AcceptedSetpoints, Setpoint};
 use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
 use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
 use kestrel::platform::mavlink::{LinkConfig, LinkPolicy, MavlinkPlatform, Profile};
-use kestrel::platform::Platform;
+use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use kestrel::sim::script::demo_plan;
+use kestrel::sim::world::World;
+use kestrel::sim::{Environment, SimWorld};
+use kestrel::types::Vec3;
 use kestrel::types::{LinkHealth, PlatformStatus, VehicleState};
+use serde::Deserialize;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -58,6 +63,79 @@ pub fn run(args: RunArgs) -> Result<()> {
     runtime.block_on(run_async(args))
 }
 
+/// `platforms/sim.toml`: the built-in simulator, stepped in real time.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SimPlatformFile {
+    platform: String,
+    name: String,
+    world: Option<PathBuf>,
+    #[serde(default)]
+    seed: u64,
+}
+
+/// A simulated vehicle behind the `Platform` trait, its physics advanced to each poll's time.
+struct RealtimeSim {
+    world: SimWorld,
+    stepped_to: Duration,
+}
+
+/// Physics step of the real-time simulator.
+const SIM_STEP: Duration = Duration::from_millis(5);
+
+impl Platform for RealtimeSim {
+    fn capabilities(&self) -> Capabilities {
+        self.world.vehicles.first().map_or(
+            Capabilities {
+                setpoints: AcceptedSetpoints {
+                    velocity: true,
+                    position: true,
+                },
+                native_takeoff: false,
+                native_land: false,
+            },
+            |v| v.capabilities(),
+        )
+    }
+
+    fn poll(&mut self, now: Duration) -> PlatformFeedback {
+        while self.stepped_to < now {
+            let dt = SIM_STEP.min(now - self.stepped_to);
+            self.world.step(self.stepped_to, dt.as_secs_f64());
+            self.stepped_to += dt;
+        }
+        self.world
+            .vehicles
+            .first_mut()
+            .map(|v| v.poll(now))
+            .unwrap_or_default()
+    }
+
+    fn command(&mut self, now: Duration, setpoint: Option<Setpoint>, requests: &[PlatformRequest]) {
+        if let Some(v) = self.world.vehicles.first_mut() {
+            v.command(now, setpoint, requests);
+        }
+    }
+}
+
+/// `mavlink` or `sim`: the `platform` key of a file in `platforms/`, or a built-in name.
+fn platform_kind(name: &str) -> Result<String> {
+    let path = Path::new(name);
+    if !path.exists() {
+        return match name {
+            "px4" | "ardupilot-copter" => Ok("mavlink".into()),
+            "sim" => Ok("sim".into()),
+            _ => bail!("no platform file `{name}` (and no built-in profile of that name)"),
+        };
+    }
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {name}"))?;
+    let value: toml::Value = toml::from_str(&text).with_context(|| format!("parsing {name}"))?;
+    match value.get("platform").and_then(|v| v.as_str()) {
+        Some(k @ ("mavlink" | "sim")) => Ok(k.to_string()),
+        other => bail!("{name}: `platform` must be \"mavlink\" or \"sim\", got {other:?}"),
+    }
+}
+
 fn load_profile(name: &str) -> Result<Profile> {
     let path = Path::new(name);
     if !path.exists() {
@@ -67,6 +145,64 @@ fn load_profile(name: &str) -> Result<Profile> {
     }
     Ok(Profile::load(path)?)
 }
+
+/// Starts the platform named in config: (platform, readiness timeout, estimator by default).
+fn start_platform(config: &Config) -> Result<(Box<dyn Platform>, Duration, EstimatorPlugin)> {
+    let m = &config.mavlink;
+    if platform_kind(&m.platform)? == "sim" {
+        let file: SimPlatformFile = if Path::new(&m.platform).exists() {
+            toml::from_str(&std::fs::read_to_string(&m.platform)?)
+                .with_context(|| format!("parsing {}", m.platform))?
+        } else {
+            SimPlatformFile {
+                platform: "sim".into(),
+                name: "Built-in simulator".into(),
+                world: None,
+                seed: 0,
+            }
+        };
+        if file.platform != "sim" {
+            bail!("{}: not a simulator platform file", m.platform);
+        }
+        let world = match &file.world {
+            Some(p) => World::load(p)?,
+            None => World::empty(),
+        };
+        let environment = Environment {
+            wind_mps: Vec3::from(config.sim.wind_enu_mps),
+            turbulence_mps2: config.sim.turbulence_mps2,
+        };
+        println!("kestrel run: {} (profile {})", file.name, m.platform);
+        let sim = RealtimeSim {
+            world: SimWorld::new(world, 1, file.seed, environment),
+            stepped_to: Duration::ZERO,
+        };
+        return Ok((
+            Box::new(sim),
+            SIM_READY_TIMEOUT,
+            EstimatorPlugin::GroundTruth,
+        ));
+    }
+    let profile = load_profile(&m.platform)?;
+    let ready_timeout = profile.ready_timeout;
+    println!(
+        "kestrel run: {} over {} (profile {})",
+        profile.name, m.connection, m.platform
+    );
+    let link = LinkConfig {
+        connection: m.connection.clone(),
+        forward: m.forward.clone(),
+    };
+    let platform = MavlinkPlatform::start(profile, m.session_config(), link)?;
+    Ok((
+        Box::new(platform),
+        ready_timeout,
+        EstimatorPlugin::AutopilotOdometry,
+    ))
+}
+
+/// The simulator is ready at once; this only bounds a broken setup.
+const SIM_READY_TIMEOUT: Duration = Duration::from_secs(5);
 
 async fn run_async(args: RunArgs) -> Result<()> {
     let mut config = match &args.config {
@@ -83,25 +219,9 @@ async fn run_async(args: RunArgs) -> Result<()> {
         .mavlink
         .validate()
         .map_err(|(field, message)| anyhow::anyhow!("{field}: {message}"))?;
-    let profile = load_profile(&config.mavlink.platform)?;
-    let ready_timeout = profile.ready_timeout;
-    println!(
-        "kestrel run: {} over {} (profile {})",
-        profile.name, config.mavlink.connection, config.mavlink.platform
-    );
-    let mut platform = MavlinkPlatform::start(
-        profile,
-        config.mavlink.session_config(),
-        LinkConfig {
-            connection: config.mavlink.connection.clone(),
-            forward: config.mavlink.forward.clone(),
-        },
-    )?;
+    let (mut platform, ready_timeout, estimator) = start_platform(&config)?;
     let mut core_config = CoreConfig::new(&config.drone.id);
-    core_config.estimator = config
-        .estimator
-        .plugin
-        .unwrap_or(EstimatorPlugin::AutopilotOdometry);
+    core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
     core_config.controller = config.controller;
     core_config.behaviors = config.behaviors;
     if let Some(o) = config.drone.geodetic_origin {
@@ -129,9 +249,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
     interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let start = Instant::now();
     let limit = Duration::from_secs_f64(args.max_time_s.max(1.0));
-    let mut plan = args
-        .mission_demo
-        .then(|| Plan::new(demo_plan(kestrel::types::Vec3::zeros(), 0.0), ready_timeout));
+    let mut plan = args.mission_demo.then(|| Plan::new(ready_timeout));
     let mut watch = StatusWatch::default();
     let policy = config.mavlink.on_link_regained;
     let ctrl_c = tokio::signal::ctrl_c();
@@ -223,18 +341,14 @@ impl StatusWatch {
         if prev.boot_counter != s.boot_counter {
             out.push(format!("autopilot reboot #{}", s.boot_counter));
         }
-        if prev.last_error != s.last_error {
-            if let Some(e) = &s.last_error {
-                out.push(format!("autopilot: {e}"));
-            }
-        }
         self.last = Some(s.clone());
         out
     }
 }
 
-/// A list of behaviors flown in order once the autopilot is ready, restarting the interrupted
-/// one after a link loss when the policy is `resume`, and landing after a failure.
+/// The demo plan, placed at the vehicle's pose once the autopilot is ready and flown in order;
+/// the interrupted item restarts after a link loss when the policy is `resume`, and a failure
+/// ends with a landing.
 struct Plan {
     items: Vec<(String, Value)>,
     ready_timeout: Duration,
@@ -257,9 +371,9 @@ const LINK_WAIT: Duration = Duration::from_secs(30);
 const LANDING_WAIT: Duration = Duration::from_secs(120);
 
 impl Plan {
-    fn new(items: Vec<(String, Value)>, ready_timeout: Duration) -> Self {
+    fn new(ready_timeout: Duration) -> Self {
         Self {
-            items,
+            items: Vec::new(),
             ready_timeout,
             phase: Phase::WaitReady,
             started_at: None,
@@ -303,6 +417,8 @@ impl Plan {
             Phase::WaitReady => {
                 let since = *self.started_at.get_or_insert(now);
                 if link_ok && state.platform.ready_to_fly && state.estimate.valid.position {
+                    let pose = &state.estimate.pose;
+                    self.items = demo_plan(pose.position_m, pose.yaw_rad());
                     if let Some(e) = self.start(now, core, 0) {
                         self.fail(now, e);
                     }

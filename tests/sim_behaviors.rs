@@ -62,6 +62,11 @@ fn go_to_ends_within_0_2_m_of_the_goal() {
         .map(|s| (s.position_m - goal).dot(&along))
         .fold(f64::NEG_INFINITY, f64::max);
     assert!(overshoot < 0.1, "overshot the goal by {overshoot} m");
+    let fastest = h.samples[0]
+        .iter()
+        .map(|s| s.velocity_mps.norm())
+        .fold(0.0, f64::max);
+    assert!(fastest < 2.0 * 1.05, "flew at {fastest} m/s, asked 2");
     h.assert_log(
         0,
         &[
@@ -111,6 +116,7 @@ fn go_to_yaw_modes_turn_the_vehicle() {
     h.run_for(2.0);
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - std::f64::consts::FRAC_PI_2).abs() < 0.05, "{yaw}");
+    assert_eq!(h.log_sequence(0).len(), 8, "takeoff and three go_to");
 }
 
 #[test]
@@ -128,6 +134,15 @@ fn a_short_go_to_still_ends_at_its_fixed_heading() {
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - 3.0).abs() < 0.05, "stopped turning at {yaw} rad");
     assert!((h.position(0) - Vec3::new(0.3, 0.0, 2.0)).norm() < 0.2);
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -166,6 +181,11 @@ fn follow_path_passes_every_waypoint_without_stopping() {
         .map(|s| s.velocity_mps.norm())
         .fold(f64::INFINITY, f64::min);
     assert!(slowest > 0.2, "slowed to {slowest} m/s between waypoints");
+    let fastest = flight
+        .iter()
+        .map(|s| s.velocity_mps.norm())
+        .fold(0.0, f64::max);
+    assert!(fastest < 1.5 * 1.1, "flew at {fastest} m/s, asked 1.5");
     assert!((h.position(0) - path[3]).norm() < 0.2);
     // 14 m of path at 1.5 m/s with slow corners: well under a stop-and-go time.
     let took = h.now_s() - start;
@@ -334,6 +354,17 @@ fn land_touches_down_and_disarms() {
         .map(|s| -s.velocity_mps.z)
         .fold(0.0, f64::max);
     assert!(fastest < 0.6, "descended at {fastest} m/s");
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:succeeded",
+            "land:started",
+            "land:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -350,6 +381,15 @@ fn rotate_turns_in_place() {
     let yaw = h.runner.world.vehicles[0].state.yaw_rad;
     assert!((yaw - 2.0).abs() < 0.05, "{yaw}");
     assert!((h.position(0) - here).norm() < 0.1);
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "rotate:started",
+            "rotate:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -360,6 +400,15 @@ fn hover_lasts_its_duration() {
     let id = h.fly(0, "hover", json!({ "duration": 4.0 }), 10.0);
     let took = h.finished_at(0, id).unwrap() - start;
     assert!((took - 4.0).abs() < 0.05, "{took}");
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "hover:started",
+            "hover:finished:succeeded",
+        ],
+    );
 }
 
 #[test]
@@ -385,6 +434,7 @@ fn goals_that_cannot_be_flown_are_rejected_with_a_reason() {
         )
         .unwrap_err();
     assert!(err.to_string().contains("height"), "{err}");
+    assert!(h.log_sequence(0).is_empty(), "rejected goals never start");
 }
 
 #[test]
@@ -410,4 +460,73 @@ fn a_landed_drone_takes_off_again_and_rtl_goes_to_the_new_home() {
     let p = h.position(0);
     assert!((p.xy() - Vec3::new(4.0, 3.0, 0.0).xy()).norm() < 0.2, "{p}");
     assert_eq!(h.log_sequence(0).len(), 12);
+}
+
+#[test]
+fn every_estimator_plugin_flies_the_simulator() {
+    use kestrel::core::CoreConfig;
+    use kestrel::estimator::EstimatorPlugin;
+    use kestrel::sim::runner::SimConfig;
+    use kestrel::sim::world::World;
+    for plugin in [
+        EstimatorPlugin::GroundTruth,
+        EstimatorPlugin::AutopilotOdometry,
+        EstimatorPlugin::ExternalPose,
+    ] {
+        let mut h =
+            Harness::with_core_config(World::empty(), SimConfig::default(), |i| CoreConfig {
+                estimator: plugin,
+                ..CoreConfig::new(&format!("drone_{i}"))
+            });
+        h.take_off(0, 2.0);
+        let goal = Vec3::new(3.0, 2.0, 2.0);
+        h.fly(
+            0,
+            "go_to",
+            json!({ "x": 3.0, "y": 2.0, "z": 2.0, "speed": 1.0 }),
+            30.0,
+        );
+        assert!((h.position(0) - goal).norm() < 0.2, "{plugin:?}");
+    }
+}
+
+#[test]
+fn a_paused_follow_path_resumes_through_the_waypoints_left() {
+    let mut h = Harness::one_drone();
+    h.take_off(0, 2.0);
+    let path = [
+        Vec3::new(5.0, 0.0, 2.0),
+        Vec3::new(5.0, 5.0, 2.0),
+        Vec3::new(0.0, 5.0, 2.0),
+    ];
+    let goal_path: Vec<[f64; 3]> = path.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let start = h.now_s();
+    let id = h.start(0, "follow_path", json!({ "path": goal_path, "speed": 1.5 }));
+    h.run_until(20.0, "the first corner", |h| {
+        (h.position(0) - path[0]).norm() < 0.3
+    });
+    h.run_for(1.0);
+    h.command(0, BehaviorCommand::Pause(id));
+    h.run_for(5.0);
+    let hold = h.position(0);
+    h.run_for(3.0);
+    assert!((h.position(0) - hold).norm() < 0.1, "holds while paused");
+    h.command(0, BehaviorCommand::Resume(id));
+    assert_eq!(h.wait_for(0, id, 40.0), BehaviorResult::Succeeded);
+    let flight = h.samples_between(0, start, h.now_s());
+    for w in &path {
+        let (d, _) = closest_approach(&flight, w);
+        assert!(d < 0.3, "waypoint {w} missed by {d} m");
+    }
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "follow_path:started",
+            "follow_path:paused",
+            "follow_path:resumed",
+            "follow_path:finished:succeeded",
+        ],
+    );
 }

@@ -136,6 +136,16 @@ fn two_drones_flown_into_each_other_both_report_it() {
             .iter()
             .any(|r| r["type"] == "collision" && r["drone"] == d));
     }
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:failed",
+        ],
+    );
+    h.assert_log(1, &["takeoff:started", "takeoff:finished:succeeded"]);
 }
 
 #[test]
@@ -153,6 +163,15 @@ fn a_go_to_against_an_overwhelming_wind_fails_with_a_reason() {
     assert!(failed_with(&result, "no progress"), "{result:?}");
     // Then the server holds the vehicle as well as it can: still flying, still armed.
     assert!(h.runner.world.vehicles[0].is_armed());
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:failed",
+        ],
+    );
 }
 
 #[test]
@@ -169,6 +188,15 @@ fn a_follow_path_the_vehicle_cannot_fly_fails_with_a_reason() {
     assert!(failed_with(&result, "no progress"), "{result:?}");
     let took = h.finished_at(0, id).unwrap() - h.finished_at(0, 1).unwrap();
     assert!(took < 25.0, "gave up after {took} s");
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "follow_path:started",
+            "follow_path:finished:failed",
+        ],
+    );
 }
 
 #[test]
@@ -197,4 +225,16 @@ fn hover_holds_position_in_a_steady_wind_with_gusts() {
     let worst = common::max_distance(&h.samples_between(0, t, h.now_s()), &goal);
     assert!(worst < 0.3, "wandered {worst} m from the hover point");
     h.command(0, BehaviorCommand::Stop(id));
+    h.step();
+    h.assert_log(
+        0,
+        &[
+            "takeoff:started",
+            "takeoff:finished:succeeded",
+            "go_to:started",
+            "go_to:finished:succeeded",
+            "hover:started",
+            "hover:finished:aborted",
+        ],
+    );
 }

@@ -4,6 +4,8 @@
 #   KESTREL_BIN=target/release/kestrel bash web/ci.sh
 #   WEB_E2E=0 bash web/ci.sh     # build and unit tests only (no kestrel yet)
 set -euo pipefail
+# A relative KESTREL_BIN is relative to where the script was called from.
+if [ -n "${KESTREL_BIN:-}" ]; then KESTREL_BIN="$(realpath -m "$KESTREL_BIN")"; fi
 cd "$(dirname "$0")"
 
 echo "== web: npm ci"
@@ -30,4 +32,6 @@ if [ ! -x /usr/bin/chromium ]; then
 fi
 
 echo "== web: browser tests (playwright-core + /usr/bin/chromium, kestrel at $KESTREL_BIN)"
-KESTREL_BIN="$(realpath "$KESTREL_BIN")" node --test --test-concurrency=1 e2e/
+rm -rf ../artifacts/web
+[ -x "$KESTREL_BIN" ] || { echo "KESTREL_BIN=$KESTREL_BIN is not an executable" >&2; exit 1; }
+KESTREL_BIN="$KESTREL_BIN" node --test --test-concurrency=1 e2e/

@@ -56,6 +56,8 @@ def parse_args(argv=None):
     ap.add_argument("--latency-ms", type=float, default=0.0, help="added one-way latency, both ways")
     ap.add_argument("--reject", action="append", default=[], metavar="CMD:RESULT[:COUNT]",
                     help="reject command id CMD with MAV_RESULT RESULT (COUNT times, default always)")
+    ap.add_argument("--log-jsonl", metavar="PATH", default=None,
+                    help="append every log entry (modes, acks, events, faults) as JSON lines")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     if args.rangers is None:
@@ -101,7 +103,7 @@ class App:
         return {"personality": self.args.personality, "world": self.world.name,
                 "control_port": self.args.control_port, "speed_factor": self.args.speed_factor,
                 "vehicles": [{"index": v.index, "sysid": v.sysid, "link": v.link.describe,
-                              "start_enu": v.start_pose} for v in self.vehicles]}
+                              "start_xy_yaw_enu": list(v.start_pose)} for v in self.vehicles]}
 
     # ------------------------------------------------------------------ loop
     def run(self):
@@ -212,6 +214,7 @@ class App:
 
 def main(argv=None):
     args = parse_args(argv)
+    args.log_sink = open(args.log_jsonl, "a") if args.log_jsonl else None
     app = App(args)
     if not args.quiet:
         print(json.dumps({"ready": True, **app.banner()}), flush=True)

@@ -24,6 +24,8 @@ class ArduPilotVehicle(Vehicle):
     name = "ardupilot"
     capabilities = 64495        # as captured (4.7.0-dev)
     flight_sw_version = 67567616
+    sensors_present_enabled_health = (1399979023, 1380031503, 1196530703)
+    battery_mv = 12600
 
     def limits(self):
         return Limits(max_speed_xy_mps=5.0, max_speed_up_mps=2.5, max_speed_down_mps=1.5,
@@ -74,6 +76,9 @@ class ArduPilotVehicle(Vehicle):
 
     def mode_name(self):
         return MODES.get(self.mode, str(self.mode))
+
+    def extra_state(self):
+        return {"ekf_position_ok": self.pos_ok, "origin_set": self.origin_set}
 
     def in_external_control(self):
         return self.mode == 4
@@ -231,6 +236,31 @@ class ArduPilotVehicle(Vehicle):
             self.model.liftoff_delay_s = TAKEOFF_SPOOL_S
             self.model.target = Target("position", (b.pos[0], b.pos[1], self.takeoff_alt_m),
                                        speed_up_mps=self.param("WPNAV_SPEED_UP") / 100)
+            return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_DO_REPOSITION:
+            if pint(p[2]) & 1 and self.mode != 4:
+                if not self.set_mode(4, "DO_REPOSITION"):
+                    return M.MAV_RESULT_FAILED
+            if self.mode != 4 or not self.armed or not self.airborne:
+                return M.MAV_RESULT_FAILED
+            self.taking_off = False
+            self.model.target = self.reposition_target(p)
+            self.vel_target_time = None
+            return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_CONDITION_YAW:
+            if self.mode != 4 or not self.armed:
+                return M.MAV_RESULT_FAILED
+            b = self.model.body
+            angle = math.radians(p[1] or 0.0)
+            if pint(p[4]):  # relative, p3 direction: 1 clockwise, -1 counter-clockwise
+                yaw_ned = self.yaw_enu_to_ned(b.yaw_rad) + (angle if pint(p[3]) >= 0 else -angle)
+            else:
+                yaw_ned = angle
+            t = self.model.target
+            if t.kind == "idle" or not self.airborne:
+                return M.MAV_RESULT_FAILED
+            t.yaw_rad = self.yaw_ned_to_enu(yaw_ned)
+            t.yaw_rate_rps = None
             return M.MAV_RESULT_ACCEPTED
         if cmd == M.MAV_CMD_NAV_LAND:
             return M.MAV_RESULT_ACCEPTED if self.set_mode(9, "NAV_LAND") else M.MAV_RESULT_FAILED

@@ -45,6 +45,9 @@ class UdpLink:
     def reset_peer(self):
         self.peer = self.default_peer
 
+    def set_down(self, down):
+        pass  # UDP: silence is enough
+
     def close(self):
         self.sock.close()
 
@@ -59,6 +62,7 @@ class TcpServerLink:
         self.server.listen(4)
         self.server.setblocking(False)
         self.client = None
+        self.down = False   # simulated reboot: the autopilot process is gone
         self.describe = f"tcp server {port}"
         self.on_change = None  # callback(selector-relevant sockets changed)
 
@@ -70,6 +74,9 @@ class TcpServerLink:
             try:
                 conn, _ = self.server.accept()
             except (BlockingIOError, InterruptedError):
+                return []
+            if self.down:
+                conn.close()  # nobody home while rebooting
                 return []
             conn.setblocking(False)
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -116,6 +123,14 @@ class TcpServerLink:
 
     def reset_peer(self):
         pass
+
+    def set_down(self, down):
+        """Reboot of a real ArduPilot (SITL) closes its TCP connection; clients must reconnect."""
+        self.down = down
+        if down:
+            self._drop_client()
+            if self.on_change:
+                self.on_change()
 
     def close(self):
         self._drop_client()

@@ -27,6 +27,7 @@ EVENTS = {
 FORCE_MAGIC = 21196
 SPOOLUP_S = 2.0        # arming to leaving the ground (takeoff detected ~1.7-1.9 s after arming)
 LAND_DETECT_S = 2.5    # touchdown to "Landing detected"
+FAILSAFE_SWITCH_S = 0.06
 
 
 def custom_mode_of(name):
@@ -40,6 +41,8 @@ class Px4Vehicle(Vehicle):
     capabilities = 59647        # as captured
     flight_sw_version = 255
     ack_before_replies = True
+    sensors_present_enabled_health = (50348079, 50413615, 320915519)
+    battery_mv = 16200
 
     def limits(self):
         # tuned so offboard takeoff to 5 m, the 11 m go-to and AUTO.LAND take about as long as captured
@@ -72,7 +75,8 @@ class Px4Vehicle(Vehicle):
     def default_streams(self):
         hz = self.opts.attitude_hz
         return {0: 1.0, 1: 0.2, 2: 1.0, 24: 0.125, 30: 1.0 / hz, 31: 2.0 / hz, 32: 1 / 30, 33: 1.0 / hz,
-                331: 1 / 30, 132: 0.1, 245: 0.2, 242: 2.0, 147: 2.0, 436: 2.0, 411: 3.0, 74: 0.2, 85: 0.1}
+                331: 1 / 30, 132: 0.1, 245: 0.2, 242: 2.0, 147: 2.0, 436: 2.0, 411: 3.0, 74: 0.2, 85: 0.1,
+                111: 0.1}
 
     def set_message_interval(self, msg_id, interval_us):
         if msg_id == 0:
@@ -81,7 +85,8 @@ class Px4Vehicle(Vehicle):
 
     def generators(self):
         g = super().generators()
-        g.update({331: self.msg_odometry, 436: self.msg_current_mode, 411: self.msg_event_sequence})
+        g.update({331: self.msg_odometry, 436: self.msg_current_mode, 411: self.msg_event_sequence,
+                  111: self.msg_timesync_request})
         return g
 
     def personality_boot(self):
@@ -96,6 +101,8 @@ class Px4Vehicle(Vehicle):
         self.landed_since = None
         self.landing_detected_at = None
         self.rtl_phase = None
+        self.loss_detected_at = None
+        self.takeoff_alt_m = None
         self.model.target = Target("idle")
 
     # ------------------------------------------------------------------ heartbeat
@@ -128,6 +135,10 @@ class Px4Vehicle(Vehicle):
     def mode_name(self):
         return self.mode
 
+    def extra_state(self):
+        return {"offboard_signal": self.offboard_signal(), "failsafe": self.failsafe,
+                "intended_mode": self.intended_mode}
+
     def in_external_control(self):
         return self.mode == "OFFBOARD"
 
@@ -137,6 +148,10 @@ class Px4Vehicle(Vehicle):
         self.event_seq = (self.event_seq + 1) & 0xFFFF
         self.send(EventMsg(0, 0, eid, self.boot_ms(), self.event_seq, levels, args))
         self.note("event", name, id=eid, sequence=self.event_seq)
+
+    def msg_timesync_request(self):
+        """PX4 asks its peers for time sync at 10 Hz (tc1 = 0, ts1 = its time in ns)."""
+        return M.MAVLink_timesync_message(0, self.boot_us() * 1000)
 
     def msg_event_sequence(self):
         return CurrentEventSequenceMsg(self.event_seq, 0)
@@ -193,12 +208,12 @@ class Px4Vehicle(Vehicle):
                 self.model.target = self.last_sp_target
         elif name == "AUTO.TAKEOFF":
             self.takeoff_xy = (b.pos[0], b.pos[1])
-            if not hasattr(self, "takeoff_alt_m") or self.takeoff_alt_m is None:
+            if self.takeoff_alt_m is None:
                 self.takeoff_alt_m = self.home_enu[2] + self.param("MIS_TAKEOFF_ALT")
         elif name == "AUTO.RTL":
             self.rtl_phase = "climb"
-        if name not in ("AUTO.TAKEOFF",):
-            self.takeoff_alt_m = None if name != "AUTO.TAKEOFF" else self.takeoff_alt_m
+        if name != "AUTO.TAKEOFF":
+            self.takeoff_alt_m = None
         self.apply_mode_target()
         self.send(self.msg_current_mode())
 
@@ -251,6 +266,13 @@ class Px4Vehicle(Vehicle):
             self.set_mode("AUTO.TAKEOFF")
             self.takeoff_alt_m = alt
             self.apply_mode_target()
+            return M.MAV_RESULT_ACCEPTED
+        if cmd == M.MAV_CMD_DO_REPOSITION:
+            if not (self.armed and self.airborne):
+                return M.MAV_RESULT_TEMPORARILY_REJECTED
+            target = self.reposition_target(p)
+            self.set_mode("AUTO.LOITER")
+            self.model.target = target
             return M.MAV_RESULT_ACCEPTED
         if cmd == M.MAV_CMD_NAV_LAND:
             return self.request_mode("AUTO.LAND")
@@ -380,17 +402,22 @@ class Px4Vehicle(Vehicle):
             return
         b = self.model.body
         agl = self.altitude_agl_m()
-        # offboard loss failsafe
+        # offboard loss failsafe: health events at COM_OF_LOSS_T, mode switch ~60 ms later
+        # (captured: events 1.01 s, CURRENT_MODE 1.06-1.11 s after the last setpoint)
         if self.mode == "OFFBOARD" and self.armed and not self.offboard_signal():
-            self.failsafe = True
-            self.note("failsafe", "offboard signal lost")
-            self.event("check_modes_offboard_signal", bytes([0, 0x40, 0, 0, 0x14]))
-            action = self.opts.offboard_loss_action
-            target_mode = "AUTO.LAND" if action == "land" else "POSCTL"
-            self.event("commander_failsafe_enter_generic", bytes([0, 0, 6, 0, 2]))
-            self.set_mode(target_mode, reason="failsafe")
-            self.failsafe = True
-            self.apply_mode_target()
+            if self.loss_detected_at is None:
+                self.loss_detected_at = now
+                self.note("failsafe", "offboard signal lost")
+                self.event("check_modes_offboard_signal", bytes([0, 0x40, 0, 0, 0x14]))
+            elif now - self.loss_detected_at >= FAILSAFE_SWITCH_S:
+                self.loss_detected_at = None
+                self.failsafe = True
+                target_mode = "AUTO.LAND" if self.param("COM_OBL_RC_ACT") == 4 else "POSCTL"
+                self.event("commander_failsafe_enter_generic", bytes([0, 0, 6, 0, 2]))
+                self.set_mode(target_mode, reason="failsafe")
+                self.apply_mode_target()
+        else:
+            self.loss_detected_at = None
         if not self.armed:
             self.landed_state = M.MAV_LANDED_STATE_ON_GROUND if b.on_ground else M.MAV_LANDED_STATE_IN_AIR
             return

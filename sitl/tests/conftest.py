@@ -1,6 +1,8 @@
 """Fixtures: start the fake autopilot as a subprocess on free ports and talk to it."""
+import collections
 import json
 import os
+import threading
 import socket
 import subprocess
 import sys
@@ -50,6 +52,7 @@ class Fake:
             ports = ["--ardupilot-tcp-base", str(self.tcp)]
         cmd = [sys.executable, os.path.join(SITL, "fake_autopilot.py"), "--personality", personality,
                "--control-port", str(self.control_port), "--speed-factor", str(speed), "--quiet"] + ports + extra
+        self.links = []
         self.proc = subprocess.Popen(cmd)
         self.speed = speed
         deadline = time.time() + 10
@@ -79,9 +82,16 @@ class Fake:
                                        source_component=191 if self.personality == "px4" else 190,
                                        dialect="ardupilotmega")
         m.wait_heartbeat(timeout=10)
-        return Link(m, self)
+        link = Link(m, self)
+        self.links.append(link)
+        return link
 
     def stop(self):
+        for link in self.links:
+            try:
+                link.close()
+            except Exception:
+                pass
         try:
             self.ctl.close()
         except OSError:
@@ -94,7 +104,9 @@ class Fake:
 
 
 class Link:
-    """Small helper around a pymavlink connection."""
+    """A pymavlink connection read continuously by a background thread, so that the
+    socket's receive buffer never overflows while a test sleeps or streams setpoints
+    (a full UDP buffer silently drops datagrams, e.g. a COMMAND_ACK)."""
 
     def __init__(self, m, fake):
         self.m = m
@@ -102,6 +114,27 @@ class Link:
         self.ts = m.target_system
         self.tc = 1
         self.history = []  # every message received through recv(), in order
+        self._queue = collections.deque()
+        self._cond = threading.Condition()
+        self._stop = False
+        self._thread = threading.Thread(target=self._reader, daemon=True)
+        self._thread.start()
+
+    def _reader(self):
+        while not self._stop:
+            try:
+                msg = self.m.recv_match(blocking=True, timeout=0.05)
+            except Exception:  # socket closed under us
+                return
+            if msg is not None:
+                with self._cond:
+                    self._queue.append(msg)
+                    self._cond.notify_all()
+
+    def drain(self):
+        """Drop everything received so far."""
+        with self._cond:
+            self._queue.clear()
 
     def seen_or_recv(self, types, timeout=2.0, cond=None):
         """First matching message already received (e.g. before a COMMAND_ACK), else wait."""
@@ -112,17 +145,21 @@ class Link:
         return self.recv(types, timeout, cond)
 
     def recv(self, types, timeout=5.0, cond=None):
+        types = [types] if isinstance(types, str) else types
         deadline = time.time() + timeout
-        while time.time() < deadline:
-            msg = self.m.recv_match(blocking=True, timeout=min(0.2, max(0.01, deadline - time.time())))
-            if msg is None:
-                continue
+        while True:
+            with self._cond:
+                while not self._queue:
+                    left = deadline - time.time()
+                    if left <= 0:
+                        return None
+                    self._cond.wait(left)
+                msg = self._queue.popleft()
             self.history.append(msg)
             if len(self.history) > 20000:
                 del self.history[:10000]
-            if msg.get_type() in ([types] if isinstance(types, str) else types) and (cond is None or cond(msg)):
+            if msg.get_type() in types and (cond is None or cond(msg)):
                 return msg
-        return None
 
     def command(self, cmd, *params, timeout=1.5, attempts=2):
         """COMMAND_LONG with one retransmission (confirmation 1), as ground stations do."""
@@ -145,6 +182,8 @@ class Link:
         self.m.mav.heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 4)
 
     def close(self):
+        self._stop = True
+        self._thread.join(1.0)
         self.m.close()
 
 

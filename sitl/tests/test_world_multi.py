@@ -73,6 +73,7 @@ def test_ardupilot_proximity_ids_and_packet_loss(fake_factory, tmp_path):
     assert link.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 2e4) == M.MAV_RESULT_ACCEPTED
     f.control(cmd="packet_loss", probability=0.5)
     time.sleep(0.3)
+    link.drain()
     n = 0
     end = time.time() + 2
     while time.time() < end:
@@ -80,3 +81,18 @@ def test_ardupilot_proximity_ids_and_packet_loss(fake_factory, tmp_path):
             n += 1
     assert 25 < n < 75, n
     f.control(cmd="clear_faults")
+
+
+def test_ardupilot_two_vehicles_tcp_ports_and_log_file(fake_factory, tmp_path):
+    log = tmp_path / "fake.jsonl"
+    f = fake_factory("ardupilot", "--vehicles", "2", "--log-jsonl", str(log))
+    from conftest import mavutil
+    m = mavutil.mavlink_connection(f"tcp:127.0.0.1:{f.tcp + 10}", source_system=255, source_component=190)
+    hb = m.wait_heartbeat(timeout=5)
+    assert hb.get_srcSystem() == 2 and hb.autopilot == 3
+    m.mav.command_long_send(2, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 30, 1e5, 0, 0, 0, 0, 0)
+    ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=3)
+    assert ack.result == 0
+    m.close()
+    entries = [json.loads(line) for line in log.read_text().splitlines()]
+    assert {"vehicle": 1, "kind": "ack", "command": 511} .items() <= [e for e in entries if e["kind"] == "ack"][0].items()

@@ -22,6 +22,10 @@ pub struct ControllerConfig {
     pub max_up_speed_mps: f64,
     pub max_down_speed_mps: f64,
     pub max_yaw_rate_radps: f64,
+    /// Time constant of the autopilot's velocity response (s). Trajectory references add
+    /// their acceleration times this to the velocity command, so the vehicle keeps up with a
+    /// speeding-up reference instead of lagging and then overshooting the speed to catch up.
+    pub velocity_lag_s: f64,
 }
 
 impl Default for ControllerConfig {
@@ -36,6 +40,7 @@ impl Default for ControllerConfig {
             max_up_speed_mps: 3.0,
             max_down_speed_mps: 1.5,
             max_yaw_rate_radps: 1.5,
+            velocity_lag_s: 0.25,
         }
     }
 }
@@ -130,8 +135,8 @@ impl Controller {
             MotionReference::Trajectory {
                 position_enu_m,
                 velocity_enu_mps,
+                acceleration_enu_mps2,
                 yaw,
-                ..
             } => {
                 if !self.accepted.velocity && self.accepted.position {
                     return Setpoint::Position {
@@ -143,7 +148,9 @@ impl Controller {
                 let correction =
                     self.trajectory_pid
                         .update(position_enu_m - position, dt_s, Vec3::zeros());
-                let v = self.clamp_velocity(velocity_enu_mps + correction, f64::INFINITY);
+                let feed_forward =
+                    velocity_enu_mps + acceleration_enu_mps2 * self.config.velocity_lag_s;
+                let v = self.clamp_velocity(feed_forward + correction, f64::INFINITY);
                 self.velocity_setpoint(v, yaw, state, dt_s)
             }
         }
@@ -305,6 +312,25 @@ mod tests {
         };
         let (v, _) = velocity_of(c.update(&state_at(Vec3::new(1.0, 1.0, 1.0), 0.0), &r, 0.01));
         assert!((v - Vec3::new(0.5, 0.0, 0.0)).norm() < 1e-9);
+    }
+
+    #[test]
+    fn trajectory_acceleration_leads_the_velocity_command() {
+        let mut c = Controller::new(
+            ControllerConfig::default(),
+            AcceptedSetpoints {
+                velocity: true,
+                position: true,
+            },
+        );
+        let r = MotionReference::Trajectory {
+            position_enu_m: Vec3::zeros(),
+            velocity_enu_mps: Vec3::new(1.0, 0.0, 0.0),
+            acceleration_enu_mps2: Vec3::new(2.0, 0.0, 0.0),
+            yaw: YawTarget::Rate(0.0),
+        };
+        let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01));
+        assert!((v.x - (1.0 + 2.0 * 0.25)).abs() < 1e-9, "{v}");
     }
 
     #[test]

@@ -50,6 +50,7 @@ pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFl
             let mut c = CoreConfig::new(&format!("drone_{i}"));
             c.controller = config.controller;
             c.behaviors = config.behaviors;
+            c.estimator = config.estimator.plugin.unwrap_or_default();
             if let Some(o) = origin {
                 c.geo_origin = GeodeticOrigin(o);
             }

@@ -8,7 +8,8 @@
 //! same width at both ends. Each aisle gets one node per bed (at the bed's centre, where a drone
 //! inspects the beds on both sides) plus a node at each end; the end nodes of neighbouring aisles
 //! are joined through the head corridors. Stacked levels repeat the graph at each height and join
-//! levels at the aisle ends.
+//! levels at the aisle ends. Node ids: `L{level}_A{aisle}_W` (west end), `L{level}_A{aisle}_B{bed}`
+//! and `L{level}_A{aisle}_E` (east end), all counted from 0; edge weights are Euclidean lengths.
 
 use std::collections::HashMap;
 
@@ -178,15 +179,11 @@ impl TopoGraph {
     /// Builds the indoor-farm graph described in the module docs.
     pub fn from_indoor_farm(farm: &FarmSpec) -> Result<Self, MapError> {
         farm.validate()?;
-        let mut nodes = Vec::new();
+        let mut nodes: Vec<GraphNode> = Vec::new();
         let mut edges = Vec::new();
-        let node = |id: String, xy: Vector2<f64>, z: f64| GraphNode {
-            id,
-            position_enu_m: Vector3::new(xy.x, xy.y, z),
-        };
-        let mut edge = |nodes: &[GraphNode], a: &str, b: &str| {
-            let pos = |id: &str| nodes.iter().find(|n| n.id == id).map(|n| n.position_enu_m);
-            if let (Some(pa), Some(pb)) = (pos(a), pos(b)) {
+        let mut position: HashMap<String, Vector3<f64>> = HashMap::new();
+        let mut edge = |position: &HashMap<String, Vector3<f64>>, a: &str, b: &str| {
+            if let (Some(pa), Some(pb)) = (position.get(a), position.get(b)) {
                 edges.push(GraphEdge {
                     from: a.to_owned(),
                     to: b.to_owned(),
@@ -202,15 +199,21 @@ impl TopoGraph {
                     .chain(std::iter::once(format!("L{l}_A{a}_E")))
                     .collect();
                 for (k, id) in chain.iter().enumerate() {
-                    nodes.push(node(id.clone(), farm.aisle_point(a, k), z));
+                    let xy = farm.aisle_point(a, k);
+                    let p = Vector3::new(xy.x, xy.y, z);
+                    position.insert(id.clone(), p);
+                    nodes.push(GraphNode {
+                        id: id.clone(),
+                        position_enu_m: p,
+                    });
                 }
                 for pair in chain.windows(2) {
-                    edge(&nodes, &pair[0], &pair[1]);
+                    edge(&position, &pair[0], &pair[1]);
                 }
                 if a > 0 {
                     for end in ["W", "E"] {
                         edge(
-                            &nodes,
+                            &position,
                             &format!("L{l}_A{}_{end}", a - 1),
                             &format!("L{l}_A{a}_{end}"),
                         );
@@ -219,7 +222,7 @@ impl TopoGraph {
                 if l > 0 {
                     for end in ["W", "E"] {
                         edge(
-                            &nodes,
+                            &position,
                             &format!("L{}_A{a}_{end}", l - 1),
                             &format!("L{l}_A{a}_{end}"),
                         );

@@ -8,6 +8,7 @@
 
 use std::collections::BTreeMap;
 
+use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 
 use super::grid::{Cell, CellBox, GridSpec, InsertParams, OccupancyGrid, UNKNOWN};
@@ -72,10 +73,25 @@ impl LayeredMap {
         local: &OccupancyGrid,
     ) -> Result<Option<CellBox>, MapError> {
         let spec = *self.global.spec();
+        // Global cells whose centres can fall inside the local grid.
+        let ls = local.spec();
+        let lo = (ls.origin_enu_m - spec.origin_enu_m) / spec.resolution_m;
+        let hi = lo
+            + Vector2::new(f64::from(ls.width_cells), f64::from(ls.height_cells)) * ls.resolution_m
+                / spec.resolution_m;
+        let range = |a: f64, b: f64, n: u32| {
+            let first = (a.floor().max(0.0) as u32).min(n);
+            let end = ((b.ceil().max(0.0)) as u32).min(n);
+            first..end
+        };
+        let (xs, ys) = (
+            range(lo.x, hi.x, spec.width_cells),
+            range(lo.y, hi.y, spec.height_cells),
+        );
         let layer = self.layer_mut(drone)?;
         let mut covered: Option<CellBox> = None;
-        for y in 0..spec.height_cells {
-            for x in 0..spec.width_cells {
+        for y in ys {
+            for x in xs.clone() {
                 let c = Cell { x, y };
                 let Some(v) = local.get_at(spec.cell_center_enu_m(c)) else {
                     continue;
@@ -129,7 +145,7 @@ impl LayeredMap {
 mod tests {
     use super::*;
     use crate::mapping::scan::Beam;
-    use nalgebra::{Vector2, Vector3};
+    use nalgebra::Vector3;
 
     fn spec(w: u32, h: u32, res: f64, ox: f64) -> GridSpec {
         GridSpec {
@@ -182,6 +198,19 @@ mod tests {
         m.insert("b", &beam_scan(0.5, 4.0)).unwrap();
         // Cell 3: a says 40, b says 0 -> 20; cell 4: only b, 40.
         assert_eq!(row0(&m.global), vec![0, 0, 0, 20, 40, -1]);
+    }
+
+    #[test]
+    fn merge_local_clips_a_grid_hanging_over_the_edge() {
+        let mut m =
+            LayeredMap::new(spec(4, 1, 1.0, 0.0), FuseRule::Max, InsertParams::default()).unwrap();
+        // Local grid covers x in [-2, 2): only global cells 0 and 1 are inside it.
+        let local = OccupancyGrid::from_data(spec(4, 1, 1.0, -2.0), vec![100, 100, 30, 0]).unwrap();
+        m.merge_local("cf4", &local).unwrap();
+        assert_eq!(row0(&m.global), vec![30, 0, -1, -1]);
+        // A grid entirely outside changes nothing.
+        let far = OccupancyGrid::from_data(spec(2, 1, 1.0, 50.0), vec![100, 100]).unwrap();
+        assert_eq!(m.merge_local("cf4", &far).unwrap(), None);
     }
 
     #[test]

@@ -8,6 +8,17 @@ use nalgebra::Vector2;
 
 use super::grid::GridSpec;
 
+/// `x.floor() as i64` without the libm call (`floor` is not inlined on baseline x86_64).
+/// Values beyond the `i64` range saturate, as `as` does.
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x {
+        t - 1
+    } else {
+        t
+    }
+}
+
 /// How a traced segment ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TraceEnd {
@@ -73,8 +84,8 @@ pub fn trace_segment(
     let cell = |t: f64| {
         let p = p0 + d * t;
         (
-            (p.x.floor() as i64).clamp(0, wi - 1),
-            (p.y.floor() as i64).clamp(0, hi - 1),
+            floor_i64(p.x).clamp(0, wi - 1),
+            floor_i64(p.y).clamp(0, hi - 1),
         )
     };
     let (mut cx, mut cy) = cell(t0);
@@ -198,6 +209,13 @@ mod tests {
         let (c, end) = cells(&spec10(), (-3.0, -1.0), (20.0, -1.0));
         assert!(c.is_empty());
         assert_eq!(end, TraceEnd::Outside);
+    }
+
+    #[test]
+    fn floor_matches_std_for_negative_and_integral_values() {
+        for x in [-2.5, -2.0, -0.1, 0.0, 0.7, 3.0, 1e10] {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
     }
 
     #[test]

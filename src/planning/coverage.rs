@@ -335,11 +335,24 @@ fn assign(
             (df, false)
         }
     };
+    let matrix: Vec<Vec<f64>> = (0..n)
+        .map(|d| (0..n).map(|p| cost(d, p).0).collect())
+        .collect();
     let order: Vec<usize> = if n <= EXACT_ASSIGNMENT_MAX {
         let mut perm: Vec<usize> = (0..n).collect();
         let mut best = (f64::INFINITY, perm.clone());
         permute(&mut perm, 0, &mut |p| {
-            let c: f64 = p.iter().enumerate().map(|(d, &i)| cost(d, i).0).sum();
+            let c: f64 = p
+                .iter()
+                .enumerate()
+                .map(|(d, &i)| {
+                    matrix
+                        .get(d)
+                        .and_then(|row| row.get(i))
+                        .copied()
+                        .unwrap_or(f64::INFINITY)
+                })
+                .sum();
             if c < best.0 - 1e-9 {
                 best = (c, p.to_vec());
             }
@@ -350,13 +363,18 @@ fn assign(
         let mut taken = vec![false; n];
         let mut pairs: Vec<(f64, usize, usize)> = (0..n)
             .flat_map(|d| (0..n).map(move |p| (d, p)))
-            .map(|(d, p)| (cost(d, p).0, d, p))
+            .map(|(d, p)| {
+                let c = matrix.get(d).and_then(|row| row.get(p)).copied();
+                (c.unwrap_or(f64::INFINITY), d, p)
+            })
             .collect();
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
         for (_, d, p) in pairs {
-            if order.get(d) == Some(&usize::MAX) && !taken.get(p).copied().unwrap_or(true) {
-                order[d] = p;
-                taken[p] = true;
+            if let (Some(o), Some(t)) = (order.get_mut(d), taken.get_mut(p)) {
+                if *o == usize::MAX && !*t {
+                    *o = p;
+                    *t = true;
+                }
             }
         }
         order

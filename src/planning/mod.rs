@@ -13,7 +13,12 @@
 //! (orthogonal step = resolution, diagonal = resolution * sqrt 2). A cell is blocked when it is
 //! occupied (`>= occupied_threshold`), unknown under [`UnknownPolicy::Blocked`], or within
 //! `safety_distance_m` of an occupied cell (round inflation from the exact distance transform).
-//! A start inside the inflated zone may climb out along non-decreasing clearance.
+//! A start inside the inflated zone may climb out along strictly increasing clearance. Unknown
+//! cells are not obstacles for the distance field (an exploring drone must be able to approach a
+//! frontier); the unknown policy only decides whether they may be entered.
+//!
+//! Planners keep their search buffers between calls behind a `Mutex`; a call that finds them
+//! busy (another thread planning with the same planner) uses fresh buffers instead of waiting.
 
 pub mod coverage;
 pub mod distance;
@@ -31,7 +36,9 @@ use serde::{Deserialize, Serialize};
 pub use coverage::{plan_coverage, CoverageError, CoveragePlan};
 pub use distance::DistanceField;
 pub use graph_planner::GraphAStarPlanner;
-pub use grid_planners::{AStarPlanner, DijkstraPlanner, VoronoiPlanner};
+pub use grid_planners::{
+    AStarPlanner, DijkstraPlanner, VoronoiPlanner, VORONOI_OFF_DIAGRAM_PENALTY,
+};
 pub use map::{PlanningMap, DEFAULT_OCCUPIED_THRESHOLD};
 
 /// One planner plugin. Contract: `plan` is synchronous, reads no clock, does no I/O, and returns
@@ -94,7 +101,8 @@ pub struct PlanRequest {
 }
 
 /// Limits of one planning call. The caller measures time; planners only read these.
-#[derive(Debug, Clone, Copy, Default)]
+/// `Default` is unlimited: no expansion limit, no flags, no staleness check.
+#[derive(Debug, Clone, Copy)]
 pub struct PlanBudget<'a> {
     /// Node expansions before giving up with [`PlanError::Timeout`].
     pub max_expansions: usize,
@@ -104,6 +112,17 @@ pub struct PlanBudget<'a> {
     pub deadline_passed: Option<&'a AtomicBool>,
     /// Current time (seconds, same clock as [`PlanningMap::stamp_s`]) for the staleness check.
     pub now_s: Option<f64>,
+}
+
+impl Default for PlanBudget<'_> {
+    fn default() -> Self {
+        PlanBudget {
+            max_expansions: usize::MAX,
+            cancel: None,
+            deadline_passed: None,
+            now_s: None,
+        }
+    }
 }
 
 impl<'a> PlanBudget<'a> {

@@ -44,17 +44,20 @@ pub(crate) fn polyline_min_clearance(
 }
 
 /// Greedy pruning: from each anchor, extend the shortcut along the raw path until it first
-/// fails, then anchor at the last raw cell it reached.
+/// fails, then anchor at the last raw cell it reached. A second pass drops any anchor whose two
+/// neighbours see each other (the first pass stops at the first failure, so a later cell may
+/// still have been visible).
 pub(crate) fn prune(
     spec: &GridSpec,
     cells: &[usize],
     clearance: impl Fn(usize) -> f32,
     ok: impl Fn(usize, f32) -> bool,
 ) -> Vec<usize> {
-    let Some(&first) = cells.first() else {
+    if cells.is_empty() {
         return Vec::new();
-    };
-    let mut anchors = vec![first];
+    }
+    // Positions in `cells` of the anchors.
+    let mut kept = vec![0usize];
     let mut a = 0;
     while let (Some(&from), Some(&next)) = (cells.get(a), cells.get(a + 1)) {
         let mut sub_min = clearance(from).min(clearance(next));
@@ -67,12 +70,26 @@ pub(crate) fn prune(
             sub_min = m;
             best += 1;
         }
-        if let Some(&b) = cells.get(best) {
-            anchors.push(b);
-        }
+        kept.push(best);
         a = best;
     }
-    anchors
+    let mut k = 1;
+    while let (Some(&i), Some(&j)) = (kept.get(k - 1), kept.get(k + 1)) {
+        let stretch = cells.get(i..=j).unwrap_or_default();
+        let m = stretch
+            .iter()
+            .map(|&c| clearance(c))
+            .fold(f32::INFINITY, f32::min);
+        let (Some(&from), Some(&to)) = (cells.get(i), cells.get(j)) else {
+            break;
+        };
+        if visible(spec, from, to, |c| ok(c, m)) {
+            kept.remove(k);
+        } else {
+            k += 1;
+        }
+    }
+    kept.iter().filter_map(|&i| cells.get(i).copied()).collect()
 }
 
 #[cfg(test)]

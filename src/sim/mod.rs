@@ -8,6 +8,7 @@ pub mod dynamics;
 pub mod runner;
 pub mod script;
 pub mod sensors;
+pub mod shape;
 pub mod spatial;
 pub mod vehicle;
 pub mod world;
@@ -133,5 +134,57 @@ impl SimWorld {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::platform::Platform;
+    use world::Cylinder;
+
+    fn world_with(sensor: SensorConfig) -> World {
+        let mut w = World::empty();
+        w.sensor = sensor;
+        w.cylinders.push(Cylinder {
+            xy_m: [3.0, 0.0],
+            radius_m: 0.5,
+            height_m: 5.0,
+        });
+        w
+    }
+
+    /// Scans delivered to drone 0 over one simulated second at 100 Hz.
+    fn scans_in_one_second(sensor: SensorConfig) -> Vec<crate::mapping::scan::RangeScan> {
+        let mut sim = SimWorld::new(world_with(sensor), 1, 1, Environment::default());
+        let mut scans = Vec::new();
+        for k in 0..100u32 {
+            let now = Duration::from_millis(u64::from(k) * 10);
+            sim.step(now, 0.01);
+            scans.extend(sim.vehicles[0].poll(now).scans);
+        }
+        scans
+    }
+
+    #[test]
+    fn sensors_scan_at_their_rate_and_see_the_pole() {
+        let scans = scans_in_one_second(SensorConfig::multiranger());
+        assert_eq!(scans.len(), 20);
+        let front = scans[5].beams[0].range_m.unwrap();
+        assert!(
+            (front - 2.5).abs() < 0.05,
+            "pole 2.5 m ahead, seen at {front}"
+        );
+        let scans = scans_in_one_second(SensorConfig::lidar());
+        assert_eq!(scans.len(), 10);
+        assert_eq!(scans[0].beams.len(), 360);
+        let hits = scans[0]
+            .beams
+            .iter()
+            .filter(|b| b.range_m.is_some())
+            .count();
+        // A 1 m wide pole 3 m away spans about 19 deg.
+        assert!((15..=22).contains(&hits), "{hits} beams hit");
+        assert!(scans_in_one_second(SensorConfig::None).is_empty());
     }
 }

@@ -288,7 +288,7 @@ mod tests {
     #[test]
     fn boxed_in_drones_only_hover() {
         let mut world = World::empty();
-        for (x, y) in [(1.2, 0.0), (-1.2, 0.0), (0.0, 1.2), (0.0, -1.2)] {
+        for (x, y) in [(1.4, 0.0), (-1.4, 0.0), (0.0, 1.4), (0.0, -1.4)] {
             world.cylinders.push(Cylinder {
                 xy_m: [x, y],
                 radius_m: 0.3,
@@ -296,6 +296,7 @@ mod tests {
             });
         }
         let sim = SimWorld::new(world, 1, 0, Environment::default());
+        assert_eq!(sim.vehicles[0].state.position_m, Vec3::zeros());
         let names: Vec<String> = demo_plans(&sim)[0].iter().map(|(n, _)| n.clone()).collect();
         assert_eq!(names, ["takeoff", "hover", "land"]);
     }

@@ -1,18 +1,131 @@
-//! Simulated range sensors: ray casting against the world's obstacles.
+//! Simulated range sensors: which sensor a drone carries, and ray casting against obstacles.
 //!
-//! In: the vehicle pose, the world's shapes, a noise source. Out: a [`RangeScan`] at the
-//! sensor's rate (multi-ranger: 4 beams front/left/back/right; lidar: N beams over 360 deg).
+//! In: a [`SensorConfig`] (from the world file, the config or `--sensor`), the vehicle pose, the
+//! indexed obstacles, a noise source. Out: a [`RangeScan`] at the sensor's rate (multi-ranger:
+//! 4 beams front/left/back/right; lidar: N beams over 360 deg).
 
 use super::spatial::ShapeIndex;
-use super::world::SensorConfig;
 use crate::mapping::scan::{Beam, RangeScan};
 use crate::types::{Vec2, Vec3};
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 /// Shortest beams any sensor reports (m).
 const RANGE_MIN_M: f64 = 0.04;
+
+/// Which range sensor the simulated drones carry. Absent fields take the defaults of the
+/// kind, so `{"kind": "lidar360"}` is a complete sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
+pub enum SensorConfig {
+    /// Crazyflie multi-ranger deck: four beams front/left/back/right (defaults 4 m, 20 Hz,
+    /// 1 cm noise).
+    Multiranger {
+        #[serde(default = "multiranger_range")]
+        range_max_m: f64,
+        #[serde(default = "multiranger_rate")]
+        rate_hz: f64,
+        #[serde(default = "default_noise")]
+        noise_std_m: f64,
+    },
+    /// Planar lidar, beams evenly over 360 deg (defaults 360 beams, 10 m, 10 Hz, 1 cm noise).
+    Lidar360 {
+        #[serde(default = "lidar_range")]
+        range_max_m: f64,
+        #[serde(default = "lidar_rate")]
+        rate_hz: f64,
+        #[serde(default = "default_noise")]
+        noise_std_m: f64,
+        #[serde(default = "lidar_beams")]
+        beams: u32,
+    },
+    None,
+}
+
+fn multiranger_range() -> f64 {
+    4.0
+}
+fn multiranger_rate() -> f64 {
+    20.0
+}
+fn lidar_range() -> f64 {
+    10.0
+}
+fn lidar_rate() -> f64 {
+    10.0
+}
+fn lidar_beams() -> u32 {
+    360
+}
+fn default_noise() -> f64 {
+    0.01
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        Self::multiranger()
+    }
+}
+
+impl SensorConfig {
+    pub fn multiranger() -> Self {
+        Self::Multiranger {
+            range_max_m: multiranger_range(),
+            rate_hz: multiranger_rate(),
+            noise_std_m: default_noise(),
+        }
+    }
+
+    pub fn lidar() -> Self {
+        Self::Lidar360 {
+            range_max_m: lidar_range(),
+            rate_hz: lidar_rate(),
+            noise_std_m: default_noise(),
+            beams: lidar_beams(),
+        }
+    }
+
+    /// By name, as on the command line: `multiranger`, `lidar` (or `lidar360`), `none`.
+    pub fn by_name(name: &str) -> Option<Self> {
+        match name {
+            "multiranger" => Some(Self::multiranger()),
+            "lidar" | "lidar360" => Some(Self::lidar()),
+            "none" => Some(Self::None),
+            _ => None,
+        }
+    }
+
+    /// Checks ranges and rates; the message names the field and unit.
+    pub fn validate(&self) -> Result<(), String> {
+        let (range, rate, noise) = match *self {
+            Self::Multiranger {
+                range_max_m,
+                rate_hz,
+                noise_std_m,
+            } => (range_max_m, rate_hz, noise_std_m),
+            Self::Lidar360 {
+                range_max_m,
+                rate_hz,
+                noise_std_m,
+                beams,
+            } => {
+                if beams == 0 {
+                    return Err("sensor.beams must be at least 1".into());
+                }
+                (range_max_m, rate_hz, noise_std_m)
+            }
+            Self::None => return Ok(()),
+        };
+        if !(range > 0.0 && rate > 0.0 && noise >= 0.0) {
+            return Err(
+                "sensor needs range_max_m > 0 (m), rate_hz > 0 (Hz), noise_std_m >= 0 (m)".into(),
+            );
+        }
+        Ok(())
+    }
+}
 
 /// One scan from `position` with heading `yaw_rad`, or `None` when the drone carries no sensor.
 pub fn scan<R: Rng>(
@@ -89,7 +202,8 @@ pub fn period_s(config: &SensorConfig) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::world::Shape;
+    use crate::sim::shape::Shape;
+    use crate::sim::world::World;
     use rand::SeedableRng;
 
     #[test]
@@ -142,5 +256,31 @@ mod tests {
             s.beams.iter().all(|b| b.range_m.is_none()),
             "pole beyond 10 m"
         );
+    }
+
+    #[test]
+    fn a_sensor_kind_alone_takes_its_defaults() {
+        let w: World = serde_json::from_str(
+            r#"{"bounds_m": {"x": [0, 1], "y": [0, 1]}, "sensor": {"kind": "lidar360", "beams": 90}}"#,
+        )
+        .unwrap();
+        assert_eq!(
+            w.sensor,
+            SensorConfig::Lidar360 {
+                range_max_m: 10.0,
+                rate_hz: 10.0,
+                noise_std_m: 0.01,
+                beams: 90
+            }
+        );
+        assert_eq!(SensorConfig::by_name("lidar"), Some(SensorConfig::lidar()));
+        assert!(SensorConfig::Lidar360 {
+            range_max_m: 10.0,
+            rate_hz: 0.0,
+            noise_std_m: 0.0,
+            beams: 1
+        }
+        .validate()
+        .is_err());
     }
 }

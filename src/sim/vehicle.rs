@@ -1,13 +1,16 @@
 //! One simulated vehicle behind an autopilot-like interface: arming, offboard, landed state,
 //! battery, setpoint-loss failsafe. It implements [`Platform`], so the core flies it exactly as
-//! it flies a MAVLink autopilot.
+//! it flies a MAVLink autopilot. Each poll reports the true state as ground truth, autopilot
+//! odometry and an external (motion-capture) pose, so every estimator plugin can fly it.
 
 use super::dynamics::{self, Drive, MultirotorParams, RigidState};
 use crate::control::{AcceptedSetpoints, Setpoint, YawTarget};
 use crate::estimator::Measurement;
 use crate::mapping::scan::RangeScan;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest, RequestResult};
-use crate::types::{wrap_angle_rad, Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Vec3};
+use crate::types::{
+    wrap_angle_rad, Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
+};
 use std::time::Duration;
 
 /// Offboard ends (and the vehicle holds) when no setpoint came for this long, as on PX4.
@@ -210,7 +213,7 @@ impl Platform for SimVehicle {
         }
     }
 
-    fn poll(&mut self, _now: Duration) -> PlatformFeedback {
+    fn poll(&mut self, now: Duration) -> PlatformFeedback {
         let s = &self.state;
         let (roll, pitch) = s.tilt_rad();
         let pose = Pose {
@@ -236,13 +239,25 @@ impl Platform for SimVehicle {
             last_error: self.last_error.clone(),
             boot_counter: 0,
         };
+        let angular_velocity_flu_radps = Vec3::new(0.0, 0.0, s.yaw_rate_radps);
+        // The same truth as every source an estimator plugin may listen to.
         PlatformFeedback {
             status,
-            measurements: vec![Measurement::GroundTruth {
-                pose,
-                velocity_enu_mps: s.velocity_mps,
-                angular_velocity_flu_radps: Vec3::new(0.0, 0.0, s.yaw_rate_radps),
-            }],
+            measurements: vec![
+                Measurement::GroundTruth {
+                    pose,
+                    velocity_enu_mps: s.velocity_mps,
+                    angular_velocity_flu_radps,
+                },
+                Measurement::AutopilotOdometry {
+                    pose,
+                    velocity_enu_mps: s.velocity_mps,
+                    angular_velocity_flu_radps,
+                    valid: Validity::ALL,
+                    reset_counter: 0,
+                },
+                Measurement::ExternalPose { pose, stamp: now },
+            ],
             scans: std::mem::take(&mut self.pending_scans),
             request_results: std::mem::take(&mut self.pending_results),
         }

@@ -5,6 +5,8 @@
 //! the same JSON object: `cylinders`, `boxes`, `sensor`, `geodetic_origin`, `pole_height_m`.
 //! The Python fake autopilot in `sitl/` reads the same files.
 
+pub use super::sensors::SensorConfig;
+pub use super::shape::Shape;
 use crate::estimator::geodetic::GeoPoint;
 use crate::types::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
@@ -43,118 +45,6 @@ pub struct BoxObstacle {
 fn default_height() -> f64 {
     10.0
 }
-
-/// Which range sensor the simulated drones carry. Absent fields take the defaults of the
-/// kind, so `{"kind": "lidar360"}` is a complete sensor.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
-pub enum SensorConfig {
-    /// Crazyflie multi-ranger deck: four beams front/left/back/right (defaults 4 m, 20 Hz,
-    /// 1 cm noise).
-    Multiranger {
-        #[serde(default = "multiranger_range")]
-        range_max_m: f64,
-        #[serde(default = "multiranger_rate")]
-        rate_hz: f64,
-        #[serde(default = "default_noise")]
-        noise_std_m: f64,
-    },
-    /// Planar lidar, beams evenly over 360 deg (defaults 360 beams, 10 m, 10 Hz, 1 cm noise).
-    Lidar360 {
-        #[serde(default = "lidar_range")]
-        range_max_m: f64,
-        #[serde(default = "lidar_rate")]
-        rate_hz: f64,
-        #[serde(default = "default_noise")]
-        noise_std_m: f64,
-        #[serde(default = "lidar_beams")]
-        beams: u32,
-    },
-    None,
-}
-
-fn multiranger_range() -> f64 {
-    4.0
-}
-fn multiranger_rate() -> f64 {
-    20.0
-}
-fn lidar_range() -> f64 {
-    10.0
-}
-fn lidar_rate() -> f64 {
-    10.0
-}
-fn lidar_beams() -> u32 {
-    360
-}
-fn default_noise() -> f64 {
-    0.01
-}
-
-impl Default for SensorConfig {
-    fn default() -> Self {
-        Self::multiranger()
-    }
-}
-
-impl SensorConfig {
-    pub fn multiranger() -> Self {
-        Self::Multiranger {
-            range_max_m: multiranger_range(),
-            rate_hz: multiranger_rate(),
-            noise_std_m: default_noise(),
-        }
-    }
-
-    pub fn lidar() -> Self {
-        Self::Lidar360 {
-            range_max_m: lidar_range(),
-            rate_hz: lidar_rate(),
-            noise_std_m: default_noise(),
-            beams: lidar_beams(),
-        }
-    }
-
-    /// By name, as on the command line: `multiranger`, `lidar` (or `lidar360`), `none`.
-    pub fn by_name(name: &str) -> Option<Self> {
-        match name {
-            "multiranger" => Some(Self::multiranger()),
-            "lidar" | "lidar360" => Some(Self::lidar()),
-            "none" => Some(Self::None),
-            _ => None,
-        }
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        let (range, rate, noise) = match *self {
-            Self::Multiranger {
-                range_max_m,
-                rate_hz,
-                noise_std_m,
-            } => (range_max_m, rate_hz, noise_std_m),
-            Self::Lidar360 {
-                range_max_m,
-                rate_hz,
-                noise_std_m,
-                beams,
-            } => {
-                if beams == 0 {
-                    return Err("sensor.beams must be at least 1".into());
-                }
-                (range_max_m, rate_hz, noise_std_m)
-            }
-            Self::None => return Ok(()),
-        };
-        if !(range > 0.0 && rate > 0.0 && noise >= 0.0) {
-            return Err(
-                "sensor needs range_max_m > 0 (m), rate_hz > 0 (Hz), noise_std_m >= 0 (m)".into(),
-            );
-        }
-        Ok(())
-    }
-}
-
 /// A world file as written on disk.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct World {
@@ -334,109 +224,6 @@ fn interleave<T>(
         next
     })
 }
-
-/// An obstacle shape: vertical prism from the ground to `height_m`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Shape {
-    Cylinder {
-        center: Vec2,
-        radius_m: f64,
-        height_m: f64,
-    },
-    Box {
-        center: Vec2,
-        half_size: Vec2,
-        yaw_rad: f64,
-        height_m: f64,
-    },
-}
-
-impl Shape {
-    /// Horizontal distance from `p` to the shape's surface (negative inside), if `p.z` is
-    /// within the shape's height; `None` above it.
-    pub fn distance_m(&self, p: &Vec3) -> Option<f64> {
-        match *self {
-            Shape::Cylinder {
-                center,
-                radius_m,
-                height_m,
-            } => (p.z <= height_m).then(|| (p.xy() - center).norm() - radius_m),
-            Shape::Box {
-                center,
-                half_size,
-                yaw_rad,
-                height_m,
-            } => (p.z <= height_m).then(|| {
-                let local = rotate(p.xy() - center, -yaw_rad);
-                let d = Vec2::new(local.x.abs() - half_size.x, local.y.abs() - half_size.y);
-                let outside = Vec2::new(d.x.max(0.0), d.y.max(0.0)).norm();
-                outside + d.x.max(d.y).min(0.0)
-            }),
-        }
-    }
-
-    /// Distance along a horizontal ray from `origin` in unit direction `dir` to the shape, if hit.
-    pub fn ray_hit_m(&self, origin: &Vec3, dir: &Vec2) -> Option<f64> {
-        match *self {
-            Shape::Cylinder {
-                center,
-                radius_m,
-                height_m,
-            } => {
-                if origin.z > height_m {
-                    return None;
-                }
-                let oc = origin.xy() - center;
-                let b = oc.dot(dir);
-                let c = oc.norm_squared() - radius_m * radius_m;
-                let disc = b * b - c;
-                if disc < 0.0 {
-                    return None;
-                }
-                let t = -b - disc.sqrt();
-                if t >= 0.0 {
-                    Some(t)
-                } else if c < 0.0 {
-                    Some(0.0)
-                } else {
-                    None
-                }
-            }
-            Shape::Box {
-                center,
-                half_size,
-                yaw_rad,
-                height_m,
-            } => {
-                if origin.z > height_m {
-                    return None;
-                }
-                let o = rotate(origin.xy() - center, -yaw_rad);
-                let d = rotate(*dir, -yaw_rad);
-                let (mut t_min, mut t_max) = (f64::NEG_INFINITY, f64::INFINITY);
-                for i in 0..2 {
-                    if d[i].abs() < 1e-12 {
-                        if o[i].abs() > half_size[i] {
-                            return None;
-                        }
-                    } else {
-                        let t1 = (-half_size[i] - o[i]) / d[i];
-                        let t2 = (half_size[i] - o[i]) / d[i];
-                        t_min = t_min.max(t1.min(t2));
-                        t_max = t_max.min(t1.max(t2));
-                    }
-                }
-                (t_max >= t_min.max(0.0)).then_some(t_min.max(0.0))
-            }
-        }
-    }
-}
-
-fn rotate(v: Vec2, angle_rad: f64) -> Vec2 {
-    let (s, c) = angle_rad.sin_cos();
-    Vec2::new(c * v.x - s * v.y, s * v.x + c * v.y)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -484,70 +271,22 @@ mod tests {
     }
 
     #[test]
-    fn a_sensor_kind_alone_takes_its_defaults() {
+    fn extensions_add_boxes_cylinders_and_a_geodetic_origin() {
         let w: World = serde_json::from_str(
-            r#"{"bounds_m": {"x": [0, 1], "y": [0, 1]}, "sensor": {"kind": "lidar360", "beams": 90}}"#,
+            r#"{"bounds_m": {"x": [-10, 10], "y": [-10, 10]}, "pole_radius_m": 0.2,
+                "poles_xy_m": [[1, 1]],
+                "cylinders": [{"xy_m": [5, 5], "radius_m": 1.0, "height_m": 20}],
+                "boxes": [{"center_xy_m": [-5, 0], "size_xy_m": [2, 4], "yaw_rad": 0.5}],
+                "geodetic_origin": {"lat_deg": 47.0, "lon_deg": 8.0, "alt_m": 400}}"#,
         )
         .unwrap();
-        assert_eq!(
-            w.sensor,
-            SensorConfig::Lidar360 {
-                range_max_m: 10.0,
-                rate_hz: 10.0,
-                noise_std_m: 0.01,
-                beams: 90
-            }
-        );
-        assert_eq!(SensorConfig::by_name("lidar"), Some(SensorConfig::lidar()));
-        assert!(SensorConfig::Lidar360 {
-            range_max_m: 10.0,
-            rate_hz: 0.0,
-            noise_std_m: 0.0,
-            beams: 1
-        }
-        .validate()
-        .is_err());
-    }
-
-    #[test]
-    fn cylinder_ray_and_distance() {
-        let s = Shape::Cylinder {
-            center: Vec2::new(5.0, 0.0),
-            radius_m: 1.0,
-            height_m: 3.0,
-        };
-        let hit = s
-            .ray_hit_m(&Vec3::new(0.0, 0.0, 1.0), &Vec2::new(1.0, 0.0))
-            .unwrap();
-        assert!((hit - 4.0).abs() < 1e-12);
-        assert!(
-            s.ray_hit_m(&Vec3::new(0.0, 0.0, 4.0), &Vec2::new(1.0, 0.0))
-                .is_none(),
-            "above the cylinder"
-        );
-        assert!(
-            s.ray_hit_m(&Vec3::new(0.0, 0.0, 1.0), &Vec2::new(-1.0, 0.0))
-                .is_none(),
-            "behind the ray"
-        );
-        assert!((s.distance_m(&Vec3::new(5.0, 3.0, 0.0)).unwrap() - 2.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn rotated_box_ray_and_distance() {
-        let s = Shape::Box {
-            center: Vec2::new(0.0, 5.0),
-            half_size: Vec2::new(1.0, 1.0),
-            yaw_rad: std::f64::consts::FRAC_PI_4,
-            height_m: 3.0,
-        };
-        let hit = s
-            .ray_hit_m(&Vec3::new(0.0, 0.0, 1.0), &Vec2::new(0.0, 1.0))
-            .unwrap();
-        assert!((hit - (5.0 - 2f64.sqrt())).abs() < 1e-9, "{hit}");
-        assert!(
-            s.distance_m(&Vec3::new(0.0, 5.0, 1.0)).unwrap() < 0.0,
-            "inside"
-        );
+        w.validate().unwrap();
+        let shapes = w.shapes();
+        assert_eq!(shapes.len(), 3, "pole, cylinder, box");
+        assert!(matches!(shapes[2], Shape::Box { height_m, .. } if height_m == 10.0));
+        assert_eq!(w.geodetic_origin.unwrap().alt_m, 400.0);
+        let bad: World =
+            serde_json::from_str(r#"{"bounds_m": {"x": [1, -1], "y": [0, 1]}}"#).unwrap();
+        assert!(bad.validate().is_err());
     }
 }

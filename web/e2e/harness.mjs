@@ -44,15 +44,19 @@ const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 /** Starts `kestrel sim --no-demo` and waits for its health route; returns a handle. */
 export async function startKestrel({ drones = 2, speedup = 5 } = {}) {
-  const bin = process.env.KESTREL_BIN;
-  if (!bin) throw new Error('KESTREL_BIN must name the kestrel binary to test');
+  if (!process.env.KESTREL_BIN) throw new Error('KESTREL_BIN must name the kestrel binary to test');
+  const bin = path.resolve(process.env.KESTREL_BIN);
   const port = await freePort();
   const base = `http://127.0.0.1:${port}`;
   const logPath = path.join(ARTIFACTS, `kestrel-${port}.log`);
   fs.mkdirSync(ARTIFACTS, { recursive: true });
   const log = fs.openSync(logPath, 'w');
-  const args = ['sim', '--no-demo', '--drones', String(drones), '--speedup', String(speedup), '--listen', `127.0.0.1:${port}`];
+  const flightLog = path.join(ARTIFACTS, `flight-${port}.jsonl`);
+  const args = ['sim', '--no-demo', '--drones', String(drones), '--speedup', String(speedup), '--listen', `127.0.0.1:${port}`, '--log', flightLog];
+  // A scratch working directory: nothing kestrel writes lands in the repository.
+  const cwd = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-run-'));
   const child = spawn(bin, args, {
+    cwd,
     env: { ...process.env, KESTREL_API_TOKEN: TOKEN },
     stdio: ['ignore', log, log],
   });
@@ -92,10 +96,12 @@ export async function startKestrel({ drones = 2, speedup = 5 } = {}) {
       return { status: res.status, json: text ? JSON.parse(text) : null };
     },
     async stop() {
-      if (exited) return;
-      child.kill('SIGTERM');
-      for (let i = 0; i < 50 && !exited; i++) await sleep(100);
-      if (!exited) child.kill('SIGKILL');
+      if (!exited) {
+        child.kill('SIGTERM');
+        for (let i = 0; i < 50 && !exited; i++) await sleep(100);
+        if (!exited) child.kill('SIGKILL');
+      }
+      fs.rmSync(cwd, { recursive: true, force: true });
     },
   };
 }

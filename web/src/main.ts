@@ -252,8 +252,11 @@ function renderHeader(): void {
   const open = app.instances.filter((i) => i.socketOpen).length;
   const status = byId('conn-status');
   const problems = app.instances.filter((i) => !i.socketOpen).map((i) => `${i.label}: ${i.problem ?? 'disconnected'}`);
-  status.textContent = app.instances.length === 0 ? 'connecting…' : problems.length ? problems.join('; ') : `live · ${refs.length} drone(s) · ${open} instance(s)`;
-  status.className = `conn ${problems.length || app.instances.length === 0 ? 'bad' : 'ok'}`;
+  const now = Date.now();
+  const lost = refs.filter((r) => app.link(r, now).state === 'lost').map((r) => r.name);
+  const lostText = lost.length ? ` · LOST: ${lost.join(', ')}` : '';
+  status.textContent = app.instances.length === 0 ? 'connecting…' : problems.length ? problems.join('; ') : `live · ${refs.length} drone(s) · ${open} instance(s)${lostText}`;
+  status.className = `conn ${problems.length || app.instances.length === 0 ? 'bad' : lost.length ? 'warn' : 'ok'}`;
 }
 
 function renderLegend(): void {

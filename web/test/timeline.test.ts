@@ -68,6 +68,7 @@ describe('event log lines', () => {
     expect(describeEvent(4, 'd', refused)).toMatchObject({ level: 'error', text: 'PAUSE mission #2 refused: no mission is running' });
     expect(describeEvent(5, 'd', { kind: 'alert', message: 'link lost' })).toMatchObject({ kind: 'alert', level: 'error', text: 'link lost' });
     expect(describeEvent(6, 'd', { kind: 'autopilot', text: 'Takeoff detected' })).toMatchObject({ kind: 'autopilot', level: 'info' });
+    expect(describeEvent(7, null, { kind: 'lagged', missed: 12 })).toMatchObject({ level: 'warn', text: 'page too slow: 12 event(s) missed' });
   });
 
   it('accepted mission updates become timeline markers', () => {

@@ -581,7 +581,7 @@ mod tests {
         let mut sent = 0;
         for t in (0..1300).step_by(20) {
             w.streamer.offer(MS(t), Some(sp));
-            w.streamer.poll(MS(t));
+            w.streamer.poll(MS(t), true);
             sent += w.tick(&mut a, MS(t)).1;
         }
         assert_eq!(sent, 1, "DO_SET_MODE after 1.2 s of stream");

@@ -44,7 +44,7 @@ pub struct Inbound {
 
 /// A frame for the autopilot: ours (encoded by the connection) or a ground station's (as is).
 pub enum Outbound {
-    Message(MavHeader, MavMessage),
+    Message(MavHeader, Box<MavMessage>),
     Raw(Arc<MAVLinkMessageRaw>),
 }
 
@@ -233,7 +233,7 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
         for (header, msg) in session.drain_outgoing() {
             if io
                 .outbound
-                .try_send(Outbound::Message(header, msg))
+                .try_send(Outbound::Message(header, Box::new(msg)))
                 .is_err()
             {
                 dropped_out += 1;

@@ -27,7 +27,7 @@ const TEXT_HISTORY: usize = 64;
 /// Scans kept between two polls; older ones are dropped (and counted).
 const SCAN_BUFFER: usize = 256;
 /// The boot clock going back by more than this means the autopilot restarted.
-const REBOOT_BACKSTEP_MS: u32 = 2000;
+const REBOOT_BACKSTEP_MS: u32 = 500;
 const SYS_STATUS_PREARM_CHECK: u32 = 0x1000_0000;
 
 /// What the session must react to after a message.
@@ -63,7 +63,9 @@ pub struct VehicleModel {
     wanted_system: Option<u8>,
     autopilot: Option<(u8, u8)>,
     wrong_autopilot: Option<String>,
-    last_heartbeat: Option<Duration>,
+    /// Last message of any kind from the autopilot: on a lossy link telemetry proves life too.
+    last_seen: Option<Duration>,
+    /// Set when the link times out; only a HEARTBEAT clears it.
     link_lost: bool,
     custom_mode: Option<u32>,
     armed: bool,
@@ -92,7 +94,7 @@ impl VehicleModel {
             wanted_system,
             autopilot: None,
             wrong_autopilot: None,
-            last_heartbeat: None,
+            last_seen: None,
             link_lost: false,
             custom_mode: None,
             armed: false,
@@ -174,8 +176,9 @@ impl VehicleModel {
     }
 
     pub fn link(&self, now: Duration) -> LinkHealth {
-        match self.last_heartbeat {
+        match self.last_seen {
             None => LinkHealth::Connecting,
+            Some(_) if self.link_lost => LinkHealth::Lost,
             Some(t) if now.saturating_sub(t) > self.profile.heartbeat_timeout => LinkHealth::Lost,
             Some(_) => LinkHealth::Ok,
         }
@@ -183,9 +186,8 @@ impl VehicleModel {
 
     /// Called by the session each tick; returns true once when the link has just been lost.
     pub fn check_link(&mut self, now: Duration) -> bool {
-        let lost = self.link(now) == LinkHealth::Lost;
-        let newly = lost && !self.link_lost;
-        self.link_lost = lost;
+        let newly = !self.link_lost && self.link(now) == LinkHealth::Lost;
+        self.link_lost |= newly;
         newly
     }
 
@@ -287,7 +289,7 @@ impl VehicleModel {
         self.reset_counter += 1;
     }
 
-    fn from_autopilot(&self, header: &MavHeader) -> bool {
+    fn is_from_autopilot(&self, header: &MavHeader) -> bool {
         self.autopilot.is_some_and(|(sys, comp)| {
             header.system_id == u32::from(sys) && header.component_id == comp
         })
@@ -303,9 +305,10 @@ impl VehicleModel {
         if let MavMessage::HEARTBEAT(hb) = msg {
             return self.heartbeat(now, header, hb);
         }
-        if !self.from_autopilot(header) {
+        if !self.is_from_autopilot(header) {
             return None;
         }
+        self.last_seen = Some(now);
         match msg {
             MavMessage::ATTITUDE(a) => {
                 self.attitude = Some(Attitude {
@@ -550,9 +553,10 @@ impl VehicleModel {
         } else {
             self.wrong_autopilot = None;
         }
-        let first = self.autopilot.is_none() || self.link(now) == LinkHealth::Lost;
+        let first =
+            self.autopilot.is_none() || self.link_lost || self.link(now) == LinkHealth::Lost;
         self.autopilot = Some((system_id, header.component_id));
-        self.last_heartbeat = Some(now);
+        self.last_seen = Some(now);
         self.link_lost = false;
         self.custom_mode = Some(hb.custom_mode);
         self.armed = hb

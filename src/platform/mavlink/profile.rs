@@ -196,6 +196,8 @@ pub struct Profile {
     /// The autopilot leaves offboard this long after the last setpoint (PX4 COM_OF_LOSS_T,
     /// ArduPilot GUID_TIMEOUT for velocity targets).
     pub offboard_loss_timeout: Duration,
+    /// The link is lost after this long without HEARTBEAT or telemetry from the autopilot; only
+    /// a HEARTBEAT brings it back.
     pub heartbeat_timeout: Duration,
     /// Wait this long for a COMMAND_ACK before re-sending with `confirmation` + 1.
     pub command_timeout: Duration,

@@ -179,9 +179,7 @@ impl Session {
         }
         match event {
             Some(ModelEvent::Text(text)) => {
-                if text.is_problem() {
-                    tracing::warn!(target: "mavlink", "autopilot: {}", text.text);
-                }
+                tracing::info!(target: "mavlink", "autopilot: {}", text.text);
                 self.tracker.on_text(&text);
             }
             Some(ModelEvent::Contact {
@@ -219,7 +217,7 @@ impl Session {
         for r in requests {
             self.request(now, *r);
         }
-        self.stream_setpoint(now);
+        self.stream_setpoint(now, true);
     }
 
     /// Timers: link health, heartbeat, retries, actions, stream re-sends.
@@ -247,7 +245,7 @@ impl Session {
                 }
             }
         }
-        self.stream_setpoint(now);
+        self.stream_setpoint(now, false);
     }
 
     /// Status, the latest odometry, scans and finished requests since the last call.
@@ -260,14 +258,14 @@ impl Session {
         }
     }
 
-    fn stream_setpoint(&mut self, now: Duration) {
+    fn stream_setpoint(&mut self, now: Duration, from_control: bool) {
         if self.model.link(now) != LinkHealth::Ok {
             return;
         }
         let Some((system, component)) = self.model.autopilot() else {
             return;
         };
-        if let Some(sp) = self.streamer.poll(now) {
+        if let Some(sp) = self.streamer.poll(now, from_control) {
             let boot_ms = u32::try_from(now.as_millis()).unwrap_or(u32::MAX);
             self.stats.setpoints_sent += 1;
             let msg = setpoint::encode(&sp, boot_ms, system, component);
@@ -354,7 +352,7 @@ impl Session {
 
     fn finish(&mut self, origin: Origin, outcome: Result<(), String>) {
         if let Err(e) = &outcome {
-            tracing::warn!(target: "mavlink", "{origin:?}: {e}");
+            tracing::debug!(target: "mavlink", "{origin:?}: {e}");
             self.model.set_error(e.clone());
         }
         if let Origin::Request(request) = origin {
@@ -604,5 +602,92 @@ mod tests {
             }]
         );
         assert!(fb.status.armed);
+    }
+
+    fn commands_sent(s: &mut Session) -> Vec<(MavCmd, u8, [f32; 7])> {
+        s.drain_outgoing()
+            .into_iter()
+            .filter_map(|(_, m)| match m {
+                MavMessage::COMMAND_LONG(c) => Some((
+                    c.command,
+                    c.target_component,
+                    [
+                        c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+                    ],
+                )),
+                _ => None,
+            })
+            .filter(|(c, _, _)| *c != MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL)
+            .collect()
+    }
+
+    fn ack(command: MavCmd, result: MavResult) -> MavMessage {
+        MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command,
+            result,
+            ..COMMAND_ACK_DATA::DEFAULT
+        })
+    }
+
+    #[test]
+    fn gimbal_falls_back_to_mount_control_and_photo_waits_for_its_ack() {
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        s.on_message(MS(0), &autopilot_header(), &hb(0x0304_0000, true));
+        let point = PlatformRequest::PointGimbal {
+            pitch_rad: 0.5,
+            yaw_rad: 0.25,
+        };
+        s.on_control(MS(1), None, &[point, PlatformRequest::TakePhoto]);
+        s.on_tick(MS(2));
+        let sent = commands_sent(&mut s);
+        let (cmd, comp, p) = sent[0];
+        assert_eq!(cmd, MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW);
+        assert_eq!(comp, 1);
+        // FLU pitch 0.5 rad (nose down) is -28.6 deg in MAVLink; FLU yaw left is negative.
+        assert!(
+            (p[0] + 28.648).abs() < 0.01 && (p[1] + 14.324).abs() < 0.01,
+            "{p:?}"
+        );
+        assert_eq!(sent[1].0, MavCmd::MAV_CMD_IMAGE_START_CAPTURE);
+        assert_eq!(sent[1].1, 100, "the camera component");
+        let h = autopilot_header();
+        s.on_message(
+            MS(10),
+            &h,
+            &ack(
+                MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+                MavResult::MAV_RESULT_UNSUPPORTED,
+            ),
+        );
+        s.on_message(
+            MS(10),
+            &h,
+            &ack(
+                MavCmd::MAV_CMD_IMAGE_START_CAPTURE,
+                MavResult::MAV_RESULT_ACCEPTED,
+            ),
+        );
+        s.on_tick(MS(400));
+        s.on_tick(MS(401));
+        let sent = commands_sent(&mut s);
+        #[allow(deprecated)]
+        let mount = MavCmd::MAV_CMD_DO_MOUNT_CONTROL;
+        assert_eq!(sent.first().map(|c| c.0), Some(mount), "{sent:?}");
+        s.on_message(MS(410), &h, &ack(mount, MavResult::MAV_RESULT_ACCEPTED));
+        s.on_tick(MS(411));
+        let results = s.feedback(MS(411)).request_results;
+        assert_eq!(
+            results,
+            vec![
+                RequestResult {
+                    request: PlatformRequest::TakePhoto,
+                    outcome: Ok(())
+                },
+                RequestResult {
+                    request: point,
+                    outcome: Ok(())
+                },
+            ]
+        );
     }
 }

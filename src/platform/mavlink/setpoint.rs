@@ -18,8 +18,9 @@ const IGNORE_ACCELERATION: u16 = 0x1c0;
 const IGNORE_YAW: u16 = 0x400;
 const IGNORE_YAW_RATE: u16 = 0x800;
 
-/// A send is due when at least this fraction of the period has passed, so that a control tick
-/// at exactly the stream rate never skips a beat because of timer jitter.
+/// A setpoint handed over by the control tick goes out when at least this fraction of the
+/// period has passed, so that a control tick at exactly the stream rate never skips a beat
+/// because of timer jitter. Re-sends between control ticks wait a full period.
 const PERIOD_TOLERANCE: f64 = 0.75;
 
 /// Encodes one setpoint in LOCAL_NED with the type mask that says which fields count.
@@ -108,16 +109,22 @@ impl SetpointStreamer {
         self.latest = None;
     }
 
-    /// The setpoint to send now, if one is due and fresh.
-    pub fn poll(&mut self, now: Duration) -> Option<Setpoint> {
+    /// The setpoint to send now, if one is due and fresh. `from_control` is true right after
+    /// the control tick offered it, false for the periodic re-send check.
+    pub fn poll(&mut self, now: Duration, from_control: bool) -> Option<Setpoint> {
         let (setpoint, at) = self.latest?;
         if now.saturating_sub(at) > self.max_age {
             self.latest = None;
             return None;
         }
-        let due = self.last_sent.is_none_or(|t| {
-            now.saturating_sub(t).as_secs_f64() >= self.period.as_secs_f64() * PERIOD_TOLERANCE
-        });
+        let needed = if from_control {
+            self.period.mul_f64(PERIOD_TOLERANCE)
+        } else {
+            self.period
+        };
+        let due = self
+            .last_sent
+            .is_none_or(|t| now.saturating_sub(t) >= needed);
         if !due {
             return None;
         }
@@ -186,26 +193,28 @@ mod tests {
     #[test]
     fn streams_at_the_period_and_stops_when_stale() {
         let mut s = SetpointStreamer::new(MS(20), MS(100));
-        assert!(s.poll(MS(0)).is_none(), "nothing offered");
+        assert!(s.poll(MS(0), false).is_none(), "nothing offered");
         let mut sent = 0;
         for t in (0..200).step_by(10) {
             s.offer(MS(t), Some(hold(1.0)));
-            if s.poll(MS(t)).is_some() {
+            if s.poll(MS(t), true).is_some() {
                 sent += 1;
             }
+            // The session's own 5 ms tick never sends early.
+            assert!(s.poll(MS(t + 5), false).is_none());
         }
         assert_eq!(sent, 10, "a 100 Hz control tick gives a 50 Hz stream");
         assert!(s.streaming_for(MS(190)) >= MS(180));
         // The control loop stalls: re-sends continue only while the last setpoint is fresh.
         let resent = (200..400)
             .step_by(20)
-            .filter(|t| s.poll(MS(*t)).is_some())
+            .filter(|t| s.poll(MS(*t), false).is_some())
             .count();
         assert_eq!(
             resent, 5,
             "the 190 ms setpoint is re-sent while younger than 100 ms"
         );
-        assert!(s.poll(MS(400)).is_none());
+        assert!(s.poll(MS(400), false).is_none());
         assert_eq!(s.streaming_for(MS(400)), Duration::ZERO);
     }
 
@@ -213,9 +222,9 @@ mod tests {
     fn none_stops_the_stream_at_once() {
         let mut s = SetpointStreamer::new(MS(20), MS(100));
         s.offer(MS(0), Some(hold(1.0)));
-        assert!(s.poll(MS(0)).is_some());
+        assert!(s.poll(MS(0), true).is_some());
         s.offer(MS(20), None);
-        assert!(s.poll(MS(20)).is_none());
+        assert!(s.poll(MS(20), true).is_none());
     }
 
     #[test]
@@ -226,7 +235,7 @@ mod tests {
             .iter()
             .filter(|t| {
                 s.offer(MS(**t), Some(hold(1.0)));
-                s.poll(MS(**t)).is_some()
+                s.poll(MS(**t), true).is_some()
             })
             .count();
         assert_eq!(sent, ticks.len());

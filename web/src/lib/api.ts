@@ -95,10 +95,6 @@ export class ApiClient {
     return (text ? JSON.parse(text) : null) as T;
   }
 
-  health(): Promise<{ status: string; version: string; drones: string[]; uptime_s: number }> {
-    return this.json('GET', '/api/health');
-  }
-
   async status(): Promise<DroneStatus[]> {
     return (await this.json<{ drones: DroneStatus[] }>('GET', '/api/status')).drones;
   }
@@ -158,11 +154,8 @@ export class ApiClient {
     return text;
   }
 
-  postFrame(frame: Record<string, unknown>): Promise<{ frame_id: string }> {
+  /** Registers (or moves) a frame, e.g. a panel from an alert, relative to `earth`. */
+  postFrame(frame: { frame_id: string; parent: string; translation_m: [number, number, number]; yaw_rad: number }): Promise<{ frame_id: string }> {
     return this.json('POST', '/api/frames', frame);
-  }
-
-  simFault(droneId: string, fault: 'link_lost' | 'link_restored'): Promise<unknown> {
-    return this.json('POST', '/api/sim/fault', { drone_id: droneId, fault });
   }
 }

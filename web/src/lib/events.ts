@@ -96,6 +96,9 @@ export function describeEvent(t: number | null, drone: string | null, e: Obj): L
     };
   }
   const kind = str(e.type) ?? str(e.kind) ?? 'event';
+  if (kind === 'lagged') {
+    return { t, drone, kind, level: 'warn', text: `page too slow: ${String(e.missed ?? '?')} event(s) missed` };
+  }
   const said = str(e.text) ?? str(e.message) ?? str(e.reason);
   const action = e.action !== undefined ? actionName(e.action) : null;
   if (action && typeof e.accepted === 'boolean') {

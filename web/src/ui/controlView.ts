@@ -35,6 +35,7 @@ export class ControlView {
     go.addEventListener('click', () =>
       act(go, 'on-demand inspection', this.odAnswer, () => this.inspect(parseFloat(approach.value), parseFloat(inspect.value))),
     );
+    const frameForm = this.frameForm();
     byId('panel-control').append(
       h('h2', {}, 'Mission control'),
       h('div', { className: 'row' }, h('label', {}, 'Drone ', this.drone), h('label', {}, 'Mission # ', this.missionId), h('label', {}, 'Item ', this.itemId)),
@@ -46,6 +47,40 @@ export class ControlView {
       h('div', { className: 'row' }, h('label', {}, 'Frame ', this.odFrame), h('label', {}, 'Drone ', this.odDrone)),
       h('div', { className: 'row' }, h('label', {}, 'Approach m ', approach), h('label', {}, 'Inspect m ', inspect), go),
       this.odAnswer,
+      frameForm,
+    );
+  }
+
+  /** Registers a frame (a panel named in an alert) at an ENU position, for the on-demand task. */
+  private frameForm(): HTMLElement {
+    const id = h('input', { id: 'frame-id', placeholder: 'panel_12', 'aria-label': 'frame id' });
+    const num = (name: string) => h('input', { id: `frame-${name}`, type: 'number', step: '0.1', value: '0', 'aria-label': `frame ${name}` });
+    const [x, y, z, yaw] = ['x', 'y', 'z', 'yaw'].map(num);
+    const answer = h('p', { className: 'answer', id: 'frame-answer' });
+    const add = h('button', { id: 'btn-frame' }, 'Register frame');
+    add.addEventListener('click', () =>
+      act(add, 'register frame', answer, async () => {
+        const inst = this.app.ref(this.odDrone.value)?.inst ?? this.app.instances[0];
+        if (!inst) return { ok: false, text: 'not connected' };
+        if (!id.value.trim()) return { ok: false, text: 'name the frame' };
+        const v = (el: HTMLInputElement) => Number(el.value) || 0;
+        try {
+          const r = await inst.client.postFrame({ frame_id: id.value.trim(), parent: 'earth', translation_m: [v(x), v(y), v(z)], yaw_rad: (v(yaw) * Math.PI) / 180 });
+          await inst.refreshFrames();
+          this.selectFrame(r.frame_id);
+          this.app.emit('instances');
+          return { ok: true, text: `${r.frame_id} at (${v(x)}, ${v(y)}, ${v(z)}) m` };
+        } catch (e) {
+          return { ok: false, text: describeError(e) };
+        }
+      }),
+    );
+    return h(
+      'details',
+      { id: 'frame-details' },
+      h('summary', {}, 'Register a frame (a panel from an alert)'),
+      h('div', { className: 'row' }, h('label', {}, 'Frame ', id), h('label', {}, 'x m ', x), h('label', {}, 'y m ', y), h('label', {}, 'z m ', z), h('label', {}, 'yaw ° ', yaw), add),
+      answer,
     );
   }
 

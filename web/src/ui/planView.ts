@@ -29,6 +29,14 @@ import { byId, h, setOptions } from './dom';
 import { act, showAnswer, type Outcome } from './feedback';
 import { describeError } from './instance';
 
+const DRAFT_KEY = 'kestrel.draft';
+
+/** The plan being edited before a reload of the page, if any. */
+function savedDraft(): Mission {
+  const r = parseMission(sessionStorage.getItem(DRAFT_KEY) ?? '', '');
+  return 'mission' in r ? r.mission : emptyMission('');
+}
+
 export interface CoveragePlan {
   polygon: Vec2[];
   answer: CoverageAnswer | null;
@@ -36,7 +44,7 @@ export interface CoveragePlan {
 }
 
 export class PlanView {
-  draft: Mission = emptyMission('');
+  draft: Mission = savedDraft();
   errors: SortedErrors | null = null;
   coverage: CoveragePlan | null = null;
   /** Index of the item the control panel sends with INSERT / MODIFY. */
@@ -44,6 +52,7 @@ export class PlanView {
   onChange: () => void = () => {};
   /** Set in the geographic view: clicks then add go_to_gps items (when the drone offers it). */
   geoOrigin: GeoOrigin | null = null;
+  private behaviorCount = 0;
 
   private target = h('select', { id: 'plan-target', 'aria-label': 'mission target drone' });
   private height = h('input', { id: 'plan-height', type: 'number', step: '0.5', value: '3', 'aria-label': 'height (m)' });
@@ -70,6 +79,8 @@ export class PlanView {
     const uploadStart = btn('btn-upload-start', 'Upload, load & start', (b) => this.upload(b, true), 'primary');
     const importFile = h('input', { id: 'import-file', type: 'file', accept: '.json,application/json' });
     importFile.addEventListener('change', () => this.importFile(importFile));
+    this.renderItems();
+    this.json.value = missionToJson(this.draft);
     byId('panel-plan').append(
       h('h2', {}, 'Plan a mission'),
       h('div', { className: 'row' }, h('label', {}, 'Target ', this.target), h('label', {}, 'Height m ', this.height), h('label', {}, 'Speed m/s ', this.speed)),
@@ -115,7 +126,13 @@ export class PlanView {
   /** Called when the fleet or behaviors change: refreshes the target and behavior choices. */
   refreshChoices(): void {
     setOptions(this.target, this.app.drones().map((d) => ({ value: d.key, label: d.name })));
-    setOptions(this.addBehavior, this.behaviors().map((b) => ({ value: b.name, label: b.name })));
+    const behaviors = this.behaviors();
+    setOptions(this.addBehavior, behaviors.map((b) => ({ value: b.name, label: b.name })));
+    if (behaviors.length !== this.behaviorCount) {
+      // The argument fields come from the schemas: draw the items again once they are known.
+      this.behaviorCount = behaviors.length;
+      this.renderItems();
+    }
     if (!this.draft.target && this.targetRef()) {
       this.draft = { ...this.draft, target: this.targetRef()?.drone ?? '' };
       this.changed(false);
@@ -155,6 +172,7 @@ export class PlanView {
   }
 
   private changed(structure: boolean): void {
+    sessionStorage.setItem(DRAFT_KEY, JSON.stringify(this.draft));
     if (structure) this.renderItems();
     if (document.activeElement !== this.json) this.json.value = missionToJson(this.draft);
     this.onChange();

@@ -27,9 +27,10 @@ export function drawTimeline(tl: Timeline, rows: Rows, width: number): SVGSVGEle
   const left = 150;
   const top = 8;
   const list = rows === 'behavior' ? tl.rows.map((r) => ({ ...r, label: `${r.drone} ${r.behavior}` })) : tl.drones.map((d) => ({ drone: d, behavior: null, label: d }));
-  const plotW = Math.max(100, width - left - 12);
+  const pad = 8;
+  const plotW = Math.max(100, width - left - 12 - pad);
   const height = top + Math.max(1, list.length) * rowH + 30;
-  const x = (t: number) => left + ((t - tl.t0) / (tl.t1 - tl.t0)) * plotW;
+  const x = (t: number) => left + pad + ((t - tl.t0) / (tl.t1 - tl.t0)) * plotW;
   const svg = s('svg', { width, height, viewBox: `0 0 ${width} ${height}`, class: 'timeline', role: 'img' });
   const step = tickStep(tl.t1 - tl.t0);
   for (let t = Math.ceil(tl.t0 / step) * step; t <= tl.t1; t += step) {
@@ -39,7 +40,7 @@ export function drawTimeline(tl: Timeline, rows: Rows, width: number): SVGSVGEle
   list.forEach((row, i) => {
     const y = top + i * rowH;
     svg.append(s('text', { x: left - 6, y: y + rowH * 0.7, 'text-anchor': 'end' }, row.label));
-    svg.append(s('line', { x1: left, x2: left + plotW, y1: y + rowH, y2: y + rowH, class: 'rowline' }));
+    svg.append(s('line', { x1: left, x2: left + pad + plotW, y1: y + rowH, y2: y + rowH, class: 'rowline' }));
     for (const seg of tl.segments) {
       if (seg.drone !== row.drone || (row.behavior && seg.behavior !== row.behavior)) continue;
       const x0 = x(seg.start);

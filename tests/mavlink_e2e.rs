@@ -1,0 +1,339 @@
+//! End to end: the real `kestrel run` process against the fake autopilot (`sitl/`), both
+//! personalities, over real MAVLink sockets. Positions are checked against the fake's true
+//! state, setpoint gaps against the fake's own statistics.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod mavlink_support;
+
+use mavlink_support::{closest_approaches, demo_targets, serial, Fake, Kestrel, Personality};
+use serde_json::{json, Value};
+use std::time::Duration;
+
+const FLIGHT_TIMEOUT: Duration = Duration::from_secs(120);
+const DEMO: &[&str] = &["--mission-demo", "--exit-when-done", "--max-time-s", "110"];
+
+/// Flies the demo and checks every target; returns the fake, kestrel and the fake's setpoint
+/// statistics up to the end of the takeoff (they are reset then: the rest of the flight is
+/// what the fake reports at the end).
+fn demo_flight(p: Personality, fake_args: &[&str], config: &str) -> (Fake, Kestrel, Value) {
+    let fake = Fake::start(p, fake_args);
+    let poller = fake.poll_states();
+    let mut kestrel = Kestrel::run(p, &fake.connection, config, DEMO);
+    kestrel.wait_line(
+        "\"finished\",\"id\":1,\"behavior\":\"takeoff\"",
+        Duration::from_secs(60),
+    );
+    let takeoff = fake.cmd(json!({"cmd": "setpoint_stats", "reset": true}));
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    let samples = poller.finish();
+    assert!(
+        status.success(),
+        "{p:?} flight failed:\n{}",
+        kestrel.output()
+    );
+    let approaches = closest_approaches(&samples, &demo_targets());
+    for (target, d) in demo_targets().iter().zip(&approaches) {
+        assert!(
+            *d <= 0.3,
+            "{p:?}: target {target:?} missed by {d:.2} m (all: {approaches:.2?})\n{}",
+            kestrel.output()
+        );
+    }
+    let end = fake.state();
+    assert_eq!(end["armed"], false, "{end}");
+    assert_eq!(end["on_ground"], true, "{end}");
+    (fake, kestrel, takeoff)
+}
+
+/// The largest gap between two setpoints the fake saw while offboard (ms).
+fn max_gap_ms(p: Personality, part: &str, stats: &Value) -> f64 {
+    println!("{p:?} setpoint stream during {part}, seen by the fake: {stats}");
+    stats["max_ms"].as_f64().unwrap_or(0.0)
+}
+
+#[test]
+fn px4_demo_flight_reaches_every_target() {
+    let _one = serial();
+    let p = Personality::Px4;
+    let (fake, _k, takeoff) = demo_flight(p, &[], "");
+    let rest = fake.cmd(json!({"cmd": "setpoint_stats"}));
+    assert!(rest["count"].as_u64().unwrap() > 500, "{rest}");
+    // PX4 leaves OFFBOARD 1 s after the last setpoint: the stream stays far below that, from
+    // the OFFBOARD takeoff to the switch to AUTO.LAND.
+    for (part, stats) in [("takeoff", &takeoff), ("the rest", &rest)] {
+        let max = max_gap_ms(p, part, stats);
+        assert!(max < 200.0, "{max} ms gap during {part}: {stats}");
+    }
+}
+
+#[test]
+fn ardupilot_demo_flight_reaches_every_target() {
+    let _one = serial();
+    let p = Personality::Ardupilot;
+    let (fake, _k, takeoff) = demo_flight(p, &[], "");
+    let rest = fake.cmd(json!({"cmd": "setpoint_stats"}));
+    assert!(rest["count"].as_u64().unwrap() > 500, "{rest}");
+    // NAV_TAKEOFF climbs without setpoints (they would cancel it), well within GUID_TIMEOUT;
+    // after it the stream is steady.
+    let max = max_gap_ms(p, "takeoff", &takeoff);
+    assert!(max < 3000.0, "{max} ms gap during the takeoff: {takeoff}");
+    let max = max_gap_ms(p, "the rest", &rest);
+    assert!(max < 200.0, "{max} ms gap after the takeoff: {rest}");
+}
+
+#[test]
+fn px4_flight_completes_with_ten_percent_packet_loss() {
+    let _one = serial();
+    let p = Personality::Px4;
+    let (fake, _k, _) = demo_flight(p, &["--packet-loss", "0.1"], "");
+    let rest = fake.cmd(json!({"cmd": "setpoint_stats"}));
+    let max = max_gap_ms(p, "the flight after takeoff, 10% loss", &rest);
+    assert!(max < 1000.0, "PX4 would have left OFFBOARD: {rest}");
+}
+
+#[test]
+fn ardupilot_flight_completes_with_ten_percent_packet_loss() {
+    let _one = serial();
+    demo_flight(Personality::Ardupilot, &["--packet-loss", "0.1"], "");
+}
+
+fn arming_denied(p: Personality, expected: &str) {
+    let _one = serial();
+    let fake = Fake::start(p, &["--deny-arm", "Throttle too high"]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", DEMO);
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    let out = kestrel.output();
+    assert!(!status.success(), "{out}");
+    assert!(
+        out.lines()
+            .any(|l| l.contains("flight failed") && l.contains(expected)),
+        "the autopilot's reason `{expected}` must end the run:\n{out}"
+    );
+    assert_eq!(fake.state()["armed"], false);
+}
+
+#[test]
+fn px4_arming_denied_surfaces_the_event_text() {
+    arming_denied(
+        Personality::Px4,
+        "Arming denied: Resolve system health failures first",
+    );
+}
+
+#[test]
+fn ardupilot_arming_denied_surfaces_the_statustext() {
+    arming_denied(Personality::Ardupilot, "Arm: Throttle too high");
+}
+
+/// Drops the link for 3 s once `behavior` has flown for a while; returns when the drop began.
+fn drop_link_during(fake: &Fake, kestrel: &Kestrel, behavior: &str) -> std::time::Instant {
+    kestrel.wait_line(
+        &format!("\"started\",\"id\":2,\"behavior\":\"{behavior}\""),
+        Duration::from_secs(60),
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    let dropped_at = std::time::Instant::now();
+    fake.cmd(json!({"cmd": "link_drop", "duration_s": 3.0}));
+    dropped_at
+}
+
+fn link_lost_detected_quickly(kestrel: &Kestrel, dropped_at: std::time::Instant) {
+    let lost = kestrel.wait_line("link: lost", Duration::from_secs(5));
+    let detection = lost.duration_since(dropped_at);
+    assert!(
+        detection < Duration::from_secs(2),
+        "link loss seen after {detection:?}\n{}",
+        kestrel.output()
+    );
+    let out = kestrel.output();
+    assert!(
+        out.contains("link to the autopilot lost"),
+        "the running behavior must end with the reason:\n{out}"
+    );
+}
+
+#[test]
+fn px4_link_drop_mid_flight_resumes_the_plan() {
+    let _one = serial();
+    let p = Personality::Px4;
+    let fake = Fake::start(p, &[]);
+    let poller = fake.poll_states();
+    let config = "[mavlink]\non_link_regained = \"resume\"\n";
+    let mut kestrel = Kestrel::run(p, &fake.connection, config, DEMO);
+    let dropped_at = drop_link_during(&fake, &kestrel, "go_to");
+    link_lost_detected_quickly(&kestrel, dropped_at);
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    let samples = poller.finish();
+    assert!(status.success(), "{}", kestrel.output());
+    assert!(kestrel.output().contains("resuming the plan"));
+    // PX4 went to AUTO.LAND on offboard loss; the resumed plan still reaches what follows.
+    let targets = demo_targets();
+    let after = targets.get(1..).unwrap();
+    let approaches = closest_approaches(&samples, after);
+    assert!(
+        approaches.iter().all(|d| *d <= 0.3),
+        "{approaches:.2?}\n{}",
+        kestrel.output()
+    );
+    let end = fake.state();
+    assert_eq!(end["armed"], false, "{end}");
+}
+
+#[test]
+fn ardupilot_link_drop_mid_flight_lands_when_configured() {
+    let _one = serial();
+    let p = Personality::Ardupilot;
+    let fake = Fake::start(p, &[]);
+    let config = "[mavlink]\non_link_regained = \"land\"\n";
+    let mut kestrel = Kestrel::run(p, &fake.connection, config, DEMO);
+    let dropped_at = drop_link_during(&fake, &kestrel, "go_to");
+    link_lost_detected_quickly(&kestrel, dropped_at);
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    let out = kestrel.output();
+    println!("{out}");
+    assert!(!status.success(), "{out}");
+    assert!(out.contains("mode: LAND"), "{out}");
+    let end = fake.state();
+    assert_eq!(end["armed"], false, "{end}");
+    assert_eq!(end["on_ground"], true, "{end}");
+    assert!(
+        out.lines()
+            .any(|l| l.contains("flight failed") && l.contains("link to the autopilot lost")),
+        "{out}"
+    );
+}
+
+#[test]
+fn px4_reboot_is_detected_and_the_link_comes_back() {
+    let _one = serial();
+    let p = Personality::Px4;
+    let fake = Fake::start(p, &[]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--max-time-s", "9"]);
+    kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
+    std::thread::sleep(Duration::from_secs(2));
+    fake.cmd(json!({"cmd": "reboot", "gap_s": 2.5}));
+    kestrel.wait(Duration::from_secs(30));
+    let out = kestrel.output();
+    let lost = kestrel.line_at("link: lost");
+    let lost = lost.unwrap_or_else(|| panic!("no link loss during the reboot:\n{out}"));
+    assert!(kestrel.line_after("link: ok", lost).is_some(), "{out}");
+    assert!(
+        kestrel.line_after("autopilot reboot #1", lost).is_some(),
+        "{out}"
+    );
+}
+
+/// The autopilot process goes away and comes back on the same port: Kestrel reconnects (TCP:
+/// a new connection; UDP: the new peer is answered) and sees a fresh boot.
+fn reconnects_after_the_autopilot_restarts(p: Personality) {
+    let _one = serial();
+    let mut fake = Fake::start(p, &[]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--max-time-s", "14"]);
+    kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
+    std::thread::sleep(Duration::from_secs(2));
+    fake.restart(Duration::from_secs(2));
+    let lost = kestrel.wait_line("link: lost", Duration::from_secs(5));
+    kestrel.wait(Duration::from_secs(30));
+    let out = kestrel.output();
+    assert!(kestrel.line_after("link: ok", lost).is_some(), "{out}");
+    // ArduPilot streams only what this connection asked for: telemetry again means the
+    // message rates were requested again after reconnecting.
+    let ready_again = kestrel.line_after("ready to fly: true", lost);
+    assert!(
+        ready_again.is_some(),
+        "no telemetry after reconnecting:\n{out}"
+    );
+    assert_eq!(fake.state()["boot_count"], 1, "a new process");
+}
+
+#[test]
+fn px4_reconnects_after_the_autopilot_restarts() {
+    reconnects_after_the_autopilot_restarts(Personality::Px4);
+}
+
+#[test]
+fn ardupilot_reconnects_after_the_autopilot_restarts() {
+    reconnects_after_the_autopilot_restarts(Personality::Ardupilot);
+}
+
+/// Kestrel between the autopilot and a ground station: the GCS gets the autopilot's own frames
+/// and its commands reach the autopilot, whose answer comes back to it.
+#[test]
+fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
+    use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
+    use mavlink::{MavHeader, MavlinkReader};
+    let _one = serial();
+    let p = Personality::Px4;
+    let fake = Fake::start(p, &[]);
+    let gcs = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let port = gcs.local_addr().unwrap().port();
+    let config = format!("[mavlink]\nforward = [\"udpout:127.0.0.1:{port}\"]\n");
+    let _kestrel = Kestrel::run(p, &fake.connection, &config, &["--max-time-s", "20"]);
+    let mut buf = [0u8; 2048];
+    let recv = |buf: &mut [u8]| -> Option<(std::net::SocketAddr, MavHeader, MavMessage)> {
+        let (n, from) = gcs.recv_from(buf).ok()?;
+        let (h, m) = MavlinkReader::new(&buf[..n])
+            .read_any_message::<MavMessage>()
+            .ok()?;
+        Some((from, h, m))
+    };
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let kestrel_addr = loop {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no autopilot HEARTBEAT forwarded"
+        );
+        if let Some((from, h, MavMessage::HEARTBEAT(_))) = recv(&mut buf) {
+            if h.system_id == 1 && h.component_id == 1 {
+                break from;
+            }
+        }
+    };
+    let request = MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: 148.0, // AUTOPILOT_VERSION
+        command: MavCmd::MAV_CMD_REQUEST_MESSAGE,
+        target_system: 1,
+        target_component: 1,
+        ..COMMAND_LONG_DATA::DEFAULT
+    });
+    let gcs_header = MavHeader {
+        system_id: 255,
+        component_id: 190,
+        sequence: 0,
+    };
+    let mut frame = Vec::new();
+    mavlink::write_v2_msg(&mut frame, gcs_header, &request).unwrap();
+    gcs.send_to(&frame, kestrel_addr).unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    loop {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no answer to the GCS command"
+        );
+        if let Some((_, _, MavMessage::AUTOPILOT_VERSION(v))) = recv(&mut buf) {
+            assert_eq!(
+                v.uid,
+                0x4B45_5354_5245_4C00 + 1,
+                "the fake's version record"
+            );
+            break;
+        }
+    }
+}
+
+/// `platforms/sim.toml`: the same `kestrel run` loop over the built-in simulator in real time.
+#[test]
+fn run_flies_the_demo_on_the_simulator_platform() {
+    let _one = serial();
+    let mut kestrel = Kestrel::run_with_platform("platforms/sim.toml", "udpin:0.0.0.0:0", "", DEMO);
+    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    assert!(status.success(), "{}", kestrel.output());
+    let log = kestrel.flight_log();
+    let finished = log
+        .iter()
+        .filter(|r| r["type"] == "behavior" && r["event"] == "finished")
+        .count();
+    assert_eq!(finished, 4, "takeoff, go_to, follow_path, land");
+}

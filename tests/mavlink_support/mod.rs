@@ -1,0 +1,387 @@
+//! Harness for the MAVLink end-to-end tests: the fake autopilot (`sitl/`) and the real
+//! `kestrel` binary as processes on free ports, the fake's control channel, and a poller that
+//! records the fake's true state.
+#![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
+
+use serde_json::{json, Value};
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpListener, TcpStream, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// E2E flights share two cores with everything else: one at a time keeps timings honest.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+pub fn serial() -> MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn python() -> PathBuf {
+    let p = repo().join("sitl/.venv/bin/python");
+    assert!(
+        p.exists(),
+        "{} missing: run `bash sitl/setup.sh` first (the CI script does)",
+        p.display()
+    );
+    p
+}
+
+pub fn free_udp_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+pub fn free_tcp_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Personality {
+    Px4,
+    Ardupilot,
+}
+
+impl Personality {
+    pub fn profile(self) -> &'static str {
+        match self {
+            Self::Px4 => "platforms/px4.toml",
+            Self::Ardupilot => "platforms/ardupilot-copter.toml",
+        }
+    }
+}
+
+/// The fake autopilot process.
+pub struct Fake {
+    child: Child,
+    args: Vec<String>,
+    pub control_port: u16,
+    /// Kestrel's connection string for this fake.
+    pub connection: String,
+}
+
+impl Fake {
+    pub fn start(personality: Personality, extra: &[&str]) -> Self {
+        let control_port = free_tcp_port();
+        let mut args: Vec<String> = vec!["--control-port".into(), control_port.to_string()];
+        let connection = match personality {
+            Personality::Px4 => {
+                let listen = free_udp_port();
+                let remote = free_udp_port();
+                args.extend(["--personality".into(), "px4".into()]);
+                args.extend(["--px4-listen-base".into(), listen.to_string()]);
+                args.extend(["--px4-remote-base".into(), remote.to_string()]);
+                format!("udpin:127.0.0.1:{remote}")
+            }
+            Personality::Ardupilot => {
+                let tcp = free_tcp_port();
+                args.extend(["--personality".into(), "ardupilot".into()]);
+                args.extend(["--ardupilot-tcp-base".into(), tcp.to_string()]);
+                format!("tcpout:127.0.0.1:{tcp}")
+            }
+        };
+        args.extend(extra.iter().map(|s| s.to_string()));
+        Self {
+            child: spawn_fake(&args),
+            args,
+            control_port,
+            connection,
+        }
+    }
+
+    /// Kills the process and starts a new one on the same ports (an autopilot power cycle,
+    /// or a serial cable pulled and plugged back).
+    pub fn restart(&mut self, off_for: Duration) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        std::thread::sleep(off_for);
+        self.child = spawn_fake(&self.args);
+    }
+
+    /// One control-channel request; panics on `ok: false`.
+    pub fn cmd(&self, request: Value) -> Value {
+        control(self.control_port, &request)
+    }
+
+    pub fn state(&self) -> Value {
+        self.cmd(json!({"cmd": "state"}))
+    }
+
+    /// Records the true state every 50 ms until the returned poller is stopped.
+    pub fn poll_states(&self) -> Poller {
+        let port = self.control_port;
+        let stop = Arc::new(AtomicBool::new(false));
+        let samples = Arc::new(Mutex::new(Vec::new()));
+        let (s, out) = (stop.clone(), samples.clone());
+        let handle = std::thread::spawn(move || {
+            while !s.load(Ordering::Relaxed) {
+                if let Some(v) = try_control(port, &json!({"cmd": "state"})) {
+                    out.lock().unwrap().push(v);
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        });
+        Poller {
+            stop,
+            samples,
+            handle: Some(handle),
+        }
+    }
+}
+
+fn spawn_fake(args: &[String]) -> Child {
+    let mut child = Command::new(python())
+        .arg(repo().join("sitl/fake_autopilot.py"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("starting the fake autopilot");
+    let mut ready = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut ready)
+        .unwrap();
+    assert!(
+        ready.contains("\"ready\": true"),
+        "fake did not start: {ready}"
+    );
+    child
+}
+
+impl Drop for Fake {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn try_control(port: u16, request: &Value) -> Option<Value> {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).ok()?;
+    s.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    writeln!(s, "{request}").ok()?;
+    let mut line = String::new();
+    BufReader::new(s).read_line(&mut line).ok()?;
+    serde_json::from_str(&line).ok()
+}
+
+pub fn control(port: u16, request: &Value) -> Value {
+    let reply = try_control(port, request).expect("control channel");
+    assert_eq!(reply["ok"], true, "{request} -> {reply}");
+    reply
+}
+
+pub struct Poller {
+    stop: Arc<AtomicBool>,
+    samples: Arc<Mutex<Vec<Value>>>,
+    handle: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Poller {
+    pub fn finish(mut self) -> Vec<Value> {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.handle.take() {
+            h.join().unwrap();
+        }
+        std::mem::take(&mut *self.samples.lock().unwrap())
+    }
+}
+
+/// The `kestrel run` process, its stdout lines stamped on arrival.
+pub struct Kestrel {
+    child: Child,
+    pub lines: Arc<Mutex<Vec<(Instant, String)>>>,
+    pub log: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+impl Kestrel {
+    /// `kestrel run --platform P --connection C --log L <extra>`; `config` is written to a file.
+    pub fn run(personality: Personality, connection: &str, config: &str, extra: &[&str]) -> Self {
+        Self::run_with_platform(personality.profile(), connection, config, extra)
+    }
+
+    /// `kestrel run` with any platform file.
+    pub fn run_with_platform(
+        platform: &str,
+        connection: &str,
+        config: &str,
+        extra: &[&str],
+    ) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let config_path = dir.path().join("kestrel.toml");
+        std::fs::write(&config_path, config).unwrap();
+        let log = dir.path().join("flight.jsonl");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_kestrel"))
+            .current_dir(repo())
+            .env("RUST_LOG", "warn")
+            .env("RUST_BACKTRACE", "0")
+            .arg("run")
+            .args(["--config", config_path.to_str().unwrap()])
+            .args(["--platform", platform])
+            .args(["--connection", connection])
+            .args(["--log", log.to_str().unwrap()])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starting kestrel");
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        for stream in [
+            Box::new(child.stdout.take().unwrap()) as Box<dyn std::io::Read + Send>,
+            Box::new(child.stderr.take().unwrap()),
+        ] {
+            let out = lines.clone();
+            std::thread::spawn(move || {
+                for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    out.lock().unwrap().push((Instant::now(), line));
+                }
+            });
+        }
+        Self {
+            child,
+            lines,
+            log,
+            _dir: dir,
+        }
+    }
+
+    /// Waits for the exit; panics (with the output) after `timeout`.
+    pub fn wait(&mut self, timeout: Duration) -> ExitStatus {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                std::thread::sleep(Duration::from_millis(100)); // let the readers drain
+                return status;
+            }
+            if Instant::now() > deadline {
+                let _ = self.child.kill();
+                panic!(
+                    "kestrel still running after {timeout:?}:\n{}",
+                    self.output()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    pub fn output(&self) -> String {
+        let lines = self.lines.lock().unwrap();
+        lines
+            .iter()
+            .map(|(_, l)| l.as_str())
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
+    /// When the first line containing `needle` arrived.
+    pub fn line_at(&self, needle: &str) -> Option<Instant> {
+        let lines = self.lines.lock().unwrap();
+        lines
+            .iter()
+            .find(|(_, l)| l.contains(needle))
+            .map(|(t, _)| *t)
+    }
+
+    /// When the first line containing `needle` arrived at or after `after`.
+    pub fn line_after(&self, needle: &str, after: Instant) -> Option<Instant> {
+        let lines = self.lines.lock().unwrap();
+        lines
+            .iter()
+            .find(|(t, l)| *t >= after && l.contains(needle))
+            .map(|(t, _)| *t)
+    }
+
+    /// Waits until a line contains `needle`.
+    pub fn wait_line(&self, needle: &str, timeout: Duration) -> Instant {
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            if let Some(t) = self.line_at(needle) {
+                return t;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        panic!("no `{needle}` within {timeout:?}:\n{}", self.output());
+    }
+
+    pub fn flight_log(&self) -> Vec<Value> {
+        let text = std::fs::read_to_string(&self.log).unwrap_or_default();
+        text.lines()
+            .filter_map(|l| serde_json::from_str(l).ok())
+            .collect()
+    }
+}
+
+impl Drop for Kestrel {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The demo plan's targets in the autopilot's local ENU frame, in order.
+pub fn demo_targets() -> Vec<[f64; 3]> {
+    vec![
+        [0.0, 0.0, 3.0],
+        [0.0, 5.0, 3.0],
+        [3.0, 5.0, 3.5],
+        [3.0, 8.0, 3.5],
+        [0.0, 8.0, 3.0],
+        [0.0, 8.0, 0.0],
+    ]
+}
+
+fn vec3(v: &Value) -> [f64; 3] {
+    let a = |i: usize| v[i].as_f64().unwrap();
+    [a(0), a(1), a(2)]
+}
+
+/// For each target in order, the closest the true trajectory came (metres), searching each
+/// target only after the previous one was passed.
+pub fn closest_approaches(samples: &[Value], targets: &[[f64; 3]]) -> Vec<f64> {
+    let points: Vec<[f64; 3]> = samples
+        .iter()
+        .map(|s| {
+            let p = vec3(&s["position_enu_m"]);
+            let o = vec3(&s["local_origin_enu_m"]);
+            [p[0] - o[0], p[1] - o[1], p[2] - o[2]]
+        })
+        .collect();
+    let mut from = 0;
+    targets
+        .iter()
+        .map(|t| {
+            let dist = |p: &[f64; 3]| {
+                ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2) + (p[2] - t[2]).powi(2)).sqrt()
+            };
+            let best = points
+                .iter()
+                .enumerate()
+                .skip(from)
+                .min_by(|a, b| dist(a.1).total_cmp(&dist(b.1)));
+            match best {
+                Some((i, p)) => {
+                    from = i;
+                    dist(p)
+                }
+                None => f64::INFINITY,
+            }
+        })
+        .collect()
+}
+
+pub fn profile_path(p: Personality) -> &'static Path {
+    Path::new(p.profile())
+}
