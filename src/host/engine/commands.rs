@@ -291,7 +291,8 @@ impl Host {
             Request::prepare(update, &ctx)?
         };
         for w in req.mission.iter().flat_map(|m| &m.warnings) {
-            tracing::warn!("{} for drone {i}: {w}", update.action);
+            let drone = self.cores.get(i).map(|c| c.drone_id()).unwrap_or_default();
+            tracing::warn!("{} for {drone}: {w}", update.action);
         }
         let now = self.now;
         let (Some(ex), Some(core)) = (self.executors.get_mut(i), self.cores.get_mut(i)) else {
