@@ -230,6 +230,9 @@ impl Host {
         })?;
         let valid = self.validate(i, mission)?;
         let warnings = valid.warnings.clone();
+        for w in &warnings {
+            tracing::warn!("mission for {target}: {w}");
+        }
         let now = self.now;
         let (Some(ex), Some(core)) = (self.executors.get_mut(i), self.cores.get_mut(i)) else {
             return Err(HostError::UnknownDrone(target, String::new()));
@@ -287,6 +290,10 @@ impl Host {
                 .ok_or_else(|| HostError::UnknownDrone(i.to_string(), self.ids()))?;
             Request::prepare(update, &ctx)?
         };
+        for w in req.mission.iter().flat_map(|m| &m.warnings) {
+            let drone = self.cores.get(i).map(|c| c.drone_id()).unwrap_or_default();
+            tracing::warn!("{} for {drone}: {w}", update.action);
+        }
         let now = self.now;
         let (Some(ex), Some(core)) = (self.executors.get_mut(i), self.cores.get_mut(i)) else {
             return Err(HostError::UnknownDrone(i.to_string(), String::new()));
