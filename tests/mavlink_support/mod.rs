@@ -331,16 +331,37 @@ impl Drop for Kestrel {
     }
 }
 
-/// The demo plan's targets in the autopilot's local ENU frame, in order.
+/// The demo plan's targets in the autopilot's local ENU frame, in order, for a vehicle that
+/// starts at the origin facing east (the fake's default): the takeoff point, every go_to and
+/// follow_path point, and the touchdown below the last one.
 pub fn demo_targets() -> Vec<[f64; 3]> {
-    vec![
-        [0.0, 0.0, 3.0],
-        [0.0, 5.0, 3.0],
-        [3.0, 5.0, 3.5],
-        [3.0, 8.0, 3.5],
-        [0.0, 8.0, 3.0],
-        [0.0, 8.0, 0.0],
-    ]
+    let mut targets = Vec::new();
+    let mut last = [0.0, 0.0, 0.0];
+    for (behavior, goal) in kestrel::sim::script::demo_plan(kestrel::types::Vec3::zeros(), 0.0) {
+        let point = |v: &Value| {
+            [
+                v[0].as_f64().unwrap(),
+                v[1].as_f64().unwrap(),
+                v[2].as_f64().unwrap(),
+            ]
+        };
+        let new: Vec<[f64; 3]> = match behavior.as_str() {
+            "takeoff" => vec![[last[0], last[1], last[2] + goal["height"].as_f64().unwrap()]],
+            "go_to" => vec![[
+                goal["x"].as_f64().unwrap(),
+                goal["y"].as_f64().unwrap(),
+                goal["z"].as_f64().unwrap(),
+            ]],
+            "follow_path" => goal["path"].as_array().unwrap().iter().map(point).collect(),
+            "land" => vec![[last[0], last[1], 0.0]],
+            other => panic!("demo item {other} has no target here"),
+        };
+        if let Some(p) = new.last() {
+            last = *p;
+        }
+        targets.extend(new);
+    }
+    targets
 }
 
 fn vec3(v: &Value) -> [f64; 3] {

@@ -48,6 +48,8 @@ struct LocalPosition {
     position_enu_m: Vec3,
     velocity_enu_mps: Vec3,
     at: Duration,
+    /// Set when the autopilot restarted: the last estimate is kept but never valid again.
+    stale: bool,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -222,7 +224,7 @@ impl VehicleModel {
             return Err("pre-arm checks failing".into());
         }
         match self.position {
-            Some(p) if Self::fresh(p.at, now) => Ok(()),
+            Some(p) if !p.stale && Self::fresh(p.at, now) => Ok(()),
             _ => Err(format!(
                 "no local position estimate from the autopilot{}",
                 self.gps_words()
@@ -270,7 +272,7 @@ impl VehicleModel {
         let p = self.position?;
         let att = self.attitude;
         let orientation = att.map_or_else(UnitQuaternion::identity, |a| a.orientation);
-        let position_ok = Self::fresh(p.at, now);
+        let position_ok = !p.stale && Self::fresh(p.at, now);
         let attitude_ok = att.is_some_and(|a| Self::fresh(a.at, now));
         Some(Measurement::AutopilotOdometry {
             pose: Pose {
@@ -294,7 +296,11 @@ impl VehicleModel {
 
     /// Forgets the vehicle's state after a reboot or a link loss that outlived it.
     fn forget_estimate(&mut self) {
-        self.position = None;
+        // Keep reporting the last estimate as invalid (rather than nothing), so that the
+        // estimator drops its validity until the autopilot reports a new one.
+        if let Some(p) = self.position.as_mut() {
+            p.stale = true;
+        }
         self.attitude = None;
         self.ekf_flags = None;
         self.landed_state = None;
@@ -360,6 +366,7 @@ impl VehicleModel {
                         position_enu_m: frames::ned_to_enu(p.x.into(), p.y.into(), p.z.into()),
                         velocity_enu_mps: frames::ned_to_enu(p.vx.into(), p.vy.into(), p.vz.into()),
                         at: now,
+                        stale: false,
                     });
                 }
                 return self.boot_time(p.time_boot_ms);
@@ -510,6 +517,7 @@ impl VehicleModel {
             position_enu_m: frames::ned_to_enu(o.x.into(), o.y.into(), o.z.into()),
             velocity_enu_mps,
             at: now,
+            stale: false,
         });
         if let Some(orientation) = q {
             self.attitude = Some(Attitude {
@@ -680,6 +688,12 @@ mod tests {
             })
         };
         assert_eq!(m.ingest(Duration::ZERO, &ap(), &at(60_000)), None);
+        let lp = MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+            time_boot_ms: 60_000,
+            ..LOCAL_POSITION_NED_DATA::DEFAULT
+        });
+        m.ingest(Duration::ZERO, &ap(), &lp);
+        assert!(m.readiness(Duration::ZERO).is_ok());
         assert_eq!(m.ingest(Duration::ZERO, &ap(), &at(59_990)), None);
         assert_eq!(
             m.ingest(Duration::ZERO, &ap(), &at(300)),
@@ -687,6 +701,12 @@ mod tests {
         );
         let s = m.status(Duration::ZERO);
         assert_eq!(s.boot_counter, 1);
+        assert!(!s.ready_to_fly);
+        let odometry = m.odometry(Duration::ZERO);
+        assert!(
+            matches!(odometry, Some(Measurement::AutopilotOdometry { valid, .. }) if !valid.position),
+            "the estimate from before the reboot is kept, invalid: {odometry:?}"
+        );
         assert_eq!(s.last_error.as_deref(), Some("the autopilot rebooted"));
     }
 
