@@ -218,3 +218,118 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
     let p = &s["drones"][0]["position_enu_m"];
     assert!((p[1].as_f64().unwrap() - 5.0).abs() < 0.5, "landed at {p}");
 }
+
+struct Process(Child);
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+async fn status(http: &reqwest::Client, base: &str) -> Value {
+    http.get(format!("{base}/api/status"))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap()
+}
+
+/// The service path as systemd starts it: the real `kestrel run` process on the fake PX4,
+/// serving the API; the mission is uploaded and started over REST before the autopilot is
+/// ready (takeoff waits for readiness), and flies to the end.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
+    let kestrel_port = free_udp_port();
+    let api_port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let state = tempfile::tempdir().unwrap();
+    let _kestrel = Process(
+        Command::new(env!("CARGO_BIN_EXE_kestrel"))
+            .args(["run", "--platform", "px4"])
+            .args(["--connection", &format!("udpin:127.0.0.1:{kestrel_port}")])
+            .args(["--listen", &format!("127.0.0.1:{api_port}")])
+            .arg("--state-dir")
+            .arg(state.path())
+            .arg("--log")
+            .arg(state.path().join("flight.jsonl"))
+            .env("KESTREL_API_TOKEN", TOKEN)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let base = format!("http://127.0.0.1:{api_port}");
+    let http = reqwest::Client::new();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while http.get(format!("{base}/api/health")).send().await.is_err() {
+        assert!(
+            Instant::now() < deadline,
+            "kestrel run never served the API"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let mission: Value = serde_json::from_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/missions/takeoff_go_land.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    let up: Value = http
+        .post(format!("{base}/api/missions"))
+        .bearer_auth(TOKEN)
+        .json(&mission)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let id = up["mission_id"].clone();
+    assert!(id.is_u64(), "{up}");
+    // The autopilot starts only now: the takeoff has to wait for it to become ready.
+    let _fake = fake_px4(kestrel_port);
+    let start: Value = http
+        .post(format!("{base}/api/mission_update"))
+        .bearer_auth(TOKEN)
+        .json(&json!({"drone_id": "drone_0", "mission_id": id, "action": 2}))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(start["accepted"], true, "{start}");
+    let deadline = Instant::now() + Duration::from_secs(90);
+    let last = loop {
+        let s = status(&http, &base).await;
+        let m = &s["drones"][0]["mission"];
+        assert!(m["last_error"].is_null(), "{m}");
+        if m["state"] == 0 && m["done_items"] == 3 {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "mission did not end: {m}");
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    };
+    let d = &last["drones"][0];
+    let p = &d["position_enu_m"];
+    assert!((p[1].as_f64().unwrap() - 5.0).abs() < 0.5, "landed at {p}");
+    assert_eq!(d["armed"], false, "{d}");
+    let log = std::fs::read_to_string(state.path().join("flight.jsonl")).unwrap();
+    let started: Vec<String> = log
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter(|r| r["type"] == "behavior" && r["event"] == "started")
+        .map(|r| r["behavior"].as_str().unwrap_or_default().to_string())
+        .collect();
+    assert_eq!(started, ["takeoff", "go_to", "land"]);
+}

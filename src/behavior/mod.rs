@@ -53,6 +53,9 @@ pub struct BehaviorConfig {
     pub no_progress_timeout_s: f64,
     /// Arming and entering offboard must complete within this time (s).
     pub arm_timeout_s: f64,
+    /// A takeoff started before the vehicle is ready to fly (no position estimate yet, e.g.
+    /// ArduPilot's EKF about 40 s after boot) waits this long before failing (s).
+    pub ready_timeout_s: f64,
     /// Speed used to hold position after pause or stop (m/s).
     pub hold_speed_mps: f64,
 }
@@ -66,6 +69,7 @@ impl Default for BehaviorConfig {
             max_acceleration_mps2: 2.0,
             no_progress_timeout_s: 20.0,
             arm_timeout_s: 15.0,
+            ready_timeout_s: 60.0,
             hold_speed_mps: 1.0,
         }
     }
