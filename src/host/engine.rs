@@ -16,7 +16,10 @@ use crate::mission::{
     ActionError, ExecState, Limits, Mission, MissionExecutor, MissionStatus, MissionUpdate,
     Request, ValidationContext, ValidationError,
 };
+use crate::mapping::merged::FleetMap;
+use crate::mapping::scan::RangeScan;
 use crate::types::{LinkHealth, Pose, Vec3};
+pub use super::map_view::MapView;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
@@ -49,6 +52,9 @@ impl From<FrameError> for HostError {
 }
 
 pub type Reply<T> = oneshot::Sender<Result<T, HostError>>;
+
+/// Most API scans waiting for one drone's next tick.
+const MAX_QUEUED_SCANS: usize = 64;
 
 /// A request from the API (or the CLI) to the host.
 #[derive(Debug)]
@@ -92,6 +98,18 @@ pub enum Command {
     },
     /// Flush the flight log so readers see every record.
     FlushLog { reply: Reply<()> },
+    /// A copy of a drone's map (the one it plans on), or of the merged map when `drone` is
+    /// absent.
+    Map {
+        drone: Option<String>,
+        reply: Reply<MapView>,
+    },
+    /// Scans from outside (API) for a drone's next tick; replies with the number queued.
+    Scans {
+        drone: Option<String>,
+        scans: Vec<RangeScan>,
+        reply: Reply<usize>,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
@@ -210,6 +228,10 @@ pub struct Host {
     published: Vec<u64>,
     links: Vec<LinkHealth>,
     errors: Vec<Option<String>>,
+    /// The fleet's merged map (`None` when mapping is off).
+    map: Option<FleetMap>,
+    /// Scans sent over the API, handed to each drone's next tick.
+    api_scans: Vec<Vec<RangeScan>>,
 }
 
 impl Host {
@@ -232,7 +254,29 @@ impl Host {
             published: vec![u64::MAX; n],
             links: vec![LinkHealth::Connecting; n],
             errors: vec![None; n],
+            map: None,
+            api_scans: vec![Vec::new(); n],
         }
+    }
+
+    /// Keeps the fleet's merged map, fed with every drone's scans.
+    pub fn set_map(&mut self, map: FleetMap) {
+        self.map = Some(map);
+    }
+
+    pub fn map(&self) -> Option<&FleetMap> {
+        self.map.as_ref()
+    }
+
+    /// The merged map's regions changed since the last call, as `map_update` events.
+    pub fn take_map_updates(&mut self) -> Vec<HostEvent> {
+        self.map
+            .as_mut()
+            .map(|m| m.take_patches()
+                    .into_iter()
+                    .map(HostEvent::map_update)
+                    .collect())
+            .unwrap_or_default()
     }
 
     pub fn set_log(&mut self, log: FlightLog) {
@@ -351,12 +395,21 @@ impl Host {
     pub fn step_at(&mut self, now: Duration) {
         self.now = now;
         for i in 0..self.cores.len() {
-            let feedback = self.fleet.poll(i, now);
+            let mut feedback = self.fleet.poll(i, now);
+            if let Some(scans) = self.api_scans.get_mut(i) {
+                feedback.scans.append(scans);
+            }
             let Some(core) = self.cores.get_mut(i) else {
                 continue;
             };
             let out = core.tick(now, &feedback);
             self.fleet.command(i, now, out.setpoint, &out.requests);
+            if let Some(map) = self.map.as_mut() {
+                for scan in &feedback.scans {
+                    // The drone's own map already counted an invalid scan.
+                    let _ = map.insert(core.drone_id(), scan);
+                }
+            }
             if let Some(ex) = self.executors.get_mut(i) {
                 ex.update(now, core, &out.events);
             }
@@ -658,6 +711,47 @@ impl Host {
         Ok(())
     }
 
+    /// A copy of the map `drone` plans on, or of the merged map.
+    pub fn map_view(&self, drone: Option<&str>) -> Result<MapView, HostError> {
+        let off = || HostError::NotSupported("mapping is off ([map] plugin = \"none\")".into());
+        match drone {
+            Some(d) => {
+                let i = self.route(Some(d))?;
+                let map = self.cores.get(i).and_then(|c| c.map()).ok_or_else(off)?;
+                Ok(MapView::of_drone(d, map))
+            }
+            None => {
+                let map = self.map.as_ref().ok_or_else(off)?;
+                Ok(MapView::merged(map))
+            }
+        }
+    }
+
+    fn queue_scans(
+        &mut self,
+        drone: Option<&str>,
+        scans: Vec<RangeScan>,
+    ) -> Result<usize, HostError> {
+        let i = self.route(drone)?;
+        if self.cores.get(i).and_then(|c| c.map()).is_none() {
+            return Err(HostError::NotSupported(
+                "mapping is off ([map] plugin = \"none\")".into(),
+            ));
+        }
+        let queue = self
+            .api_scans
+            .get_mut(i)
+            .ok_or_else(|| HostError::UnknownDrone(i.to_string(), String::new()))?;
+        if queue.len() + scans.len() > MAX_QUEUED_SCANS {
+            return Err(HostError::Unavailable(format!(
+                "more than {MAX_QUEUED_SCANS} scans wait for the next tick; send fewer"
+            )));
+        }
+        let n = scans.len();
+        queue.extend(scans);
+        Ok(n)
+    }
+
     /// Carries out one command and answers it.
     pub fn handle(&mut self, command: Command) {
         // A client that gave up waiting dropped its receiver; nothing to answer then.
@@ -710,6 +804,16 @@ impl Host {
             Command::FlushLog { reply } => {
                 self.flush_log();
                 let _ = reply.send(Ok(()));
+            }
+            Command::Map { drone, reply } => {
+                let _ = reply.send(self.map_view(drone.as_deref()));
+            }
+            Command::Scans {
+                drone,
+                scans,
+                reply,
+            } => {
+                let _ = reply.send(self.queue_scans(drone.as_deref(), scans));
             }
         }
     }

@@ -216,6 +216,7 @@ struct Publisher {
     persist_tx: Option<watch::Sender<Option<PersistedState>>>,
     persisted_revision: Option<u64>,
     log_flushed: Instant,
+    map_sent: Option<Instant>,
 }
 
 impl Publisher {
@@ -226,7 +227,15 @@ impl Publisher {
             self.state_tx.send_replace(Arc::new(host.snapshot()));
             self.last = Some(Instant::now());
         }
-        for e in events {
+        let map_period = host.map().map(|m| m.update_period());
+        let map_due = map_period.is_some_and(|p| self.map_sent.is_none_or(|t| t.elapsed() >= p));
+        let map_updates = if map_due {
+            self.map_sent = Some(Instant::now());
+            host.take_map_updates()
+        } else {
+            Vec::new()
+        };
+        for e in events.into_iter().chain(map_updates) {
             // No subscriber is not an error: nobody is watching.
             let _ = self.events.send(Arc::new(e));
         }
@@ -315,6 +324,7 @@ async fn control_loop(
         persist_tx: options.state_file.clone().map(spawn_persister),
         persisted_revision: None,
         log_flushed: Instant::now(),
+        map_sent: None,
     };
     let mut watchdog = Watchdog::new();
     let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
