@@ -15,6 +15,8 @@ mod go_to;
 mod goal;
 mod hover;
 mod land;
+mod nav_path;
+mod navigate_to;
 mod registry;
 mod rotate;
 mod sequence;

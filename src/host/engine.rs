@@ -6,20 +6,20 @@
 //! runtime (`host::runtime`) decides when to step, in real or simulated time.
 
 use super::fleet::Fleet;
+pub use super::map_view::MapView;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use crate::behavior::RunState;
 use crate::core::DroneCore;
 use crate::estimator::frames::{FrameError, FrameMotion, EARTH};
 use crate::flightlog::FlightLog;
+use crate::mapping::merged::FleetMap;
+use crate::mapping::scan::RangeScan;
 use crate::mission::executor::{ExecutorSnapshot, Progress};
 use crate::mission::{
     ActionError, ExecState, Limits, Mission, MissionExecutor, MissionStatus, MissionUpdate,
     Request, ValidationContext, ValidationError,
 };
-use crate::mapping::merged::FleetMap;
-use crate::mapping::scan::RangeScan;
 use crate::types::{LinkHealth, Pose, Vec3};
-pub use super::map_view::MapView;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
@@ -272,10 +272,12 @@ impl Host {
     pub fn take_map_updates(&mut self) -> Vec<HostEvent> {
         self.map
             .as_mut()
-            .map(|m| m.take_patches()
+            .map(|m| {
+                m.take_patches()
                     .into_iter()
                     .map(HostEvent::map_update)
-                    .collect())
+                    .collect()
+            })
             .unwrap_or_default()
     }
 

@@ -112,7 +112,10 @@ impl MapSection {
                 return Err(field("size_m", "must be two positive lengths (m)".into()));
             }
         }
-        if self.origin_enu_m.is_some_and(|o| o.iter().any(|v| !v.is_finite())) {
+        if self
+            .origin_enu_m
+            .is_some_and(|o| o.iter().any(|v| !v.is_finite()))
+        {
             return Err(field("origin_enu_m", "must be finite (m)".into()));
         }
         if self.hit_confidence > 100 || self.miss_confidence > 100 {
@@ -121,7 +124,10 @@ impl MapSection {
         if self.lock_above.is_some_and(|l| l > 100) {
             return Err(field("lock_above", "must be 0..=100".into()));
         }
-        if self.max_range_m.is_some_and(|r| !(r.is_finite() && r > 0.0)) {
+        if self
+            .max_range_m
+            .is_some_and(|r| !(r.is_finite() && r > 0.0))
+        {
             return Err(field("max_range_m", "must be > 0 (m)".into()));
         }
         if !(0..=100).contains(&self.occupied_threshold) {

@@ -97,10 +97,7 @@ impl MapServer {
     /// The grid prepared for planning (distance field, Voronoi diagram, graph), rebuilt only
     /// when the grid changed since the last call.
     pub fn planning_map(&self) -> Arc<PlanningMap> {
-        let mut cache = self
-            .planning
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
+        let mut cache = self.planning.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some((revision, map)) = cache.as_ref() {
             if *revision == self.revision {
                 return map.clone();
