@@ -47,8 +47,10 @@ fn pole_world(seed: u64, sensor: Value) -> World {
 
 /// A harness whose drone maps a 24 m x 24 m grid around the world.
 fn harness(world: World) -> Harness {
-    let mut section = MapSection::default();
-    section.size_m = Some([24.0, 24.0]);
+    let section = MapSection {
+        size_m: Some([24.0, 24.0]),
+        ..MapSection::default()
+    };
     let map = section.config(None).unwrap();
     Harness::with_core_config(world, SimConfig::default(), move |i| {
         let mut c = CoreConfig::new(&format!("drone_{i}"));
@@ -182,7 +184,10 @@ fn pole_by_distance(world: &World, nearest: bool) -> [f64; 2] {
 fn a_goal_inside_a_seen_pole_is_refused_with_the_planners_reason() {
     let world = pole_world(7, json!({ "kind": "lidar360" }));
     let pole = pole_by_distance(&world, true);
-    assert!((pole[0] - START[0]).hypot(pole[1] - START[1]) < 9.0, "within the lidar's 10 m");
+    assert!(
+        (pole[0] - START[0]).hypot(pole[1] - START[1]) < 9.0,
+        "within the lidar's 10 m"
+    );
     let mut h = harness(world);
     h.take_off(0, HEIGHT_M);
     let err = h
