@@ -289,6 +289,11 @@ impl Host {
         self.now
     }
 
+    /// What missions are checked against (speed limit, geofence).
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
     pub fn tick_period(&self) -> Duration {
         self.tick
     }

@@ -75,6 +75,8 @@ pub struct HostInfo {
     pub drones: Vec<String>,
     pub simulated: bool,
     pub behaviors: Vec<BehaviorInfo>,
+    /// The `[geofence]` section missions are checked against.
+    pub geofence: crate::config::GeofenceSection,
 }
 
 /// The API's way to the host. Cheap to clone.
@@ -155,6 +157,7 @@ fn host_info(host: &Host) -> HostInfo {
         drones: host.drone_ids(),
         simulated: host.is_simulated(),
         behaviors,
+        geofence: host.limits().geofence.clone(),
     }
 }
 
