@@ -189,7 +189,11 @@ impl ScanInput {
                 z_min_m,
                 z_max_m,
                 ..
-            } if !(1..=3600).contains(beam_count) || !(z_min_m <= z_max_m) => {
+            } if !((1..=3600).contains(beam_count)
+                && z_min_m.is_finite()
+                && z_max_m.is_finite())
+                || z_min_m > z_max_m =>
+            {
                 Err("beam_count must be 1..=3600 and z_min_m <= z_max_m".into())
             }
             _ => Ok(()),
