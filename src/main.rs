@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 mod cli_map;
 mod cli_mission;
+mod cli_remote;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;

@@ -81,6 +81,16 @@ fn ardupilot_demo_flight_reaches_every_target() {
     assert!(max < 200.0, "{max} ms gap after the takeoff: {rest}");
 }
 
+/// Indoors without GPS, ArduPilot has no position (and refuses GUIDED and arming) until it
+/// gets an EKF origin: Kestrel sends the configured one with SET_GPS_GLOBAL_ORIGIN.
+#[test]
+fn ardupilot_without_gps_flies_once_given_the_configured_ekf_origin() {
+    let _one = serial();
+    let config =
+        "[mavlink]\nekf_origin = { lat_deg = 40.4405, lon_deg = -3.68982, alt_m = 100.0 }\n";
+    demo_flight(Personality::Ardupilot, &["--no-gps"], config);
+}
+
 #[test]
 fn px4_flight_completes_with_ten_percent_packet_loss() {
     let _one = serial();
@@ -336,4 +346,31 @@ fn run_flies_the_demo_on_the_simulator_platform() {
         .filter(|r| r["type"] == "behavior" && r["event"] == "finished")
         .count();
     assert_eq!(finished, 4, "takeoff, go_to, follow_path, land");
+}
+
+/// Benchmark (BENCHMARKS.md `## MAVLink`): the 50 Hz setpoint stream as the fake receives it,
+/// from the end of the takeoff to the start of the landing (go_to and follow_path in OFFBOARD).
+/// `cargo test --release --test mavlink_e2e -- --ignored --nocapture setpoint_jitter`
+#[test]
+#[ignore = "benchmark: run in release with --ignored"]
+fn setpoint_jitter_at_50_hz() {
+    let _one = serial();
+    let p = Personality::Px4;
+    let fake = Fake::start(p, &[]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", DEMO);
+    let takeoff = "\"finished\",\"id\":1,\"behavior\":\"takeoff\"";
+    kestrel.wait_line(takeoff, Duration::from_secs(60));
+    fake.cmd(json!({"cmd": "setpoint_stats", "reset": true}));
+    kestrel.wait_line(
+        "\"started\",\"id\":4,\"behavior\":\"land\"",
+        Duration::from_secs(60),
+    );
+    let stats = fake.cmd(json!({"cmd": "setpoint_stats"}));
+    println!("setpoint stream at 50 Hz seen by the fake during go_to + follow_path: {stats}");
+    assert!(
+        kestrel.wait(FLIGHT_TIMEOUT).success(),
+        "{}",
+        kestrel.output()
+    );
+    assert!(stats["p99_ms"].as_f64().unwrap() < 40.0, "{stats}");
 }

@@ -8,7 +8,8 @@
 //! same width at both ends. Each aisle gets one node per bed (at the bed's centre, where a drone
 //! inspects the beds on both sides) plus a node at each end; the end nodes of neighbouring aisles
 //! are joined through the head corridors. Stacked levels repeat the graph at each height and join
-//! levels at the aisle ends.
+//! levels at the aisle ends. Node ids: `L{level}_A{aisle}_W` (west end), `L{level}_A{aisle}_B{bed}`
+//! and `L{level}_A{aisle}_E` (east end), all counted from 0; edge weights are Euclidean lengths.
 
 use std::collections::HashMap;
 

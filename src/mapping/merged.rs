@@ -69,6 +69,14 @@ impl FleetMap {
         Ok(())
     }
 
+    /// Inserts a drone's scans; invalid ones are skipped (the drone's own map counts them).
+    pub fn insert_all(&mut self, drone: &str, scans: &[RangeScan]) {
+        for scan in scans {
+            // Rejections are counted once, by the drone's own map server.
+            let _ = self.insert(drone, scan);
+        }
+    }
+
     pub fn merged(&self) -> &OccupancyGrid {
         &self.layers.global
     }

@@ -89,13 +89,17 @@ impl DistanceField {
         }
 
         // Row pass: lower envelope of the parabolas (x - q)^2 + f(q) rooted at columns q that
-        // see an obstacle; `bounds[k]` separates `roots[k]` and `roots[k + 1]`.
+        // see an obstacle; `bounds[k]` separates `roots[k]` and `roots[k + 1]`. Intersections
+        // are kept as exact fractions `num / den` (den > 0) and compared by cross-multiplying,
+        // so the pass has no division (values stay below 2^50 for the largest grids).
         let res = spec.resolution_m;
         let max_distance_m = ((w * w + h * h) as f64).sqrt() * res;
-        let mut dist_m = vec![max_distance_m as f32; n];
+        let res32 = res as f32;
+        let max32 = max_distance_m as f32;
+        let mut dist_m = vec![max32; n];
         let mut site = vec![NO_SITE; n];
-        let mut roots: Vec<(f64, f64, u32)> = Vec::with_capacity(w); // (q, f(q), site y)
-        let mut bounds: Vec<f64> = Vec::with_capacity(w);
+        let mut roots: Vec<(i64, i64, u32)> = Vec::with_capacity(w); // (q, f(q), site y)
+        let mut bounds: Vec<(i64, i64)> = Vec::with_capacity(w);
         let rows = col_dist
             .chunks_exact(w)
             .zip(col_site_y.chunks_exact(w))
@@ -108,34 +112,35 @@ impl DistanceField {
                 if sy == NO_SITE {
                     continue;
                 }
-                let (qf, fq) = (q as f64, f64::from(d) * f64::from(d));
-                while let Some(&(vf, fv, _)) = roots.last() {
-                    let s = ((fq + qf * qf) - (fv + vf * vf)) / (2.0 * (qf - vf));
-                    if bounds.last().is_some_and(|&b| s <= b) {
+                let (q, fq) = (q as i64, i64::from(d) * i64::from(d));
+                while let Some(&(v, fv, _)) = roots.last() {
+                    let num = (fq + q * q) - (fv + v * v);
+                    let den = 2 * (q - v);
+                    if bounds.last().is_some_and(|&(bn, bd)| num * bd <= bn * den) {
                         roots.pop();
                         bounds.pop();
                     } else {
-                        bounds.push(s);
+                        bounds.push((num, den));
                         break;
                     }
                 }
-                roots.push((qf, fq, sy));
+                roots.push((q, fq, sy));
             }
             if roots.is_empty() {
                 continue;
             }
             let mut k = 0;
             for (x, (d, s)) in out_d.iter_mut().zip(out_s.iter_mut()).enumerate() {
-                let xf = x as f64;
-                while bounds.get(k).is_some_and(|&b| b < xf) {
+                let x = x as i64;
+                while bounds.get(k).is_some_and(|&(bn, bd)| bn < x * bd) {
                     k += 1;
                 }
-                let Some(&(qf, fq, sy)) = roots.get(k) else {
+                let Some(&(q, fq, sy)) = roots.get(k) else {
                     break;
                 };
-                let dx = xf - qf;
-                *d = ((dx * dx + fq).sqrt() * res).min(max_distance_m) as f32;
-                *s = sy * w as u32 + qf as u32;
+                let d2 = (x - q) * (x - q) + fq;
+                *d = ((d2 as f32).sqrt() * res32).min(max32);
+                *s = sy * w as u32 + q as u32;
             }
         }
         DistanceField {

@@ -18,6 +18,8 @@ use std::sync::Mutex;
 
 use nalgebra::Vector3;
 
+use crate::mapping::grid::GridSpec;
+
 use super::search::{jump_point_search, search, SearchScratch};
 use super::simplify::{polyline_min_clearance, prune};
 use super::{
@@ -135,23 +137,8 @@ fn plan_on_grid(
             Err(_) => &mut fresh,
         };
         if method == Method::AStar && rules.uniform() && rules.free(start) {
-            // Jumps test each scanned cell and its sides: a padded free-cell mask makes that one
-            // byte load with no range test (the one-cell border is blocked).
-            let w = spec.width_cells as usize;
-            let padded_w = w + 2;
-            let mut mask = vec![false; padded_w * (spec.height_cells as usize + 2)];
-            for (row, cells) in mask
-                .chunks_exact_mut(padded_w)
-                .skip(1)
-                .take(spec.height_cells as usize)
-                .enumerate()
-            {
-                let first = row * w;
-                for (x, m) in cells.iter_mut().skip(1).take(w).enumerate() {
-                    *m = rules.free(first + x);
-                }
-            }
-            let pw = padded_w as i64;
+            let mask = padded_free_mask(&spec, &rules);
+            let pw = i64::from(spec.width_cells) + 2;
             let walkable = |x: i64, y: i64| {
                 let i = (y + 1) * pw + x + 1;
                 i >= 0 && mask.get(i as usize).copied().unwrap_or(false)
@@ -211,6 +198,22 @@ fn plan_on_grid(
         cost: found.cost,
         min_clearance_m,
     })
+}
+
+/// Free cells (see [`CellRules::free`]) with a blocked one-cell border, row-major with width
+/// `width + 2`. Jumps test each scanned cell and its sides, so this makes a test one byte load
+/// with no range check.
+fn padded_free_mask(spec: &GridSpec, rules: &CellRules<'_>) -> Vec<bool> {
+    let w = spec.width_cells as usize;
+    let h = spec.height_cells as usize;
+    let mut mask = vec![false; (w + 2) * (h + 2)];
+    let rows = mask.chunks_exact_mut(w + 2).skip(1).take(h).enumerate();
+    for (row, cells) in rows {
+        for (x, m) in cells.iter_mut().skip(1).take(w).enumerate() {
+            *m = rules.free(row * w + x);
+        }
+    }
+    mask
 }
 
 /// Length of start -> waypoints.
@@ -522,6 +525,98 @@ mod tests {
         // A goal at the same clearance as the start is refused.
         r.goal_enu_m = Vector3::new(1.75, 0.25, 1.0);
         assert_eq!(plan(&r, &m), Err(PlanError::GoalOccupied));
+    }
+
+    #[test]
+    fn scans_to_grid_to_plan_keeps_away_from_true_obstacles() {
+        use crate::mapping::grid::InsertParams;
+        use crate::mapping::scan::{Beam, RangeScan};
+        // Three round pillars (centre, radius) in a 20 m x 20 m area.
+        let pillars = [
+            (Vector2::new(0.0, 0.0), 1.0),
+            (Vector2::new(4.0, 3.0), 0.5),
+            (Vector2::new(-3.0, -4.0), 0.7),
+        ];
+        let first_hit = |o: Vector2<f64>, dir: Vector2<f64>| {
+            pillars
+                .iter()
+                .filter_map(|&(c, r)| {
+                    // |o + t dir - c| = r, smallest t > 0.
+                    let oc = o - c;
+                    let b = oc.dot(&dir);
+                    let disc = b * b - (oc.norm_squared() - r * r);
+                    (disc >= 0.0).then(|| -b - disc.sqrt()).filter(|&t| t > 0.0)
+                })
+                .fold(None, |best: Option<f64>, t| {
+                    Some(best.map_or(t, |b| b.min(t)))
+                })
+        };
+        let spec = GridSpec {
+            resolution_m: 0.1,
+            width_cells: 200,
+            height_cells: 200,
+            origin_enu_m: Vector2::new(-10.0, -10.0),
+        };
+        let mut grid = OccupancyGrid::new(spec).unwrap();
+        for k in 0..16 {
+            let a = k as f64 * std::f64::consts::TAU / 16.0;
+            let o = Vector2::new(6.5 * a.cos(), 6.5 * a.sin());
+            let beams = (0..360)
+                .map(|i| {
+                    let angle_rad = (i as f64).to_radians();
+                    let t = first_hit(o, Vector2::new(angle_rad.cos(), angle_rad.sin()));
+                    Beam {
+                        angle_rad,
+                        range_m: t.filter(|&t| t < 8.0),
+                    }
+                })
+                .collect();
+            let scan = RangeScan {
+                origin_enu_m: Vector3::new(o.x, o.y, 1.0),
+                yaw_rad: 0.0,
+                range_min_m: 0.05,
+                range_max_m: 8.0,
+                beams,
+            };
+            grid.insert_scan(&scan, &InsertParams::default()).unwrap();
+        }
+        let m = PlanningMap::new(grid, crate::planning::DEFAULT_OCCUPIED_THRESHOLD);
+        for (from, to) in [
+            ((-8.0, -8.0), (8.0, 8.0)),
+            ((-6.0, 5.0), (6.0, -5.0)),
+            ((0.0, -6.0), (0.0, 6.0)),
+        ] {
+            for kind in [PlannerKind::AStar, PlannerKind::Voronoi] {
+                let r = PlanRequest {
+                    start_enu_m: Vector3::new(from.0, from.1, 0.0),
+                    goal_enu_m: Vector3::new(to.0, to.1, 0.0),
+                    flight_height_m: 1.2,
+                    safety_distance_m: 0.4,
+                    unknown: UnknownPolicy::AllowedWithCost(1.0),
+                    kind,
+                    max_map_age_s: None,
+                };
+                let p = plan(&r, &m).unwrap();
+                // Sample the flown polyline: never within the safety distance of a real pillar
+                // surface, less one cell of discretisation.
+                let mut prev = r.start_enu_m.xy();
+                for w in &p.waypoints_enu_m {
+                    assert_eq!(w.z, 1.2);
+                    for i in 0..=100 {
+                        let q = prev + (w.xy() - prev) * (i as f64 / 100.0);
+                        for &(c, rad) in &pillars {
+                            let gap = (q - c).norm() - rad;
+                            assert!(
+                                gap > 0.4 - 0.1,
+                                "{kind:?} {from:?}->{to:?}: {gap:.2} m at {q:?}"
+                            );
+                        }
+                    }
+                    prev = w.xy();
+                }
+                assert!(p.min_clearance_m > 0.4);
+            }
+        }
     }
 
     #[test]

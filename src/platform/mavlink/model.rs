@@ -72,6 +72,8 @@ pub struct VehicleModel {
     landed_state: Option<MavLandedState>,
     battery: Option<Battery>,
     ekf_flags: Option<u16>,
+    /// GPS_RAW_INT: (fix type, satellites), to explain a missing position.
+    gps: Option<(u8, u8)>,
     prearm_ok: Option<bool>,
     position: Option<LocalPosition>,
     attitude: Option<Attitude>,
@@ -101,6 +103,7 @@ impl VehicleModel {
             landed_state: None,
             battery: None,
             ekf_flags: None,
+            gps: None,
             prearm_ok: None,
             position: None,
             attitude: None,
@@ -210,7 +213,8 @@ impl VehicleModel {
                 || flags & r.ekf_flags_forbidden != 0
             {
                 return Err(format!(
-                    "no position estimate yet (EKF_STATUS_REPORT flags {flags:#x})"
+                    "no position estimate yet (EKF_STATUS_REPORT flags {flags:#x}{})",
+                    self.gps_words()
                 ));
             }
         }
@@ -219,8 +223,17 @@ impl VehicleModel {
         }
         match self.position {
             Some(p) if Self::fresh(p.at, now) => Ok(()),
-            _ => Err("no local position estimate from the autopilot".into()),
+            _ => Err(format!(
+                "no local position estimate from the autopilot{}",
+                self.gps_words()
+            )),
         }
+    }
+
+    fn gps_words(&self) -> String {
+        self.gps
+            .map(|(fix, sats)| format!("; GPS fix type {fix}, {sats} satellites"))
+            .unwrap_or_default()
     }
 
     fn flight(&self) -> FlightStatus {
@@ -383,6 +396,7 @@ impl VehicleModel {
                 }
             }
             MavMessage::EKF_STATUS_REPORT(e) => self.ekf_flags = Some(e.flags.bits()),
+            MavMessage::GPS_RAW_INT(g) => self.gps = Some((g.fix_type as u8, g.satellites_visible)),
             MavMessage::HOME_POSITION(h) => {
                 self.home_enu_m = Some(frames::ned_to_enu(h.x.into(), h.y.into(), h.z.into()));
                 self.home_amsl_m = Some(f64::from(h.altitude) / 1000.0);
