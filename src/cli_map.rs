@@ -22,14 +22,17 @@ pub struct ExportArgs {
     /// A drone's own map; absent = the merged map.
     #[arg(long)]
     drone: Option<String>,
-    /// Base URL of a running Kestrel's API.
+    /// Base URL of a running Kestrel's API (`http://` only).
     #[arg(long, default_value = "http://127.0.0.1:8080")]
     from: String,
-    /// Bearer token of that API.
+    /// Bearer token of that API (default: KESTREL_API_TOKEN).
     #[arg(long, env = "KESTREL_API_TOKEN", hide_env_values = true)]
     token: Option<String>,
+    /// File holding the token (e.g. /etc/kestrel/api-token).
+    #[arg(long)]
+    token_file: Option<PathBuf>,
     /// Read a saved `GET /api/map` answer (JSON) instead of asking a running Kestrel.
-    #[arg(long, conflicts_with_all = ["from", "drone"])]
+    #[arg(long, conflicts_with_all = ["from", "drone", "token_file"])]
     input: Option<PathBuf>,
     /// File name (without extension) of the PGM and YAML.
     #[arg(long, default_value = "map")]
@@ -57,32 +60,31 @@ fn export(args: &ExportArgs) -> Result<()> {
 
 /// `GET /api/map` from the running Kestrel.
 fn fetch(args: &ExportArgs) -> Result<Value> {
-    let mut url = format!("{}/api/map", args.from.trim_end_matches('/'));
-    if let Some(d) = &args.drone {
-        url.push_str("?drone=");
-        url.push_str(d);
-    }
-    let runtime = tokio::runtime::Builder::new_current_thread()
+    let token = match (&args.token, &args.token_file) {
+        (Some(t), _) => Some(t.clone()),
+        (None, Some(f)) => Some(
+            std::fs::read_to_string(f)
+                .with_context(|| format!("cannot read {}", f.display()))?
+                .trim()
+                .to_string(),
+        ),
+        (None, None) => None,
+    };
+    let remote = crate::cli_remote::Remote::new(&args.from, token)?;
+    let path = match &args.drone {
+        Some(d) => format!("/api/map?drone={d}"),
+        None => "/api/map".to_string(),
+    };
+    let (status, body) = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
-        .context("starting tokio")?;
-    runtime.block_on(async {
-        let mut request = reqwest::Client::new().get(&url);
-        if let Some(t) = &args.token {
-            request = request.bearer_auth(t);
-        }
-        let response = request.send().await.with_context(|| format!("GET {url}"))?;
-        let status = response.status();
-        let body: Value = response
-            .json()
-            .await
-            .with_context(|| format!("GET {url}: not JSON"))?;
-        if !status.is_success() {
-            let message = body["error"]["message"].as_str().unwrap_or("no message");
-            bail!("GET {url}: HTTP {status}: {message}");
-        }
-        Ok(body)
-    })
+        .context("starting tokio")?
+        .block_on(remote.call("GET", &path, None))?;
+    if status != 200 {
+        let message = body["error"]["message"].as_str().unwrap_or("no message");
+        bail!("GET {path}: HTTP {status}: {message}");
+    }
+    Ok(body)
 }
 
 /// The grid of a `{spec, data, ..}` answer.
