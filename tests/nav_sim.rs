@@ -10,12 +10,15 @@ use common::Harness;
 use kestrel::behavior::BehaviorResult;
 use kestrel::core::{BehaviorCommand, CoreConfig};
 use kestrel::mapping::config::MapSection;
+use kestrel::mapping::{GridSpec, OccupancyGrid};
 use kestrel::sim::runner::SimConfig;
 use kestrel::sim::world::World;
 use kestrel::types::Vec3;
+use nalgebra::Vector2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
+use std::sync::Arc;
 
 const START: [f64; 2] = [-8.0, -8.0];
 const GOAL: [f64; 2] = [8.0, 8.0];
@@ -242,4 +245,69 @@ fn straight_line_clearance(world: &World) -> f64 {
             (a + (b - a) * t - p).norm() - c.radius_m
         })
         .fold(f64::INFINITY, f64::min)
+}
+
+/// The world's poles as a known map: cells whose centre lies inside a pole occupied, the rest
+/// free.
+fn known_map(world: &World, spec: GridSpec) -> OccupancyGrid {
+    let mut grid = OccupancyGrid::from_data(spec, vec![0; spec.cell_count()]).unwrap();
+    for i in 0..spec.cell_count() {
+        let c = spec.cell_of_index(i).unwrap();
+        let p = spec.cell_center_enu_m(c);
+        let inside = world
+            .cylinders
+            .iter()
+            .any(|k| (p - Vector2::new(k.xy_m[0], k.xy_m[1])).norm() <= k.radius_m);
+        if inside {
+            grid.set(c, 100).unwrap();
+        }
+    }
+    grid
+}
+
+#[test]
+fn with_a_known_map_and_no_sensor_it_flies_mapped_free_space_only() {
+    let world = pole_world(8, json!({ "kind": "none" }));
+    assert!(straight_line_clearance(&world) < 0.0, "a pole in the way");
+    let section = MapSection {
+        size_m: Some([24.0, 24.0]),
+        ..MapSection::default()
+    };
+    let mut map = section.config(None).unwrap().unwrap();
+    map.initial = Arc::new(known_map(&world, *map.initial.spec()));
+    let mut h = Harness::with_core_config(world, SimConfig::default(), move |i| {
+        let mut c = CoreConfig::new(&format!("drone_{i}"));
+        c.map = Some(map.clone());
+        c
+    });
+    h.take_off(0, HEIGHT_M);
+    let (result, feedback) = navigate(
+        &mut h,
+        json!({ "x": GOAL[0], "y": GOAL[1], "z": HEIGHT_M, "speed": 1.0,
+                "safety_distance": SAFETY_M, "unknown": "blocked", "planner": "voronoi" }),
+        120.0,
+    );
+    assert_eq!(result, BehaviorResult::Succeeded);
+    assert_eq!(feedback["replans"], 0, "nothing new to see: {feedback}");
+    assert_crossed_safely(&mut h);
+}
+
+#[test]
+fn without_a_map_navigate_to_is_refused() {
+    let mut h = Harness::with_core_config(World::empty(), SimConfig::default(), |i| {
+        let mut c = CoreConfig::new(&format!("drone_{i}"));
+        c.map = None;
+        c
+    });
+    h.take_off(0, HEIGHT_M);
+    let err = h
+        .try_command(
+            0,
+            BehaviorCommand::Start {
+                behavior: "navigate_to".into(),
+                goal: json!({ "x": 3.0, "y": 0.0, "z": 1.0, "speed": 1.0 }),
+            },
+        )
+        .unwrap_err();
+    assert!(err.to_string().contains("mapping is off"), "{err}");
 }
