@@ -252,3 +252,87 @@ impl MapConfig {
             .ok_or_else(|| MapError::InvalidSpec("mapping is off by default".into()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mapping::graph::{GraphEdge, GraphNode};
+    use crate::mapping::Cell;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn the_extent_follows_the_world_unless_the_section_gives_one() {
+        let s = MapSection::default();
+        let world = (Vector2::new(0.0, 0.0), Vector2::new(20.0, 10.0));
+        let c = s.config(Some(world)).unwrap().unwrap();
+        let spec = c.initial.spec();
+        assert_eq!((spec.width_cells, spec.height_cells), (240, 140));
+        assert_eq!(spec.origin_enu_m, Vector2::new(-2.0, -2.0));
+        let open = MapConfig::open_field().unwrap();
+        assert_eq!(open.initial.spec().origin_enu_m, Vector2::new(-20.0, -20.0));
+        let off = MapSection {
+            plugin: MapPlugin::None,
+            ..MapSection::default()
+        };
+        assert_eq!(off.config(None).unwrap(), None);
+    }
+
+    #[test]
+    fn bad_numbers_name_their_field() {
+        let bad = MapSection {
+            resolution_m: 0.0,
+            ..MapSection::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().0, "map.resolution_m");
+        let both = MapSection {
+            known_map: Some("m.yaml".into()),
+            size_m: Some([10.0, 10.0]),
+            ..MapSection::default()
+        };
+        assert_eq!(both.validate().unwrap_err().0, "map.known_map");
+    }
+
+    #[test]
+    fn a_known_map_and_a_graph_are_loaded_beside_the_config() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut grid = MapConfig::open_field().unwrap().initial.as_ref().clone();
+        grid.set(Cell { x: 3, y: 4 }, 100).unwrap();
+        grid.set(Cell { x: 5, y: 5 }, 0).unwrap();
+        let (pgm, yaml) = grid.to_pgm_yaml("site.pgm");
+        std::fs::write(dir.path().join("site.pgm"), pgm).unwrap();
+        std::fs::write(dir.path().join("site.yaml"), yaml).unwrap();
+        let node = |id: &str, x: f64| GraphNode {
+            id: id.into(),
+            position_enu_m: Vector3::new(x, 0.0, 1.0),
+        };
+        let graph = TopoGraph::new(
+            vec![node("a", 0.0), node("b", 5.0)],
+            vec![GraphEdge {
+                from: "a".into(),
+                to: "b".into(),
+                weight: 5.0,
+            }],
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("graph.json"), graph.to_json()).unwrap();
+        let mut s = MapSection {
+            known_map: Some("site.yaml".into()),
+            graph: Some("graph.json".into()),
+            ..MapSection::default()
+        };
+        s.load_files(dir.path()).unwrap();
+        let c = s.config(None).unwrap().unwrap();
+        assert_eq!(c.initial.get(Cell { x: 3, y: 4 }), Some(100));
+        assert_eq!(c.initial.get(Cell { x: 5, y: 5 }), Some(0));
+        assert_eq!(c.initial.get(Cell { x: 6, y: 6 }), Some(-1));
+        assert_eq!(c.graph.as_deref(), Some(&graph));
+        let missing = MapSection {
+            known_map: Some("nope.yaml".into()),
+            ..MapSection::default()
+        };
+        assert!(matches!(
+            missing.clone().load_files(dir.path()),
+            Err(MapError::RosMap(_))
+        ));
+    }
+}
