@@ -243,6 +243,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
     core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
     core_config.controller = config.controller;
     core_config.behaviors = config.behaviors;
+    core_config.map = config.map.config(None).context("[map]")?;
     if let Some(o) = config.drone.geodetic_origin {
         core_config.geo_origin = GeodeticOrigin(o);
     }

@@ -194,6 +194,7 @@ async fn a_client_uploads_takeoff_go_land_and_follows_it_over_websocket() {
                     }
                 }
             }
+            "map_update" => {}
             other => panic!("unexpected message {other}"),
         }
     }

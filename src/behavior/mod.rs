@@ -15,6 +15,8 @@ mod go_to;
 mod goal;
 mod hover;
 mod land;
+mod nav_path;
+mod navigate_to;
 mod registry;
 mod rotate;
 mod sequence;
@@ -32,6 +34,7 @@ pub use server::{
 use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::mapping::server::MapServer;
 use crate::platform::{Capabilities, PlatformRequest};
 use crate::types::{EstimatedState, PlatformStatus, Vec3};
 use serde::{Deserialize, Serialize};
@@ -87,6 +90,8 @@ pub struct BehaviorContext<'a> {
     /// Where the vehicle last armed, in `earth`; `None` before the first arming.
     pub home_enu_m: Option<Vec3>,
     pub config: &'a BehaviorConfig,
+    /// The drone's map (`None` when mapping is off), for behaviors that plan.
+    pub map: Option<&'a MapServer>,
 }
 
 impl BehaviorContext<'_> {

@@ -71,6 +71,7 @@ impl Scene {
             geo_origin: &self.origin,
             home_enu_m: None,
             config: &self.config,
+            map: None,
         }
     }
 }

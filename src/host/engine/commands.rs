@@ -61,6 +61,18 @@ pub enum Command {
     },
     /// Flush the flight log so readers see every record.
     FlushLog { reply: Reply<()> },
+    /// A copy of a drone's map (the one it plans on), or of the merged map when `drone` is
+    /// absent.
+    Map {
+        drone: Option<String>,
+        reply: Reply<super::MapView>,
+    },
+    /// Scans from outside (API) for a drone's next tick; replies with the number queued.
+    Scans {
+        drone: Option<String>,
+        scans: Vec<crate::mapping::scan::RangeScan>,
+        reply: Reply<usize>,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
@@ -158,7 +170,7 @@ impl Host {
     }
 
     /// The drone a command is for: by name, or the only one when absent.
-    fn route(&self, drone: Option<&str>) -> Result<usize, HostError> {
+    pub(super) fn route(&self, drone: Option<&str>) -> Result<usize, HostError> {
         match drone {
             Some(d) => self
                 .cores
@@ -459,6 +471,16 @@ impl Host {
             Command::FlushLog { reply } => {
                 self.flush_log();
                 let _ = reply.send(Ok(()));
+            }
+            Command::Map { drone, reply } => {
+                let _ = reply.send(self.map_view(drone.as_deref()));
+            }
+            Command::Scans {
+                drone,
+                scans,
+                reply,
+            } => {
+                let _ = reply.send(self.queue_scans(drone.as_deref(), scans));
             }
         }
     }

@@ -6,7 +6,9 @@
 //! runtime (`host::runtime`) decides when to step, in real or simulated time.
 
 mod commands;
+mod maps;
 
+pub use super::map_view::MapView;
 pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uploaded};
 
 use super::fleet::Fleet;
@@ -15,6 +17,8 @@ use crate::behavior::RunState;
 use crate::core::DroneCore;
 use crate::estimator::frames::FrameError;
 use crate::flightlog::FlightLog;
+use crate::mapping::merged::FleetMap;
+use crate::mapping::scan::RangeScan;
 use crate::mission::executor::ExecutorSnapshot;
 use crate::mission::{ActionError, Limits, MissionExecutor, ValidationError};
 use crate::types::LinkHealth;
@@ -76,6 +80,10 @@ pub struct Host {
     links: Vec<LinkHealth>,
     errors: Vec<Option<String>>,
     modes: Vec<String>,
+    /// The fleet's merged map (`None` when mapping is off).
+    map: Option<FleetMap>,
+    /// Scans sent over the API, handed to each drone's next tick.
+    api_scans: Vec<Vec<RangeScan>>,
 }
 
 impl Host {
@@ -99,6 +107,8 @@ impl Host {
             links: vec![LinkHealth::Connecting; n],
             errors: vec![None; n],
             modes: vec![String::new(); n],
+            map: None,
+            api_scans: vec![Vec::new(); n],
         }
     }
 
@@ -218,12 +228,18 @@ impl Host {
     pub fn step_at(&mut self, now: Duration) {
         self.now = now;
         for i in 0..self.cores.len() {
-            let feedback = self.fleet.poll(i, now);
+            let mut feedback = self.fleet.poll(i, now);
+            if let Some(scans) = self.api_scans.get_mut(i) {
+                feedback.scans.append(scans);
+            }
             let Some(core) = self.cores.get_mut(i) else {
                 continue;
             };
             let out = core.tick(now, &feedback);
             self.fleet.command(i, now, out.setpoint, &out.requests);
+            if let Some(map) = self.map.as_mut() {
+                map.insert_all(core.drone_id(), &feedback.scans);
+            }
             if let Some(ex) = self.executors.get_mut(i) {
                 ex.update(now, core, &out.events);
             }
