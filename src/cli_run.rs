@@ -71,6 +71,10 @@ pub struct RunArgs {
     /// Fly this mission (JSON, Aerostack2's format) at start, then keep serving the API.
     #[arg(long)]
     mission: Option<PathBuf>,
+    /// No API: connect, print link, mode and arming changes, and log (with `--mission-demo`,
+    /// fly the demo). For bench checks of a link.
+    #[arg(long)]
+    no_api: bool,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
@@ -247,7 +251,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
     if let Some(o) = config.drone.geodetic_origin {
         core_config.geo_origin = GeodeticOrigin(o);
     }
-    if !args.mission_demo {
+    if !args.mission_demo && !args.no_api {
         let core = DroneCore::new(
             core_config,
             platform.capabilities(),
