@@ -31,7 +31,6 @@ use kestrel::types::Vec3;
 use kestrel::types::{LinkHealth, PlatformStatus, VehicleState};
 use serde::Deserialize;
 use serde_json::Value;
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tokio::time::{Instant, MissedTickBehavior};
@@ -374,14 +373,7 @@ async fn serve_vehicle(
         None => Vec::new(),
     };
     println!("flight log {}", log_path.display());
-    let listen: SocketAddr = args
-        .listen
-        .as_deref()
-        .unwrap_or(&config.api.listen)
-        .parse()
-        .context("--listen takes ADDR:PORT, e.g. 127.0.0.1:8080")?;
-    let token =
-        kestrel::api::auth::resolve_token(std::env::var("KESTREL_API_TOKEN").ok(), &config.api)?;
+    let (listen, token) = crate::cli_serve::listen_and_token(args.listen.as_deref(), config)?;
     let options = ServeOptions {
         listen,
         listen_is_default: false,
@@ -395,23 +387,7 @@ async fn serve_vehicle(
         max_time: Duration::from_secs_f64(args.max_time_s.max(1.0)),
     };
     let outcome = crate::cli_serve::serve(host, options).await?;
-    let failures: Vec<String> = outcome
-        .results
-        .iter()
-        .filter_map(|(drone, r)| match r {
-            Some(Ok(())) => None,
-            Some(Err(e)) => Some(format!("{drone}: {e}")),
-            None => Some(format!("{drone}: mission not finished")),
-        })
-        .collect();
-    if failures.is_empty() {
-        Ok(())
-    } else if args.exit_when_done {
-        bail!("flight failed: {}", failures.join("; "))
-    } else {
-        println!("flight failed: {}", failures.join("; "));
-        Ok(())
-    }
+    crate::cli_serve::report(&outcome, args.exit_when_done)
 }
 
 fn say(now: Duration, line: &str) {

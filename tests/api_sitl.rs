@@ -135,36 +135,7 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
         tokio_tungstenite::connect_async(format!("ws://127.0.0.1:{port}/api/ws?token={TOKEN}"))
             .await
             .unwrap();
-    let mission: Value = serde_json::from_str(
-        &std::fs::read_to_string(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/missions/takeoff_go_land.json"
-        ))
-        .unwrap(),
-    )
-    .unwrap();
-    let up: Value = http
-        .post(format!("{base}/api/missions"))
-        .bearer_auth(TOKEN)
-        .json(&mission)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let id = up["mission_id"].clone();
-    let start: Value = http
-        .post(format!("{base}/api/mission_update"))
-        .bearer_auth(TOKEN)
-        .json(&json!({"drone_id": "drone_0", "mission_id": id, "action": 2}))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    assert_eq!(start["accepted"], true, "{start}");
+    let id = upload_and_start(&http, &base).await;
     let mut started = Vec::new();
     let mut states: Vec<(u64, Option<u64>)> = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(90);
@@ -240,8 +211,8 @@ async fn status(http: &reqwest::Client, base: &str) -> Value {
 }
 
 /// The service path as systemd starts it: the real `kestrel run` process on the fake PX4,
-/// serving the API; the mission is uploaded and started over REST before the autopilot is
-/// ready (takeoff waits for readiness), and flies to the end.
+/// serving the API; the mission is uploaded and started over REST before the autopilot even
+/// runs (takeoff waits for readiness), and flies to the end.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     let kestrel_port = free_udp_port();
@@ -276,6 +247,37 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+    let id = upload_and_start(&http, &base).await;
+    // The autopilot starts only now: the takeoff has to wait for it to become ready.
+    let _fake = fake_px4(kestrel_port);
+    let deadline = Instant::now() + Duration::from_secs(90);
+    let last = loop {
+        let s = status(&http, &base).await;
+        let m = &s["drones"][0]["mission"];
+        assert!(m["last_error"].is_null(), "{m}");
+        assert_eq!(m["mission_id"], id, "{m}");
+        if m["state"] == 0 && m["done_items"] == 3 {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "mission did not end: {m}");
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    };
+    let d = &last["drones"][0];
+    let p = &d["position_enu_m"];
+    assert!((p[1].as_f64().unwrap() - 5.0).abs() < 0.5, "landed at {p}");
+    assert_eq!(d["armed"], false, "{d}");
+    let log = std::fs::read_to_string(state.path().join("flight.jsonl")).unwrap();
+    let started: Vec<String> = log
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter(|r| r["type"] == "behavior" && r["event"] == "started")
+        .map(|r| r["behavior"].as_str().unwrap_or_default().to_string())
+        .collect();
+    assert_eq!(started, ["takeoff", "go_to", "land"]);
+}
+
+/// Uploads the thesis's takeoff-go-land and STARTs it; returns its mission id.
+async fn upload_and_start(http: &reqwest::Client, base: &str) -> Value {
     let mission: Value = serde_json::from_str(
         &std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
@@ -296,8 +298,6 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
         .unwrap();
     let id = up["mission_id"].clone();
     assert!(id.is_u64(), "{up}");
-    // The autopilot starts only now: the takeoff has to wait for it to become ready.
-    let _fake = fake_px4(kestrel_port);
     let start: Value = http
         .post(format!("{base}/api/mission_update"))
         .bearer_auth(TOKEN)
@@ -309,27 +309,5 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
         .await
         .unwrap();
     assert_eq!(start["accepted"], true, "{start}");
-    let deadline = Instant::now() + Duration::from_secs(90);
-    let last = loop {
-        let s = status(&http, &base).await;
-        let m = &s["drones"][0]["mission"];
-        assert!(m["last_error"].is_null(), "{m}");
-        if m["state"] == 0 && m["done_items"] == 3 {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "mission did not end: {m}");
-        tokio::time::sleep(Duration::from_millis(250)).await;
-    };
-    let d = &last["drones"][0];
-    let p = &d["position_enu_m"];
-    assert!((p[1].as_f64().unwrap() - 5.0).abs() < 0.5, "landed at {p}");
-    assert_eq!(d["armed"], false, "{d}");
-    let log = std::fs::read_to_string(state.path().join("flight.jsonl")).unwrap();
-    let started: Vec<String> = log
-        .lines()
-        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-        .filter(|r| r["type"] == "behavior" && r["event"] == "started")
-        .map(|r| r["behavior"].as_str().unwrap_or_default().to_string())
-        .collect();
-    assert_eq!(started, ["takeoff", "go_to", "land"]);
+    id
 }
