@@ -3,7 +3,17 @@
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+try:
+    import pymavlink  # noqa: F401
+except ImportError:
+    venv_python = os.path.join(HERE, ".venv", "bin", "python")
+    in_venv = os.path.realpath(sys.prefix) == os.path.realpath(os.path.join(HERE, ".venv"))
+    if os.path.exists(venv_python) and not in_venv:
+        os.execv(venv_python, [venv_python] + sys.argv)  # run with sitl/.venv (bash sitl/setup.sh)
+    sys.exit("pymavlink is not installed: run `bash sitl/setup.sh` and use sitl/.venv/bin/python")
 
 from fakeap.app import main  # noqa: E402
 

@@ -12,7 +12,8 @@ use std::path::PathBuf;
 pub enum MissionCommand {
     /// Check a mission (JSON): every error as a JSON pointer and a message; exit 1 if invalid.
     Validate(ValidateArgs),
-    /// Fly a mission in the built-in simulator until it ends (exit 0 if it succeeded).
+    /// Fly a mission until it ends (exit 0 if it succeeded): in the built-in simulator, or with
+    /// `--api URL` on a running Kestrel (the vehicle's service).
     Run(RunArgs),
     /// Print the JSON Schema of missions (the source of missions/schema.json).
     Schema,
@@ -57,11 +58,21 @@ pub struct RunArgs {
     listen: String,
     #[arg(long, default_value_t = 3600.0)]
     max_sim_time_s: f64,
+    /// Fly it on the Kestrel serving this API (e.g. http://127.0.0.1:8080) instead.
+    #[arg(long)]
+    api: Option<String>,
+    /// Token for --api (default: KESTREL_API_TOKEN).
+    #[arg(long, env = "KESTREL_API_TOKEN", hide_env_values = true)]
+    token: Option<String>,
+    /// File holding the token for --api (e.g. /etc/kestrel/api-token).
+    #[arg(long)]
+    token_file: Option<PathBuf>,
 }
 
 pub fn run(command: MissionCommand) -> Result<()> {
     match command {
         MissionCommand::Validate(a) => validate(a),
+        MissionCommand::Run(a) if a.api.is_some() => remote(a),
         MissionCommand::Run(a) => cli_sim::run(SimArgs {
             world: a.world,
             drones: a.drones,
@@ -84,6 +95,42 @@ pub fn run(command: MissionCommand) -> Result<()> {
             Ok(())
         }
     }
+}
+
+fn remote(a: RunArgs) -> Result<()> {
+    let token = match (&a.token, &a.token_file) {
+        (Some(t), _) => Some(t.clone()),
+        (None, Some(f)) => Some(
+            std::fs::read_to_string(f)
+                .with_context(|| format!("cannot read {}", f.display()))?
+                .trim()
+                .to_string(),
+        ),
+        (None, None) => None,
+    };
+    let remote = crate::cli_remote::Remote::new(a.api.as_deref().unwrap_or_default(), token)?;
+    let text = std::fs::read_to_string(&a.file)
+        .with_context(|| format!("cannot read {}", a.file.display()))?;
+    let mission: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{} is not valid JSON", a.file.display()))?;
+    let frames = match &a.scenario {
+        Some(path) => Scenario::load(path)?.frames,
+        None => Vec::new(),
+    };
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting tokio")?
+        .block_on(async move {
+            for f in frames {
+                let body = serde_json::to_value(&f)?;
+                let (code, answer) = remote.call("POST", "/api/frames", Some(&body)).await?;
+                if code != 200 {
+                    bail!("registering frame {}: HTTP {code}: {answer}", f.frame_id);
+                }
+            }
+            crate::cli_remote::run(remote, mission).await
+        })
 }
 
 fn validate(a: ValidateArgs) -> Result<()> {

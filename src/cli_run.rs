@@ -2,9 +2,14 @@
 //! behaviors as the simulator, ticked in real time by a tokio interval.
 //!
 //! In: `--config FILE` (TOML), `--platform` and `--connection` overriding its `[mavlink]`
-//! section (`--platform platforms/sim.toml` flies the built-in simulator in real time instead). Out: the flight (with `--mission-demo`, the simulator's demo plan), a JSON-lines
-//! flight log, one stdout line per behavior event and platform change.
+//! section (`--platform platforms/sim.toml` flies the built-in simulator in real time instead).
+//! Out: by default the vehicle on the host, serving the HTTP/WebSocket API (`--listen`), with
+//! systemd READY and watchdog pings from the control loop: this is what the service runs. With
+//! `--mission-demo`, a self-contained flight of the simulator's demo plan once the autopilot is
+//! ready (resuming or landing after a link loss as `[mavlink] on_link_regained` says), without
+//! the API. Both write a JSON-lines flight log and one stdout line per behavior event.
 
+use crate::cli_serve::ServeOptions;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::behavior::{BehaviorEvent, BehaviorResult, Registry, RunState};
@@ -14,6 +19,9 @@ use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
 use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
+use kestrel::host::logwriter;
+use kestrel::host::runtime::Pace;
+use kestrel::host::vehicle::{state_dir, vehicle_host};
 use kestrel::platform::mavlink::{LinkConfig, LinkPolicy, MavlinkPlatform, Profile};
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use kestrel::sim::script::demo_plan;
@@ -52,6 +60,20 @@ pub struct RunArgs {
     /// Give up (and land) after this many seconds.
     #[arg(long, default_value_t = 900.0)]
     max_time_s: f64,
+    /// Serve the API on ADDR:PORT (default: the config's [api] listen, 127.0.0.1:8080).
+    #[arg(long)]
+    listen: Option<String>,
+    /// Keep loaded missions and frames here across restarts (default: $STATE_DIRECTORY, the
+    /// config's [mission] state_dir, or ./kestrel-state).
+    #[arg(long)]
+    state_dir: Option<PathBuf>,
+    /// Fly this mission (JSON, Aerostack2's format) at start, then keep serving the API.
+    #[arg(long)]
+    mission: Option<PathBuf>,
+    /// No API: connect, print link, mode and arming changes, and log (with `--mission-demo`,
+    /// fly the demo). For bench checks of a link.
+    #[arg(long)]
+    no_api: bool,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
@@ -224,8 +246,17 @@ async fn run_async(args: RunArgs) -> Result<()> {
     core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
     core_config.controller = config.controller;
     core_config.behaviors = config.behaviors;
+    core_config.map = config.map.config(None).context("[map]")?;
     if let Some(o) = config.drone.geodetic_origin {
         core_config.geo_origin = GeodeticOrigin(o);
+    }
+    if !args.mission_demo && !args.no_api {
+        let core = DroneCore::new(
+            core_config,
+            platform.capabilities(),
+            kestrel::host::payload::registry(),
+        );
+        return serve_vehicle(&args, &config, core, platform).await;
     }
     let mut core = DroneCore::new(
         core_config,
@@ -301,6 +332,62 @@ async fn run_async(args: RunArgs) -> Result<()> {
         }
         Err(e) => bail!("flight failed: {e}"),
     }
+}
+
+/// The service path: the vehicle on the host, the API served until interrupted.
+async fn serve_vehicle(
+    args: &RunArgs,
+    config: &Config,
+    core: DroneCore,
+    platform: Box<dyn Platform>,
+) -> Result<()> {
+    let mut host = vehicle_host(vec![(core, platform)], config);
+    let log_path = args.log.clone().unwrap_or_else(|| {
+        config
+            .drone
+            .log_dir
+            .clone()
+            .unwrap_or_default()
+            .join("kestrel-run.jsonl")
+    });
+    let (writer, log_file) = logwriter::open(&log_path)
+        .with_context(|| format!("creating flight log {}", log_path.display()))?;
+    host.set_log(FlightLog::new(Box::new(writer), 10.0));
+    let state_file = state_dir(args.state_dir.clone(), config).join("state.json");
+    if let Some(state) = kestrel::mission::store::load(&state_file)? {
+        host.restore(state, Duration::from_secs_f64(config.mission.switch_hold_s));
+        println!(
+            "restored missions from {} (not resumed)",
+            state_file.display()
+        );
+    }
+    let flights = match &args.mission {
+        Some(file) => {
+            let text = std::fs::read_to_string(file)
+                .with_context(|| format!("cannot read {}", file.display()))?;
+            let mission = serde_json::from_str(&text)
+                .with_context(|| format!("{} is not valid JSON", file.display()))?;
+            vec![crate::cli_sim::execute(&mut host, mission)
+                .with_context(|| format!("flying {}", file.display()))?]
+        }
+        None => Vec::new(),
+    };
+    println!("flight log {}", log_path.display());
+    let (listen, token) = crate::cli_serve::listen_and_token(args.listen.as_deref(), config)?;
+    let options = ServeOptions {
+        listen,
+        listen_is_default: false,
+        token,
+        api: config.api.clone(),
+        pace: Pace::RealTime,
+        state_file: Some(state_file),
+        log: Some(log_file),
+        flights,
+        exit_when_done: args.exit_when_done,
+        max_time: Duration::from_secs_f64(args.max_time_s.max(1.0)),
+    };
+    let outcome = crate::cli_serve::serve(host, options).await?;
+    crate::cli_serve::report(&outcome, args.exit_when_done)
 }
 
 fn say(now: Duration, line: &str) {

@@ -29,6 +29,46 @@ pub struct ServeOptions {
     pub max_time: Duration,
 }
 
+/// The API address (`--listen`, else the config's `[api] listen`) and token
+/// (`KESTREL_API_TOKEN`, else the config).
+pub fn listen_and_token(
+    flag: Option<&str>,
+    config: &kestrel::config::Config,
+) -> Result<(SocketAddr, Option<String>)> {
+    let listen: SocketAddr = flag
+        .unwrap_or(&config.api.listen)
+        .parse()
+        .context("--listen takes ADDR:PORT, e.g. 127.0.0.1:8080")?;
+    let token =
+        kestrel::api::auth::resolve_token(std::env::var("KESTREL_API_TOKEN").ok(), &config.api)?;
+    Ok((listen, token))
+}
+
+/// Prints how the flights ended; with `exit_when_done` a failure is an error (non-zero exit).
+pub fn report(outcome: &Outcome, exit_when_done: bool) -> Result<()> {
+    if outcome.results.is_empty() {
+        return Ok(());
+    }
+    let failures: Vec<String> = outcome
+        .results
+        .iter()
+        .filter_map(|(drone, r)| match r {
+            Some(Ok(())) => None,
+            Some(Err(e)) => Some(format!("{drone}: {e}")),
+            None => Some(format!("{drone}: mission not finished")),
+        })
+        .collect();
+    if failures.is_empty() {
+        println!("flight succeeded");
+        Ok(())
+    } else if exit_when_done {
+        anyhow::bail!("flight failed: {}", failures.join("; "))
+    } else {
+        println!("flight failed: {}", failures.join("; "));
+        Ok(())
+    }
+}
+
 /// How the flights at start ended; `None` for a drone still flying.
 pub struct Outcome {
     pub results: Vec<(String, Option<Result<(), String>>)>,

@@ -16,7 +16,6 @@ use kestrel::mission::{Action, MissionUpdate};
 use kestrel::sim::script::{demo_plans, PlanItem};
 use kestrel::sim::world::{SensorConfig, World};
 use serde_json::{json, Value};
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -209,14 +208,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         host.drone_ids().len(),
         log_path.display()
     );
-    let listen: SocketAddr = args
-        .listen
-        .as_deref()
-        .unwrap_or(&config.api.listen)
-        .parse()
-        .context("--listen takes ADDR:PORT, e.g. 127.0.0.1:8080")?;
-    let token =
-        kestrel::api::auth::resolve_token(std::env::var("KESTREL_API_TOKEN").ok(), &config.api)?;
+    let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
     let options = ServeOptions {
         listen,
         listen_is_default: args.listen.is_none()
@@ -242,28 +234,5 @@ pub fn run(args: SimArgs) -> Result<()> {
         outcome.wall_s,
         outcome.simulated_s / outcome.wall_s.max(1e-9)
     );
-    if outcome.results.is_empty() {
-        return Ok(());
-    }
-    let failures: Vec<String> = outcome
-        .results
-        .iter()
-        .filter_map(|(drone, r)| match r {
-            Some(Ok(())) => None,
-            Some(Err(e)) => Some(format!("{drone}: {e}")),
-            None => Some(format!(
-                "{drone}: still flying after {:.0} s",
-                outcome.simulated_s
-            )),
-        })
-        .collect();
-    if failures.is_empty() {
-        println!("flight succeeded");
-        Ok(())
-    } else if args.exit_when_done {
-        bail!("flight failed: {}", failures.join("; "))
-    } else {
-        println!("flight failed: {}", failures.join("; "));
-        Ok(())
-    }
+    cli_serve::report(&outcome, args.exit_when_done)
 }

@@ -1,6 +1,6 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
-//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`.
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`.
 
 use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
@@ -22,6 +22,7 @@ pub struct Config {
     pub api: ApiSection,
     pub geofence: GeofenceSection,
     pub mission: MissionSection,
+    pub map: crate::mapping::config::MapSection,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -178,7 +179,17 @@ impl Config {
             path: p.clone(),
             source,
         })?;
-        Self::parse(&text, &p)
+        let mut config = Self::parse(&text, &p)?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        config
+            .map
+            .load_files(dir)
+            .map_err(|e| ConfigError::Invalid {
+                path: p,
+                field: "map".into(),
+                message: e.to_string(),
+            })?;
+        Ok(config)
     }
 
     pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
@@ -252,6 +263,7 @@ impl Config {
                 format!("must be ADDR:PORT, got `{}`", self.api.listen),
             ));
         }
+        self.map.validate()?;
         if self.api.max_body_bytes < 1024 {
             return Err(("api.max_body_bytes".into(), "must be >= 1024".into()));
         }

@@ -1,4 +1,4 @@
-//! One drone's deterministic core: estimator → frames → behavior server → controller.
+//! One drone's deterministic core: estimator → frames → map → behavior server → controller.
 //!
 //! In (each tick): the time since start and what the platform reported ([`PlatformFeedback`]).
 //! Out: a [`TickOutput`] with the setpoint and platform requests for this tick, plus the
@@ -13,6 +13,8 @@ use crate::control::{Controller, ControllerConfig, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::estimator::{self, Estimator, EstimatorPlugin};
+use crate::mapping::config::MapConfig;
+use crate::mapping::server::MapServer;
 use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
 use std::time::Duration;
@@ -25,6 +27,8 @@ pub struct CoreConfig {
     pub controller: ControllerConfig,
     pub behaviors: BehaviorConfig,
     pub geo_origin: GeodeticOrigin,
+    /// Mapping (`None` = off): the drone's scans build its grid, which `navigate_to` plans on.
+    pub map: Option<MapConfig>,
 }
 
 impl CoreConfig {
@@ -35,6 +39,8 @@ impl CoreConfig {
             controller: ControllerConfig::default(),
             behaviors: BehaviorConfig::default(),
             geo_origin: GeodeticOrigin::default(),
+            // The default section is a fixed, valid 40 m x 40 m grid.
+            map: MapConfig::open_field().ok(),
         }
     }
 }
@@ -69,6 +75,7 @@ pub struct DroneCore {
     estimator: Box<dyn Estimator>,
     frames: FrameTree,
     server: BehaviorServer,
+    map: Option<MapServer>,
     controller: Controller,
     state: EstimatedState,
     platform: PlatformStatus,
@@ -83,6 +90,7 @@ impl DroneCore {
             estimator: estimator::build(config.estimator),
             controller: Controller::new(config.controller, capabilities.setpoints),
             server: BehaviorServer::new(registry),
+            map: config.map.as_ref().map(MapServer::new),
             frames: FrameTree::new(),
             capabilities,
             state: EstimatedState::default(),
@@ -108,6 +116,11 @@ impl DroneCore {
 
     pub fn server(&self) -> &BehaviorServer {
         &self.server
+    }
+
+    /// The drone's map, `None` when mapping is off.
+    pub fn map(&self) -> Option<&MapServer> {
+        self.map.as_ref()
     }
 
     pub fn frames(&self) -> &FrameTree {
@@ -143,6 +156,7 @@ impl DroneCore {
             geo_origin: &self.config.geo_origin,
             home_enu_m: self.home_enu_m,
             config: &self.config.behaviors,
+            map: self.map.as_ref(),
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -169,6 +183,9 @@ impl DroneCore {
         self.platform = feedback.status.clone();
         self.state = self.estimator.update(now, &feedback.measurements);
         self.frames.set_base_link(self.state.pose, now);
+        if let Some(map) = self.map.as_mut() {
+            map.insert(now, &feedback.scans);
+        }
         if self.platform.armed && !was_armed && self.state.valid.position {
             self.home_enu_m = Some(self.state.pose.position_m);
         }
@@ -182,6 +199,7 @@ impl DroneCore {
             geo_origin: &self.config.geo_origin,
             home_enu_m: self.home_enu_m,
             config: &self.config.behaviors,
+            map: self.map.as_ref(),
         };
         // Never command blind: without a link or a position estimate, behaviors end and the
         // autopilot's own failsafe takes over.

@@ -4,7 +4,9 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_map;
 mod cli_mission;
+mod cli_remote;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;
@@ -29,6 +31,9 @@ enum Command {
     /// Missions: validate a file, fly it in the simulator, print the schema.
     #[command(subcommand)]
     Mission(cli_mission::MissionCommand),
+    /// Maps: export one in the ROS map_server format (PGM + YAML).
+    #[command(subcommand)]
+    Map(cli_map::MapCommand),
     /// Check a config file and print the validated result.
     CheckConfig {
         /// Config file (TOML).
@@ -49,6 +54,7 @@ fn main() -> Result<()> {
         Command::Sim(args) => cli_sim::run(args),
         Command::Run(args) => cli_run::run(args),
         Command::Mission(command) => cli_mission::run(command),
+        Command::Map(command) => cli_map::run(command),
         Command::CheckConfig { config } => {
             let c = kestrel::config::Config::load(&config)
                 .with_context(|| format!("checking {}", config.display()))?;

@@ -194,6 +194,7 @@ async fn a_client_uploads_takeoff_go_land_and_follows_it_over_websocket() {
                     }
                 }
             }
+            "map_update" => {}
             other => panic!("unexpected message {other}"),
         }
     }
@@ -300,11 +301,27 @@ async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
     )
     .await;
     let d = wait_status(&k, 0, 30.0, |d| d["mission"]["item_index"] == 3).await;
-    let p = &d["position_enu_m"];
-    assert!(
-        (p[0].as_f64().unwrap() + 4.0).abs() < 0.5 && (p[2].as_f64().unwrap() - 5.0).abs() < 0.5,
-        "{p}"
+    // The modified item 1 and the inserted detour (item 2) were flown and reached.
+    let done = &d["mission"]["done_results"];
+    assert_eq!(
+        (done[1]["item"].clone(), done[1]["result"].clone()),
+        (json!(1), json!("succeeded")),
+        "{d}"
     );
+    assert_eq!(
+        (done[2]["item"].clone(), done[2]["result"].clone()),
+        (json!(2), json!("succeeded")),
+        "{d}"
+    );
+    assert!(
+        (d["position_enu_m"][2].as_f64().unwrap() - 5.0).abs() < 0.5,
+        "{d}"
+    );
+    let (_, view) = get(&k, "/api/missions/1").await;
+    let plan = &view["plan"]["plan"];
+    assert_eq!(plan[1]["args"]["z"], 5.0);
+    assert_eq!(plan[2]["args"]["x"], -4.0);
+    assert_eq!(plan[3]["args"]["x"], 6.0);
     // On-demand inspection takes over: LOAD it, START it while patrol runs.
     let inspect = json!({"target": "drone_0", "plan": [
         {"behavior": "go_to", "args": {"x": 2.0, "y": 2.0, "z": 4.0, "speed": 2.0}},
@@ -559,4 +576,154 @@ fn listening_beyond_loopback_without_a_token_is_refused_at_start() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("without an API token"), "{err}");
+}
+
+#[tokio::test]
+async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let (code, up) = post(&k, "/api/missions?mission_id=42", &takeoff_go_land()).await;
+    assert_eq!((code, up["mission_id"].clone()), (201, json!(42)));
+    let (code, m) = get(&k, "/api/missions/42").await;
+    assert_eq!(code, 200);
+    assert_eq!(
+        m["plan"]["plan"],
+        takeoff_go_land()["plan"]
+            .clone()
+            .as_array()
+            .map(|p| {
+                let mut p = p.clone();
+                p[0]["method"] = json!("__call__");
+                p[2]["method"] = json!("__call__");
+                Value::Array(p)
+            })
+            .unwrap()
+    );
+    assert_eq!(m["progress"]["cursor"], 0);
+    let (code, _) = get(&k, "/api/missions/7").await;
+    assert_eq!(code, 404);
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 42, "action": 2}),
+    )
+    .await;
+    let r = client()
+        .delete(format!("{}/api/missions/42", k.base))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 409, "running missions stay");
+    update(
+        &k,
+        json!({"drone_id": "drone_0", "mission_id": 42, "action": 5}),
+    )
+    .await;
+    let r = client()
+        .delete(format!("{}/api/missions/42", k.base))
+        .bearer_auth(TOKEN)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 204);
+    let (_, list) = get(&k, "/api/missions").await;
+    assert_eq!(list, json!([]));
+    let (_, behaviors) = get(&k, "/api/behaviors").await;
+    let go_to = behaviors
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|b| b["name"] == "go_to")
+        .unwrap();
+    assert_eq!(go_to["resource"], "motion");
+    assert!(go_to["methods"]
+        .as_array()
+        .unwrap()
+        .contains(&json!("go_to_point_with_yaw")));
+    assert_eq!(
+        go_to["args_schema"]["required"],
+        json!(["x", "y", "z", "speed"])
+    );
+    for name in [
+        "takeoff",
+        "land",
+        "follow_path",
+        "rtl",
+        "point_gimbal",
+        "take_photo",
+    ] {
+        assert!(
+            behaviors
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|b| b["name"] == name),
+            "{name}"
+        );
+    }
+    let spec: Value = reqwest::get(format!("{}/api/openapi.json", k.base))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    for route in [
+        "/api/health",
+        "/api/status",
+        "/api/missions",
+        "/api/missions/{id}",
+        "/api/mission_update",
+        "/api/behaviors",
+        "/api/frames",
+        "/api/log",
+        "/api/sim/fault",
+    ] {
+        assert!(
+            spec["paths"].get(route).is_some(),
+            "{route} missing from the OpenAPI spec"
+        );
+    }
+}
+
+#[tokio::test]
+async fn mission_run_flies_a_file_on_a_running_kestrel_and_validate_reports_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let bin = env!("CARGO_BIN_EXE_kestrel");
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/missions/takeoff_go_land.json");
+    let out = tokio::process::Command::new(bin)
+        .args(["mission", "run", file, "--api", &k.base])
+        .env("KESTREL_API_TOKEN", TOKEN)
+        .output()
+        .await
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("succeeded"), "{stdout}");
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 1}}]}"#,
+    )
+    .unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["mission", "validate"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("/plan/0/args/y: missing argument `y`"),
+        "{stdout}"
+    );
+    let out = std::process::Command::new(bin)
+        .args(["mission", "validate", file])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
 }

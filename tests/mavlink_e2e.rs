@@ -219,7 +219,7 @@ fn px4_reboot_is_detected_and_the_link_comes_back() {
     let _one = serial();
     let p = Personality::Px4;
     let fake = Fake::start(p, &[]);
-    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--max-time-s", "9"]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--no-api", "--max-time-s", "9"]);
     kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
     std::thread::sleep(Duration::from_secs(2));
     fake.cmd(json!({"cmd": "reboot", "gap_s": 2.5}));
@@ -239,7 +239,7 @@ fn px4_reboot_is_detected_and_the_link_comes_back() {
 fn reconnects_after_the_autopilot_restarts(p: Personality) {
     let _one = serial();
     let mut fake = Fake::start(p, &[]);
-    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--max-time-s", "14"]);
+    let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--no-api", "--max-time-s", "14"]);
     kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
     std::thread::sleep(Duration::from_secs(2));
     fake.restart(Duration::from_secs(2));

@@ -103,7 +103,7 @@ class App:
         return {"personality": self.args.personality, "world": self.world.name,
                 "control_port": self.args.control_port, "speed_factor": self.args.speed_factor,
                 "vehicles": [{"index": v.index, "sysid": v.sysid, "link": v.link.describe,
-                              "start_enu": v.start_pose} for v in self.vehicles]}
+                              "start_xy_yaw_enu": list(v.start_pose)} for v in self.vehicles]}
 
     # ------------------------------------------------------------------ loop
     def run(self):

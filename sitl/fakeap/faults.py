@@ -87,6 +87,8 @@ class SetpointStats:
             "p99_ms": r(_percentile(vals, 0.99)),
             "max_ms": r(vals[-1] if vals else None),
             "mean_ms": r(sum(vals) / len(vals) if vals else None),
+            "over_100ms": sum(1 for v in vals if v > 100.0),
+            "over_500ms": sum(1 for v in vals if v > 500.0),  # PX4 needs >= 2 Hz
         }
 
 

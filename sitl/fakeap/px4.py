@@ -102,6 +102,7 @@ class Px4Vehicle(Vehicle):
         self.landing_detected_at = None
         self.rtl_phase = None
         self.loss_detected_at = None
+        self.takeoff_alt_m = None
         self.model.target = Target("idle")
 
     # ------------------------------------------------------------------ heartbeat
@@ -207,12 +208,12 @@ class Px4Vehicle(Vehicle):
                 self.model.target = self.last_sp_target
         elif name == "AUTO.TAKEOFF":
             self.takeoff_xy = (b.pos[0], b.pos[1])
-            if not hasattr(self, "takeoff_alt_m") or self.takeoff_alt_m is None:
+            if self.takeoff_alt_m is None:
                 self.takeoff_alt_m = self.home_enu[2] + self.param("MIS_TAKEOFF_ALT")
         elif name == "AUTO.RTL":
             self.rtl_phase = "climb"
-        if name not in ("AUTO.TAKEOFF",):
-            self.takeoff_alt_m = None if name != "AUTO.TAKEOFF" else self.takeoff_alt_m
+        if name != "AUTO.TAKEOFF":
+            self.takeoff_alt_m = None
         self.apply_mode_target()
         self.send(self.msg_current_mode())
 

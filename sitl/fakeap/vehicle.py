@@ -1,5 +1,5 @@
 """Personality-independent part of a simulated vehicle: boot, link I/O with faults,
-stream scheduling, frames, common telemetry, sensors and the control-channel view."""
+commands, params, stream scheduling, frames and the control-channel view."""
 import json
 import math
 import sys
@@ -8,14 +8,11 @@ from collections import deque
 
 from .dynamics import Multirotor, Target, wrap_pi
 from .faults import Faults, SetpointStats, DelayLine
-from .mav import mavlink, CurrentModeMsg, CurrentEventSequenceMsg
+from .mav import mavlink
+from .setpoints import SetpointMixin
+from .telemetry import TelemetryMixin
 
 M = mavlink
-# SET_POSITION_TARGET type_mask bits
-IGNORE_POS = 0x7
-IGNORE_VEL = 0x38
-IGNORE_YAW = 0x400
-IGNORE_YAW_RATE = 0x800
 
 
 def pint(value):
@@ -25,7 +22,7 @@ def pint(value):
     return int(round(value))
 
 
-class Vehicle:
+class Vehicle(TelemetryMixin, SetpointMixin):
     autopilot = M.MAV_AUTOPILOT_GENERIC
     name = "generic"
 
@@ -350,24 +347,6 @@ class Vehicle:
             return []
         return x if isinstance(x, list) else [x]
 
-    def generators(self):
-        return {
-            0: self.msg_heartbeat,
-            1: self.msg_sys_status,
-            2: self.msg_system_time,
-            24: self.msg_gps_raw_int,
-            30: self.msg_attitude,
-            31: self.msg_attitude_quaternion,
-            32: self.msg_local_position_ned,
-            33: self.msg_global_position_int,
-            74: self.msg_vfr_hud,
-            85: self.msg_position_target_local_ned,
-            132: self.msg_distance_sensors,
-            147: self.msg_battery_status,
-            242: self.msg_home_position,
-            245: self.msg_extended_sys_state,
-        }
-
     def send_streams(self, now):
         if now < self.rebooting_until:
             return
@@ -405,231 +384,6 @@ class Vehicle:
             self._colliding = True
         else:
             self._colliding = False
-
-    # ------------------------------------------------------------------ common telemetry
-    capabilities = 0
-    flight_sw_version = 0
-
-    def autopilot_version(self):
-        uid = 0x4B45535452454C00 + self.sysid  # "KESTREL" + sysid
-        return M.MAVLink_autopilot_version_message(self.capabilities, self.flight_sw_version, 0, 0, 0,
-                                                   [0] * 8, [0] * 8, [0] * 8, 0, 0, uid)
-
-    def msg_heartbeat(self):
-        base, custom, status = self.heartbeat_fields()
-        return M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, self.autopilot, base, custom, status, 3)
-
-    def position_valid(self):
-        return True
-
-    def _ned_state(self):
-        b = self.model.body
-        n, e, d = self.enu_to_ned(b.pos)
-        vn, ve, vd = b.vel[1], b.vel[0], -b.vel[2]
-        return n, e, d, vn, ve, vd
-
-    def msg_attitude(self):
-        b = self.model.body
-        return M.MAVLink_attitude_message(self.boot_ms(), b.roll_rad, b.pitch_rad,
-                                          self.yaw_enu_to_ned(b.yaw_rad), 0.0, 0.0, -b.yaw_rate_rps)
-
-    def quaternion(self):
-        b = self.model.body
-        r, p, y = b.roll_rad, b.pitch_rad, self.yaw_enu_to_ned(b.yaw_rad)
-        cr, sr, cp, sp, cy, sy = (math.cos(r / 2), math.sin(r / 2), math.cos(p / 2), math.sin(p / 2),
-                                  math.cos(y / 2), math.sin(y / 2))
-        return [cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy]
-
-    def msg_attitude_quaternion(self):
-        b = self.model.body
-        q = self.quaternion()
-        return M.MAVLink_attitude_quaternion_message(self.boot_ms(), q[0], q[1], q[2], q[3], 0.0, 0.0,
-                                                     -b.yaw_rate_rps, [0, 0, 0, 0])
-
-    def msg_local_position_ned(self):
-        if not self.position_valid():
-            return None
-        n, e, d, vn, ve, vd = self._ned_state()
-        return M.MAVLink_local_position_ned_message(self.boot_ms(), n, e, d, vn, ve, vd)
-
-    def geo(self):
-        b = self.model.body
-        return self.world.enu_to_geo(*b.pos)
-
-    def msg_global_position_int(self):
-        if not self.position_valid():
-            return M.MAVLink_global_position_int_message(self.boot_ms(), 0, 0, 0, 0, 0, 0, 0,
-                                                         int(math.degrees(self.yaw_enu_to_ned(self.model.body.yaw_rad)) % 360 * 100))
-        b = self.model.body
-        lat, lon, alt = self.geo()
-        rel = b.pos[2] - self.home_enu[2]
-        hdg = int((math.degrees(self.yaw_enu_to_ned(b.yaw_rad)) % 360) * 100)
-        return M.MAVLink_global_position_int_message(self.boot_ms(), int(lat * 1e7), int(lon * 1e7),
-                                                     int(alt * 1000), int(rel * 1000),
-                                                     int(b.vel[1] * 100), int(b.vel[0] * 100), int(-b.vel[2] * 100), hdg)
-
-    def gps_fix(self):
-        return 3, 10
-
-    def msg_gps_raw_int(self):
-        fix, sats = self.gps_fix()
-        if fix < 2:
-            return M.MAVLink_gps_raw_int_message(self.boot_us(), fix, 0, 0, 0, 65535, 65535, 0, 0, sats)
-        b = self.model.body
-        lat, lon, alt = self.geo()
-        vel = int(math.hypot(b.vel[0], b.vel[1]) * 100)
-        cog = int((math.degrees(math.atan2(b.vel[0], b.vel[1])) % 360) * 100) if vel > 10 else 0
-        return M.MAVLink_gps_raw_int_message(self.boot_us(), fix, int(lat * 1e7), int(lon * 1e7), int(alt * 1000),
-                                             70, 100, vel, cog, sats)
-
-    def msg_vfr_hud(self):
-        b = self.model.body
-        spd = math.hypot(b.vel[0], b.vel[1])
-        hdg = int(math.degrees(self.yaw_enu_to_ned(b.yaw_rad)) % 360)
-        thr = 50 if (self.armed and not b.on_ground) else 0
-        return M.MAVLink_vfr_hud_message(spd, spd, hdg, thr, self.geo()[2], b.vel[2])
-
-    # SYS_STATUS sensor bitmasks and battery as captured (overridden per personality)
-    sensors_present_enabled_health = (0x20802F, 0x20802F, 0x20802F)
-    battery_mv = 16200
-
-    def msg_sys_status(self):
-        present, enabled, health = self.sensors_present_enabled_health
-        return M.MAVLink_sys_status_message(present, enabled, health, 100, self.battery_mv, -100, 100,
-                                            0, 0, 0, 0, 0, 0)
-
-    def msg_battery_status(self):
-        cells = [self.battery_mv] + [65535] * 9
-        return M.MAVLink_battery_status_message(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 32767,
-                                                cells, -100, 0, -1, 100, 0, M.MAV_BATTERY_CHARGE_STATE_OK)
-
-    def msg_system_time(self):
-        return M.MAVLink_system_time_message(int(time.time() * 1e6), self.boot_ms())
-
-    def msg_home_position(self):
-        if not self.position_valid():
-            return None
-        lat, lon, alt = self.world.enu_to_geo(*self.home_enu)
-        n, e, d = self.enu_to_ned(self.home_enu)
-        return M.MAVLink_home_position_message(int(lat * 1e7), int(lon * 1e7), int(alt * 1000), n, e, d,
-                                               [1, 0, 0, 0], 0, 0, 0, self.boot_us())
-
-    def msg_extended_sys_state(self):
-        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, self.landed_state)
-
-    def msg_position_target_local_ned(self):
-        t = self.model.target
-        if t.kind == "position":
-            n, e, d = self.enu_to_ned(t.pos_enu)
-            mask = 3576
-            vn = ve = vd = 0.0
-        elif t.kind == "velocity":
-            n = e = d = 0.0
-            vn, ve, vd = t.vel_enu[1], t.vel_enu[0], -t.vel_enu[2]
-            mask = 3527
-        else:
-            return None
-        yaw = self.yaw_enu_to_ned(t.yaw_rad) if t.yaw_rad is not None else 0.0
-        return M.MAVLink_position_target_local_ned_message(self.boot_ms(), M.MAV_FRAME_LOCAL_NED, mask,
-                                                           n, e, d, vn, ve, vd, 0, 0, 0, yaw, 0)
-
-    # ------------------------------------------------------------------ sensors
-    def range_beams(self):
-        """List of (id, orientation, type, min_cm, max_cm, body_heading_rad) horizontal beams."""
-        return []
-
-    def down_sensor(self):
-        """(id, type, min_cm, max_cm) of the downward rangefinder, or None."""
-        return None
-
-    def msg_distance_sensors(self):
-        b = self.model.body
-        out = []
-        down = self.down_sensor()
-        if down:
-            sid, stype, lo, hi = down
-            dist = self.world.down_distance(b.pos[2], b.pos[0], b.pos[1])
-            cm = int(min(hi, max(lo, dist * 100)))
-            out.append(M.MAVLink_distance_sensor_message(self.boot_ms(), lo, hi, cm, stype, sid,
-                                                         M.MAV_SENSOR_ROTATION_PITCH_270, 0))
-        for sid, orient, stype, lo, hi, rel in self.range_beams():
-            heading = b.yaw_rad - rel  # body FRD yaw offset rel is clockwise; ENU heading is CCW
-            dist = self.world.ray_distance(b.pos[0], b.pos[1], b.pos[2], heading, hi / 100.0)
-            cm = int(max(lo, min(hi, dist * 100)))
-            out.append(M.MAVLink_distance_sensor_message(self.boot_ms(), lo, hi, cm, stype, sid, orient, 0))
-        return out
-
-    # ------------------------------------------------------------------ setpoints
-    def target_from_local(self, msg):
-        """Convert a SET_POSITION_TARGET_LOCAL_NED into a dynamics Target (or None)."""
-        mask = msg.type_mask
-        frame = msg.coordinate_frame
-        b = self.model.body
-        yaw = None if mask & IGNORE_YAW else self.yaw_ned_to_enu(msg.yaw)
-        yaw_rate = None if mask & IGNORE_YAW_RATE else -msg.yaw_rate
-        has_pos = (mask & IGNORE_POS) != IGNORE_POS
-        has_vel = (mask & IGNORE_VEL) != IGNORE_VEL
-        vx, vy, vz = (msg.vx, msg.vy, msg.vz) if has_vel else (0.0, 0.0, 0.0)
-        if frame in (M.MAV_FRAME_BODY_NED, M.MAV_FRAME_BODY_FRD, M.MAV_FRAME_BODY_OFFSET_NED):
-            # body-frame velocity: rotate forward/right by heading (NED yaw)
-            psi = self.yaw_enu_to_ned(b.yaw_rad)
-            vx, vy = vx * math.cos(psi) - vy * math.sin(psi), vx * math.sin(psi) + vy * math.cos(psi)
-        vel_enu = (vy, vx, -vz)
-        if has_pos:
-            if frame in (M.MAV_FRAME_LOCAL_OFFSET_NED, M.MAV_FRAME_BODY_OFFSET_NED):
-                n, e, d = self.enu_to_ned(b.pos)
-                pos = self.ned_to_enu(n + msg.x, e + msg.y, d + msg.z)
-            else:
-                pos = self.ned_to_enu(msg.x, msg.y, msg.z)
-            if any(math.isnan(v) for v in pos):
-                return None
-            return Target("position", pos, vel_enu if has_vel else (0.0, 0.0, 0.0), yaw, yaw_rate)
-        if has_vel:
-            if any(math.isnan(v) for v in vel_enu):
-                return None
-            return Target("velocity", (0.0, 0.0, 0.0), vel_enu, yaw, yaw_rate)
-        return None
-
-    def target_from_global(self, msg):
-        mask = msg.type_mask
-        if (mask & IGNORE_POS) == IGNORE_POS:
-            return None
-        x, y, _ = self.world.geo_to_enu(msg.lat_int / 1e7, msg.lon_int / 1e7, 0.0)
-        if msg.coordinate_frame in (M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_INT):
-            z = msg.alt - self.world.origin["alt_m"]
-        else:
-            z = self.home_enu[2] + msg.alt
-        yaw = None if mask & IGNORE_YAW else self.yaw_ned_to_enu(msg.yaw)
-        return Target("position", (x, y, z), (0.0, 0.0, 0.0), yaw, None)
-
-    def on_setpoint_local(self, msg):
-        pass
-
-    def on_setpoint_global(self, msg):
-        pass
-
-    def on_attitude_target(self, msg):
-        pass
-
-    def reposition_target(self, p):
-        """DO_REPOSITION p5 lat, p6 lon (degrees, or degE7 from COMMAND_INT), p7 AMSL alt, p4 yaw deg."""
-        lat, lon, alt = p[5], p[6], p[7]
-        if any(v is None or v != v for v in (lat, lon)):
-            b = self.model.body
-            x, y = b.pos[0], b.pos[1]
-        else:
-            if abs(lat) > 1000 or abs(lon) > 1000:
-                lat, lon = lat / 1e7, lon / 1e7
-            x, y, _ = self.world.geo_to_enu(lat, lon, 0.0)
-        z = self.model.body.pos[2] if alt is None or alt != alt else alt - self.world.origin["alt_m"]
-        yaw = None if p[4] is None or p[4] != p[4] else self.yaw_ned_to_enu(math.radians(p[4]))
-        speed = p[1] if p[1] is not None and p[1] == p[1] and p[1] > 0 else None
-        return Target("position", (x, y, z), (0.0, 0.0, 0.0), yaw, None, speed_xy_mps=speed)
-
-    def hold_here(self):
-        b = self.model.body
-        return Target("position", (b.pos[0], b.pos[1], b.pos[2]), (0.0, 0.0, 0.0), None, None)
 
     # ------------------------------------------------------------------ control channel view
     def state(self):

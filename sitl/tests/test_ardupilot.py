@@ -116,6 +116,7 @@ def test_guided_setpoint_stats_link_drop_and_reconnect(fake_factory):
     stats = f.control(cmd="setpoint_stats", reset=True)
     assert stats["count"] == 25 and stats["gaps"] == 24
     assert 35 < stats["p50_ms"] < 50 and stats["max_ms"] < 150 and stats["p99_ms"] <= stats["max_ms"]
+    assert stats["over_500ms"] == 0
     assert f.control(cmd="setpoint_stats")["count"] == 0
     # link drop: silence both ways, then the same TCP connection carries traffic again
     f.control(cmd="link_drop", duration_s=1.5)

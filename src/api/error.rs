@@ -27,6 +27,9 @@ pub enum ApiError {
     NotFound(String),
     #[error("too many WebSocket clients (limit {0})")]
     TooManyClients(usize),
+    /// A request body that parsed but does not make sense, field by field (JSON pointers).
+    #[error("request is invalid")]
+    Invalid(Vec<ValidationError>),
 }
 
 /// The JSON error body, for the OpenAPI spec.
@@ -63,13 +66,15 @@ impl ApiError {
             ApiError::BadRequest(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_request"),
             ApiError::NotFound(_) => (StatusCode::NOT_FOUND, "not_found"),
             ApiError::TooManyClients(_) => (StatusCode::SERVICE_UNAVAILABLE, "too_many_clients"),
+            ApiError::Invalid(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_request"),
         }
     }
 
     pub fn details(&self) -> Vec<ValidationError> {
         match self {
             ApiError::Host(HostError::Invalid(d))
-            | ApiError::Host(HostError::Action(ActionError::Invalid(d))) => d.clone(),
+            | ApiError::Host(HostError::Action(ActionError::Invalid(d)))
+            | ApiError::Invalid(d) => d.clone(),
             _ => Vec::new(),
         }
     }
@@ -80,6 +85,10 @@ impl ApiError {
             ApiError::Host(HostError::Invalid(d)) => {
                 let first: Vec<String> = d.iter().take(3).map(ToString::to_string).collect();
                 format!("mission is invalid: {}", first.join("; "))
+            }
+            ApiError::Invalid(d) => {
+                let first: Vec<String> = d.iter().take(3).map(ToString::to_string).collect();
+                format!("request is invalid: {}", first.join("; "))
             }
             other => other.to_string(),
         }

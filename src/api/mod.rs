@@ -7,9 +7,13 @@
 
 pub mod auth;
 pub mod body;
+pub mod coverage;
 pub mod error;
+pub mod geofence;
+pub mod map;
 pub mod openapi;
 pub mod routes;
+pub mod scans;
 pub mod web;
 pub mod ws;
 
@@ -55,6 +59,17 @@ impl ApiState {
     }
 }
 
+/// Map, scans, coverage and geofence routes (`api::map`, `api::scans`, `api::coverage`).
+fn map_routes() -> Router<ApiState> {
+    Router::new()
+        .route("/api/map", get(map::grid))
+        .route("/api/map.png", get(map::png))
+        .route("/api/map/info", get(map::info))
+        .route("/api/scans", post(map::post_scans))
+        .route("/api/coverage", post(coverage::plan))
+        .route("/api/geofence", get(geofence::geofence))
+}
+
 /// Every route, with its layers.
 pub fn router(state: ApiState, api: &ApiSection) -> Router {
     let protected = Router::new()
@@ -70,6 +85,7 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         .route("/api/log", get(routes::log))
         .route("/api/sim/fault", post(routes::sim_fault))
         .route("/api/ws", get(ws::upgrade))
+        .merge(map_routes())
         .route_layer(middleware::from_fn_with_state(
             state.clone(),
             auth::require_token,

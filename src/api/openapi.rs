@@ -3,6 +3,7 @@
 
 use super::error::ErrorBody;
 use super::routes;
+use super::{coverage, geofence, map, scans};
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::status::{BatteryStatus, DroneStatus, GeoStatus};
@@ -43,6 +44,18 @@ impl Modify for BearerAuth {
 )]
 pub struct ApiDoc;
 
+/// Maps, scans, coverage and geofence (`api::map`, `api::coverage`, `api::geofence`).
+#[derive(OpenApi)]
+#[openapi(
+    paths(map::grid, map::png, map::info, map::post_scans, coverage::plan, geofence::geofence),
+    components(schemas(
+        map::MapInfo, scans::ScanInput, scans::ScanBatch, coverage::CoverageRequest,
+        coverage::CoverageAnswer
+    )),
+    tags((name = "map"))
+)]
+struct MapDoc;
+
 pub fn spec() -> utoipa::openapi::OpenApi {
-    ApiDoc::openapi()
+    ApiDoc::openapi().merge_from(MapDoc::openapi())
 }

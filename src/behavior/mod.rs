@@ -15,6 +15,8 @@ mod go_to;
 mod goal;
 mod hover;
 mod land;
+mod nav_path;
+mod navigate_to;
 mod registry;
 mod rotate;
 mod sequence;
@@ -32,6 +34,7 @@ pub use server::{
 use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::mapping::server::MapServer;
 use crate::platform::{Capabilities, PlatformRequest};
 use crate::types::{EstimatedState, PlatformStatus, Vec3};
 use serde::{Deserialize, Serialize};
@@ -53,6 +56,9 @@ pub struct BehaviorConfig {
     pub no_progress_timeout_s: f64,
     /// Arming and entering offboard must complete within this time (s).
     pub arm_timeout_s: f64,
+    /// A takeoff started before the vehicle is ready to fly (no position estimate yet, e.g.
+    /// ArduPilot's EKF about 40 s after boot) waits this long before failing (s).
+    pub ready_timeout_s: f64,
     /// Speed used to hold position after pause or stop (m/s).
     pub hold_speed_mps: f64,
 }
@@ -66,6 +72,7 @@ impl Default for BehaviorConfig {
             max_acceleration_mps2: 2.0,
             no_progress_timeout_s: 20.0,
             arm_timeout_s: 15.0,
+            ready_timeout_s: 60.0,
             hold_speed_mps: 1.0,
         }
     }
@@ -83,6 +90,8 @@ pub struct BehaviorContext<'a> {
     /// Where the vehicle last armed, in `earth`; `None` before the first arming.
     pub home_enu_m: Option<Vec3>,
     pub config: &'a BehaviorConfig,
+    /// The drone's map (`None` when mapping is off), for behaviors that plan.
+    pub map: Option<&'a MapServer>,
 }
 
 impl BehaviorContext<'_> {

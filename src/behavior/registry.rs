@@ -107,6 +107,7 @@ impl Registry {
         r.register(super::hover::spec());
         r.register(super::rotate::spec());
         r.register(super::sequence::rtl_spec());
+        r.register(super::navigate_to::spec());
         r
     }
 

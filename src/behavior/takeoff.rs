@@ -5,7 +5,7 @@ use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
-use crate::types::{FlightStatus, Vec3};
+use crate::types::{FlightStatus, LinkHealth, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -50,6 +50,10 @@ pub fn spec() -> BehaviorSpec {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Phase {
+    /// Waiting for the vehicle to be ready (link up, position estimate, autopilot checks).
+    WaitReady {
+        since: Option<Duration>,
+    },
     Arming {
         since: Option<Duration>,
         last_request: Option<Duration>,
@@ -72,13 +76,19 @@ impl Takeoff {
     fn new(goal: TakeoffGoal) -> Self {
         Self {
             goal,
-            phase: Phase::Arming {
-                since: None,
-                last_request: None,
-            },
+            phase: Phase::WaitReady { since: None },
             target: Vec3::zeros(),
             yaw_rad: 0.0,
         }
+    }
+}
+
+impl Takeoff {
+    /// Climb target and heading from where the vehicle sits now.
+    fn capture_start(&mut self, ctx: &BehaviorContext) {
+        let p = ctx.position();
+        self.target = Vec3::new(p.x, p.y, p.z + self.goal.height);
+        self.yaw_rad = ctx.yaw();
     }
 }
 
@@ -91,16 +101,44 @@ impl Behavior for Takeoff {
             let reason = ctx.platform.last_error.as_deref().unwrap_or("crashed");
             return Err(format!("the vehicle crashed ({reason}) and must be reset"));
         }
-        if !ctx.state.valid.position {
-            return Err("no position estimate".into());
+        if ctx.state.valid.position {
+            self.capture_start(ctx);
         }
-        let p = ctx.position();
-        self.target = Vec3::new(p.x, p.y, p.z + self.goal.height);
-        self.yaw_rad = ctx.yaw();
         Ok(())
     }
 
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        if let Phase::WaitReady { since } = self.phase {
+            let since = since.unwrap_or(ctx.now);
+            let ready = ctx.state.valid.position
+                && ctx.platform.ready_to_fly
+                && ctx.platform.link == LinkHealth::Ok;
+            if !ready {
+                if seconds_since(ctx.now, since) > ctx.config.ready_timeout_s {
+                    let reason = ctx.platform.last_error.clone().unwrap_or_else(|| {
+                        if ctx.state.valid.position {
+                            "the autopilot reports it cannot arm yet".into()
+                        } else {
+                            "no position estimate".into()
+                        }
+                    });
+                    return Step::Failed(format!(
+                        "vehicle not ready to fly after {:.0} s: {reason}",
+                        ctx.config.ready_timeout_s
+                    ));
+                }
+                self.phase = Phase::WaitReady { since: Some(since) };
+                return Step::Running {
+                    reference: None,
+                    feedback: json!({ "waiting_for": "vehicle ready to fly" }),
+                };
+            }
+            self.capture_start(ctx);
+            self.phase = Phase::Arming {
+                since: None,
+                last_request: None,
+            };
+        }
         let ground_hold = MotionReference::hold(
             Vec3::new(self.target.x, self.target.y, ctx.position().z),
             self.yaw_rad,
@@ -306,5 +344,64 @@ mod tests {
             ),
             "the autopilot climbs by itself"
         );
+    }
+
+    #[test]
+    fn waits_for_a_position_estimate_then_fails_with_the_autopilot_reason() {
+        let mut scene = on_the_ground();
+        scene.state.valid = crate::types::Validity::default();
+        scene.platform.ready_to_fly = false;
+        scene.platform.last_error = Some("Arm: Need Position Estimate".into());
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: 2.0,
+            speed: 1.0,
+        });
+        takeoff.activate(&scene.ctx(0)).unwrap();
+        let s = Duration::from_secs;
+        let (step, requests) = run(&mut takeoff, &scene, s(0));
+        assert!(
+            requests.is_empty(),
+            "nothing is commanded before the vehicle is ready"
+        );
+        assert!(
+            matches!(
+                step,
+                Step::Running {
+                    reference: None,
+                    ..
+                }
+            ),
+            "{step:?}"
+        );
+        let (step, _) = run(&mut takeoff, &scene, s(59));
+        assert!(
+            matches!(step, Step::Running { .. }),
+            "still waiting within the timeout"
+        );
+        let (step, _) = run(&mut takeoff, &scene, s(61));
+        match step {
+            Step::Failed(reason) => {
+                assert!(reason.contains("Arm: Need Position Estimate"), "{reason}")
+            }
+            other => panic!("expected a failure, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn starts_arming_once_the_vehicle_becomes_ready() {
+        let mut scene = on_the_ground();
+        scene.state.valid = crate::types::Validity::default();
+        scene.platform.ready_to_fly = false;
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: 2.0,
+            speed: 1.0,
+        });
+        takeoff.activate(&scene.ctx(0)).unwrap();
+        let s = Duration::from_secs;
+        run(&mut takeoff, &scene, s(0));
+        scene.state.valid = crate::types::Validity::ALL;
+        scene.platform.ready_to_fly = true;
+        let (_, requests) = run(&mut takeoff, &scene, s(40));
+        assert!(requests.contains(&PlatformRequest::Arm), "{requests:?}");
     }
 }

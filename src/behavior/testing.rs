@@ -5,7 +5,9 @@ use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::platform::Capabilities;
-use crate::types::{EstimatedState, FlightStatus, PlatformStatus, Pose, Validity, Vec3};
+use crate::types::{
+    EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
+};
 use std::time::Duration;
 
 pub(crate) struct Scene {
@@ -30,6 +32,8 @@ impl Scene {
                 armed: true,
                 offboard: true,
                 flight: FlightStatus::Flying,
+                link: LinkHealth::Ok,
+                ready_to_fly: true,
                 ..PlatformStatus::default()
             },
             frames: FrameTree::new(),
@@ -67,6 +71,7 @@ impl Scene {
             geo_origin: &self.origin,
             home_enu_m: None,
             config: &self.config,
+            map: None,
         }
     }
 }

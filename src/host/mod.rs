@@ -9,6 +9,7 @@
 pub mod engine;
 pub mod fleet;
 pub mod logwriter;
+pub mod map_view;
 pub mod payload;
 pub mod runtime;
 pub mod scenario;

@@ -75,6 +75,8 @@ pub struct HostInfo {
     pub drones: Vec<String>,
     pub simulated: bool,
     pub behaviors: Vec<BehaviorInfo>,
+    /// The `[geofence]` section missions are checked against.
+    pub geofence: crate::config::GeofenceSection,
 }
 
 /// The API's way to the host. Cheap to clone.
@@ -155,6 +157,7 @@ fn host_info(host: &Host) -> HostInfo {
         drones: host.drone_ids(),
         simulated: host.is_simulated(),
         behaviors,
+        geofence: host.limits().geofence.clone(),
     }
 }
 
@@ -216,6 +219,7 @@ struct Publisher {
     persist_tx: Option<watch::Sender<Option<PersistedState>>>,
     persisted_revision: Option<u64>,
     log_flushed: Instant,
+    map_sent: Option<Instant>,
 }
 
 impl Publisher {
@@ -226,7 +230,15 @@ impl Publisher {
             self.state_tx.send_replace(Arc::new(host.snapshot()));
             self.last = Some(Instant::now());
         }
-        for e in events {
+        let map_period = host.map().map(|m| m.update_period());
+        let map_due = map_period.is_some_and(|p| self.map_sent.is_none_or(|t| t.elapsed() >= p));
+        let map_updates = if map_due {
+            self.map_sent = Some(Instant::now());
+            host.take_map_updates()
+        } else {
+            Vec::new()
+        };
+        for e in events.into_iter().chain(map_updates) {
             // No subscriber is not an error: nobody is watching.
             let _ = self.events.send(Arc::new(e));
         }
@@ -315,6 +327,7 @@ async fn control_loop(
         persist_tx: options.state_file.clone().map(spawn_persister),
         persisted_revision: None,
         log_flushed: Instant::now(),
+        map_sent: None,
     };
     let mut watchdog = Watchdog::new();
     let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);

@@ -9,11 +9,14 @@ use super::payload;
 use crate::config::Config;
 use crate::core::{CoreConfig, DroneCore};
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::mapping::config::MapConfig;
+use crate::mapping::merged::FleetMap;
 use crate::mission::Limits;
 use crate::platform::Platform;
 use crate::sim::world::World;
 use crate::sim::{Environment, SimWorld};
 use crate::types::Vec3;
+use nalgebra::Vector2;
 use std::time::Duration;
 
 /// Physics steps per control tick, as the simulator's own runner does.
@@ -34,14 +37,36 @@ pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> Sim
 
 /// A host flying the vehicles of an existing simulator world.
 pub fn simulated_host_in(sim: SimWorld, config: &Config) -> Host {
+    let map = sim_map_config(&sim, config);
     let (cores, fleet, host_config) = simulated_parts(sim, config);
-    Host::new(cores, Box::new(fleet), host_config)
+    let mut host = Host::new(cores, Box::new(fleet), host_config);
+    if let Some(m) = map {
+        match FleetMap::new(&m) {
+            Ok(fleet_map) => host.set_map(fleet_map),
+            Err(e) => tracing::error!("no merged map: {e}"),
+        }
+    }
+    host
+}
+
+/// The `[map]` section framed on the world's bounds when it gives no extent of its own.
+fn sim_map_config(sim: &SimWorld, config: &Config) -> Option<MapConfig> {
+    let b = &sim.world.bounds_m;
+    let bounds = (Vector2::new(b.x[0], b.y[0]), Vector2::new(b.x[1], b.y[1]));
+    match config.map.config(Some(bounds)) {
+        Ok(m) => m,
+        Err(e) => {
+            tracing::error!("mapping is off: {e}");
+            None
+        }
+    }
 }
 
 /// The pieces of a simulated host, for callers that wrap the fleet (benchmark probes).
 pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFleet, HostConfig) {
     let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
     let registry = payload::registry();
+    let map = sim_map_config(&sim, config);
     let cores = sim
         .vehicles
         .iter()
@@ -51,6 +76,7 @@ pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFl
             c.controller = config.controller;
             c.behaviors = config.behaviors;
             c.estimator = config.estimator.plugin.unwrap_or_default();
+            c.map.clone_from(&map);
             if let Some(o) = origin {
                 c.geo_origin = GeodeticOrigin(o);
             }

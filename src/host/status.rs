@@ -5,6 +5,8 @@
 
 use crate::behavior::{ActiveInfo, BehaviorEvent};
 use crate::core::DroneCore;
+use crate::mapping::merged::MapPatch;
+use crate::mapping::GridSpec;
 use crate::mission::{Action, MissionExecutor, MissionStatus};
 use crate::types::{FlightStatus, LinkHealth};
 use serde::{Deserialize, Serialize};
@@ -103,6 +105,31 @@ pub enum HostEvent {
         t: f64,
         event: EventBody,
     },
+    /// A changed region of a map (`drone` None = the merged map), throttled by the runtime.
+    MapUpdate {
+        drone: Option<String>,
+        /// The drone whose scans changed it.
+        changed_by: String,
+        /// `[x_min, y_min, x_max, y_max]` (ENU m).
+        bbox: [f64; 4],
+        /// The region as a grid of its own (origin = its south-west corner).
+        spec: GridSpec,
+        /// Row-major from the south-west cell: -1 unknown, else 0..=100.
+        data: Vec<i8>,
+    },
+}
+
+impl HostEvent {
+    /// A changed region of the merged map.
+    pub fn map_update(patch: MapPatch) -> Self {
+        HostEvent::MapUpdate {
+            drone: None,
+            changed_by: patch.drone,
+            bbox: patch.bbox_enu_m,
+            spec: patch.spec,
+            data: patch.data,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]

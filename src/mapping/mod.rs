@@ -7,17 +7,24 @@
 //! * [`raycast`]: the cell walk along a segment, shared by scan insertion and line-of-sight checks.
 //! * [`export`]: the grid as PNG and in the ROS `map_server` format (PGM + YAML), both ways.
 //! * [`layers`]: a [`LayeredMap`], one layer per drone fused into one global grid.
+//! * [`config`], [`server`], [`merged`]: the `[map]` config section, each drone's map server
+//!   (scans in every tick, grid and planning map out) and the fleet's merged map with the
+//!   changed regions for clients.
 //! * [`graph`]: a [`TopoGraph`] (nodes + weighted edges), built from an indoor-farm description
 //!   or loaded from JSON.
 //!
-//! Everything here is plain synchronous data and math: no I/O, no clock, no channels.
+//! Everything here is plain synchronous data and math: no clock, no channels, and no I/O except
+//! [`config`] reading the known map and graph files at startup.
 
+pub mod config;
 pub mod export;
 pub mod graph;
 pub mod grid;
 pub mod layers;
+pub mod merged;
 pub mod raycast;
 pub mod scan;
+pub mod server;
 
 pub use graph::{FarmSpec, GraphEdge, GraphNode, TopoGraph};
 pub use grid::{Cell, CellBox, GridPatch, GridSpec, InsertParams, OccupancyGrid, UNKNOWN};

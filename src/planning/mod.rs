@@ -21,6 +21,7 @@
 //! busy (another thread planning with the same planner) uses fresh buffers instead of waiting.
 
 pub mod coverage;
+pub mod coverage_ends;
 pub mod distance;
 mod graph_planner;
 mod grid_planners;

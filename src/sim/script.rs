@@ -14,14 +14,9 @@ use serde_json::{json, Value};
 pub type PlanItem = (String, Value);
 
 /// Demo waypoints in the drone's start frame (x forward, y left, z up; m): a go_to, then a
-/// path that ends above the start. Takeoff and landing are vertical, on the start pad.
+/// three-point path. Takeoff and landing are vertical.
 const DEMO_GO_TO: [f64; 3] = [0.0, 5.0, 3.0];
-const DEMO_PATH: [[f64; 3]; 4] = [
-    [3.0, 5.0, 3.5],
-    [3.0, 8.0, 3.5],
-    [0.0, 8.0, 3.0],
-    [0.0, 0.0, 3.0],
-];
+const DEMO_PATH: [[f64; 3]; 3] = [[3.0, 5.0, 3.5], [3.0, 8.0, 3.5], [0.0, 8.0, 3.0]];
 /// Headings tried (multiples of 45 deg from the start heading) and shrink factors, in order.
 const TURNS: usize = 8;
 const SCALES: [f64; 3] = [1.0, 0.6, 0.3];
@@ -30,8 +25,7 @@ const OBSTACLE_MARGIN_M: f64 = 0.8;
 const DRONE_SEPARATION_M: f64 = 1.5;
 
 /// The demo from a start pose: take off to 3 m, go to 5 m left of the start, follow a short
-/// path back to above the start, land where it took off. Waypoints are in `earth`, relative
-/// to the start position and heading.
+/// path, land. Waypoints are in `earth`, relative to the start position and heading.
 pub fn demo_plan(start_m: Vec3, yaw_rad: f64) -> Vec<PlanItem> {
     plan_from(&demo_track(start_m, yaw_rad, 1.0))
 }

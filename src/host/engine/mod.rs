@@ -1,0 +1,321 @@
+//! The synchronous host: every drone's core and mission executor, the vehicles, the frames
+//! registered over the API and the flight log, stepped one tick at a time.
+//!
+//! In: [`Command`]s (each with a one-shot reply) and ticks. Out: replies, the published
+//! [`HostSnapshot`], [`HostEvent`]s and a [`PersistedState`]. It never reads the clock: the
+//! runtime (`host::runtime`) decides when to step, in real or simulated time.
+
+mod commands;
+mod maps;
+
+pub use super::map_view::MapView;
+pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uploaded};
+
+use super::fleet::Fleet;
+use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use crate::behavior::RunState;
+use crate::core::DroneCore;
+use crate::estimator::frames::FrameError;
+use crate::flightlog::FlightLog;
+use crate::mapping::merged::FleetMap;
+use crate::mapping::scan::RangeScan;
+use crate::mission::executor::ExecutorSnapshot;
+use crate::mission::{ActionError, Limits, MissionExecutor, ValidationError};
+use crate::types::LinkHealth;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+/// Why a command failed; the API maps each to an HTTP status and a stable code.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HostError {
+    #[error("unknown drone `{0}`; this Kestrel flies {1}")]
+    UnknownDrone(String, String),
+    #[error("drone_id is needed: this Kestrel flies {0}")]
+    DroneNeeded(String),
+    #[error("mission is invalid")]
+    Invalid(Vec<ValidationError>),
+    #[error(transparent)]
+    Action(#[from] ActionError),
+    #[error("frame: {0}")]
+    Frame(String),
+    #[error("{0}")]
+    NotSupported(String),
+    #[error("{0}")]
+    Unavailable(String),
+}
+
+impl From<FrameError> for HostError {
+    fn from(e: FrameError) -> Self {
+        HostError::Frame(e.to_string())
+    }
+}
+
+/// What the state directory keeps.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct PersistedState {
+    pub drones: BTreeMap<String, ExecutorSnapshot>,
+    pub frames: Vec<FrameRegistration>,
+}
+
+pub struct HostConfig {
+    pub limits: Limits,
+    pub switch_hold: Duration,
+    pub tick: Duration,
+}
+
+pub struct Host {
+    cores: Vec<DroneCore>,
+    executors: Vec<MissionExecutor>,
+    fleet: Box<dyn Fleet>,
+    limits: Limits,
+    frames: Vec<FrameRegistration>,
+    revision: u64,
+    log: Option<FlightLog>,
+    now: Duration,
+    tick: Duration,
+    events: Vec<HostEvent>,
+    published: Vec<u64>,
+    links: Vec<LinkHealth>,
+    errors: Vec<Option<String>>,
+    modes: Vec<String>,
+    /// The fleet's merged map (`None` when mapping is off).
+    map: Option<FleetMap>,
+    /// Scans sent over the API, handed to each drone's next tick.
+    api_scans: Vec<Vec<RangeScan>>,
+}
+
+impl Host {
+    /// One core per vehicle of `fleet`, in the same order.
+    pub fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
+        let n = cores.len();
+        Self {
+            executors: (0..n)
+                .map(|_| MissionExecutor::new(config.switch_hold))
+                .collect(),
+            cores,
+            fleet,
+            limits: config.limits,
+            frames: Vec::new(),
+            revision: 0,
+            log: None,
+            now: Duration::ZERO,
+            tick: config.tick,
+            events: Vec::new(),
+            published: vec![u64::MAX; n],
+            links: vec![LinkHealth::Connecting; n],
+            errors: vec![None; n],
+            modes: vec![String::new(); n],
+            map: None,
+            api_scans: vec![Vec::new(); n],
+        }
+    }
+
+    pub fn set_log(&mut self, log: FlightLog) {
+        self.log = Some(log);
+    }
+
+    pub fn now(&self) -> Duration {
+        self.now
+    }
+
+    pub fn tick_period(&self) -> Duration {
+        self.tick
+    }
+
+    pub fn is_simulated(&self) -> bool {
+        self.fleet.is_simulated()
+    }
+
+    pub fn drone_ids(&self) -> Vec<String> {
+        self.cores
+            .iter()
+            .map(|c| c.drone_id().to_string())
+            .collect()
+    }
+
+    pub fn cores(&self) -> &[DroneCore] {
+        &self.cores
+    }
+
+    pub fn executors(&self) -> &[MissionExecutor] {
+        &self.executors
+    }
+
+    /// Restores missions (never running) and frames kept by a previous run.
+    pub fn restore(&mut self, state: PersistedState, switch_hold: Duration) {
+        for (i, core) in self.cores.iter().enumerate() {
+            if let (Some(snap), Some(ex)) =
+                (state.drones.get(core.drone_id()), self.executors.get_mut(i))
+            {
+                *ex = MissionExecutor::restore(snap.clone(), switch_hold);
+            }
+        }
+        for frame in state.frames {
+            if let Err(e) = self.set_frame(frame.clone()) {
+                tracing::warn!("saved frame {} not restored: {e}", frame.frame_id);
+            }
+        }
+    }
+
+    pub fn persisted(&self) -> PersistedState {
+        PersistedState {
+            drones: self
+                .cores
+                .iter()
+                .zip(&self.executors)
+                .map(|(c, e)| (c.drone_id().to_string(), e.snapshot()))
+                .collect(),
+            frames: self.frames.clone(),
+        }
+    }
+
+    /// Changes whenever something worth persisting changed.
+    pub fn revision(&self) -> u64 {
+        self.revision + self.executors.iter().map(|e| e.revision()).sum::<u64>()
+    }
+
+    pub fn snapshot(&self) -> HostSnapshot {
+        HostSnapshot {
+            t: self.now.as_secs_f64(),
+            drones: self
+                .cores
+                .iter()
+                .zip(&self.executors)
+                .map(|(c, e)| DroneStatus::of(c, e))
+                .collect(),
+        }
+    }
+
+    /// Events since the last call, with a mission status for every executor that changed.
+    pub fn drain_events(&mut self) -> Vec<HostEvent> {
+        for (i, (core, ex)) in self.cores.iter().zip(&self.executors).enumerate() {
+            if self.published.get(i) != Some(&ex.revision()) {
+                self.events.push(HostEvent::MissionStatus {
+                    drone: core.drone_id().to_string(),
+                    status: ex.status(core),
+                });
+                if let Some(p) = self.published.get_mut(i) {
+                    *p = ex.revision();
+                }
+            }
+        }
+        std::mem::take(&mut self.events)
+    }
+
+    fn event(&mut self, i: usize, body: EventBody) {
+        let drone = self
+            .cores
+            .get(i)
+            .map(|c| c.drone_id().to_string())
+            .unwrap_or_default();
+        self.events.push(HostEvent::Event {
+            drone,
+            t: self.now.as_secs_f64(),
+            event: body,
+        });
+    }
+
+    /// One control tick at the host's own clock.
+    pub fn step(&mut self) {
+        let now = self.now;
+        self.step_at(now);
+        self.now = now + self.tick;
+    }
+
+    /// One control tick at `now` (real-time drivers pass the wall-clock time since start).
+    pub fn step_at(&mut self, now: Duration) {
+        self.now = now;
+        for i in 0..self.cores.len() {
+            let mut feedback = self.fleet.poll(i, now);
+            if let Some(scans) = self.api_scans.get_mut(i) {
+                feedback.scans.append(scans);
+            }
+            let Some(core) = self.cores.get_mut(i) else {
+                continue;
+            };
+            let out = core.tick(now, &feedback);
+            self.fleet.command(i, now, out.setpoint, &out.requests);
+            if let Some(map) = self.map.as_mut() {
+                map.insert_all(core.drone_id(), &feedback.scans);
+            }
+            if let Some(ex) = self.executors.get_mut(i) {
+                ex.update(now, core, &out.events);
+            }
+            let status = feedback.status;
+            if let Some(log) = self.log.as_mut() {
+                let state = core.vehicle_state();
+                let active = core.server().active();
+                let motion = active
+                    .iter()
+                    .find(|a| a.state == RunState::Running || a.state == RunState::Paused)
+                    .map(|a| a.behavior.as_str());
+                log.pose(now, &state, motion);
+                for e in &out.events {
+                    log.behavior(now, core.drone_id(), e);
+                }
+            }
+            for e in out.events {
+                self.event(i, EventBody::Behavior(e));
+            }
+            for r in &feedback.request_results {
+                if let Err(reason) = &r.outcome {
+                    let request = serde_json::to_value(r.request)
+                        .ok()
+                        .and_then(|v| v.get("request").and_then(Value::as_str).map(str::to_string))
+                        .unwrap_or_default();
+                    self.event(
+                        i,
+                        EventBody::Autopilot {
+                            text: format!("{request} refused: {reason}"),
+                        },
+                    );
+                }
+            }
+            if self.modes.get(i) != Some(&status.mode) {
+                if let Some(m) = self.modes.get_mut(i) {
+                    m.clone_from(&status.mode);
+                }
+                self.event(
+                    i,
+                    EventBody::Alert {
+                        message: format!("mode {}", status.mode),
+                    },
+                );
+            }
+            if self.links.get(i) != Some(&status.link) {
+                if let Some(l) = self.links.get_mut(i) {
+                    *l = status.link;
+                }
+                self.event(
+                    i,
+                    EventBody::Alert {
+                        message: format!("link {}", link_word(status.link)),
+                    },
+                );
+            }
+            if status.last_error.is_some() && self.errors.get(i) != Some(&status.last_error) {
+                if let Some(text) = status.last_error.clone() {
+                    self.event(i, EventBody::Autopilot { text });
+                }
+                if let Some(e) = self.errors.get_mut(i) {
+                    e.clone_from(&status.last_error);
+                }
+            }
+        }
+        self.fleet.advance(now, self.tick);
+        for (i, message) in self.fleet.take_alerts() {
+            if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
+                log.event(now, core.drone_id(), "collision", &message);
+            }
+            self.event(i, EventBody::Alert { message });
+        }
+    }
+
+    pub fn flush_log(&mut self) {
+        if let Some(log) = self.log.as_mut() {
+            log.flush();
+        }
+    }
+}
