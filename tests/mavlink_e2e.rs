@@ -281,7 +281,12 @@ fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
         .unwrap();
     let port = gcs.local_addr().unwrap().port();
     let config = format!("[mavlink]\nforward = [\"udpout:127.0.0.1:{port}\"]\n");
-    let _kestrel = Kestrel::run(p, &fake.connection, &config, &["--max-time-s", "20"]);
+    let _kestrel = Kestrel::run(
+        p,
+        &fake.connection,
+        &config,
+        &["--no-api", "--max-time-s", "20"],
+    );
     let mut buf = [0u8; 2048];
     let recv = |buf: &mut [u8]| -> Option<(std::net::SocketAddr, MavHeader, MavMessage)> {
         let (n, from) = gcs.recv_from(buf).ok()?;
