@@ -94,5 +94,13 @@ def test_ardupilot_two_vehicles_tcp_ports_and_log_file(fake_factory, tmp_path):
     ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=3)
     assert ack.result == 0
     m.close()
-    entries = [json.loads(line) for line in log.read_text().splitlines()]
-    assert {"vehicle": 1, "kind": "ack", "command": 511} .items() <= [e for e in entries if e["kind"] == "ack"][0].items()
+    # The fake writes its log from its own loop: give it a moment to reach the file.
+    deadline = time.monotonic() + 2.0
+    while True:
+        lines = [line for line in log.read_text().splitlines() if line.endswith("}")]
+        acks = [e for e in map(json.loads, lines) if e["kind"] == "ack"]
+        if acks or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    assert acks, f"no ack in the fake's log: {lines}"
+    assert {"vehicle": 1, "kind": "ack", "command": 511}.items() <= acks[0].items()
