@@ -157,6 +157,7 @@ impl DroneCore {
             home_enu_m: self.home_enu_m,
             config: &self.config.behaviors,
             map: self.map.as_ref(),
+            request_results: &[],
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -200,6 +201,7 @@ impl DroneCore {
             home_enu_m: self.home_enu_m,
             config: &self.config.behaviors,
             map: self.map.as_ref(),
+            request_results: &feedback.request_results,
         };
         // Never command blind: without a link or a position estimate, behaviors end and the
         // autopilot's own failsafe takes over.

@@ -23,7 +23,7 @@ mod sequence;
 mod server;
 mod takeoff;
 #[cfg(test)]
-mod testing;
+pub(crate) mod testing;
 
 pub use goal::{FramedPoint, YawMode, WGS84};
 pub use registry::{BehaviorSpec, Goal, GoalSummary, Registry, Resource};
@@ -92,6 +92,9 @@ pub struct BehaviorContext<'a> {
     pub config: &'a BehaviorConfig,
     /// The drone's map (`None` when mapping is off), for behaviors that plan.
     pub map: Option<&'a MapServer>,
+    /// Outcomes (the autopilot's acks) of platform requests completed since the last tick,
+    /// for behaviors that wait for them (gimbal, camera).
+    pub request_results: &'a [crate::platform::RequestResult],
 }
 
 impl BehaviorContext<'_> {

@@ -4,7 +4,7 @@ use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::platform::Capabilities;
+use crate::platform::{Capabilities, RequestResult};
 use crate::types::{
     EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
 };
@@ -18,6 +18,8 @@ pub(crate) struct Scene {
     pub config: BehaviorConfig,
     pub capabilities: Capabilities,
     pub dt_s: f64,
+    /// Acks the platform reports in the next contexts.
+    pub request_results: Vec<RequestResult>,
 }
 
 impl Scene {
@@ -48,6 +50,7 @@ impl Scene {
                 native_land: false,
             },
             dt_s: 1.0,
+            request_results: Vec::new(),
         }
     }
 
@@ -72,6 +75,7 @@ impl Scene {
             home_enu_m: None,
             config: &self.config,
             map: None,
+            request_results: &self.request_results,
         }
     }
 }

@@ -80,6 +80,7 @@ fn point_gimbal_spec() -> BehaviorSpec {
             goal,
             last: None,
             last_sent: None,
+            acked: false,
         },
     )
 }
@@ -88,9 +89,25 @@ pub struct PointGimbal {
     goal: PointGimbalGoal,
     last: Option<(f64, f64)>,
     last_sent: Option<Duration>,
+    /// The autopilot acknowledged the last command sent.
+    acked: bool,
 }
 
 const GIMBAL_PERIOD: Duration = Duration::from_millis(100);
+/// A gimbal or camera command not acknowledged within this time fails the behavior.
+const ACK_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// The outcome of a request of this kind among the acks of this tick, if any.
+fn ack_of(
+    ctx: &BehaviorContext,
+    is_kind: impl Fn(&PlatformRequest) -> bool,
+) -> Option<Result<(), String>> {
+    ctx.request_results
+        .iter()
+        .rev()
+        .find(|r| is_kind(&r.request))
+        .map(|r| r.outcome.clone())
+}
 
 impl PointGimbal {
     /// (pitch, yaw) in the body frame (FLU: positive pitch looks down), rad.
@@ -126,16 +143,28 @@ impl Behavior for PointGimbal {
         let due = self
             .last_sent
             .is_none_or(|t| ctx.now.saturating_sub(t) >= GIMBAL_PERIOD);
-        if moved && due {
+        match ack_of(ctx, |r| matches!(r, PlatformRequest::PointGimbal { .. })) {
+            Some(Ok(())) => self.acked = true,
+            Some(Err(reason)) => return Step::Failed(format!("gimbal command refused: {reason}")),
+            None => {}
+        }
+        if !self.goal.follow && self.acked {
+            return Step::Succeeded;
+        }
+        if let Some(sent) = self.last_sent.filter(|_| !self.acked) {
+            if ctx.now.saturating_sub(sent) > ACK_TIMEOUT {
+                return Step::Failed("no answer to the gimbal command".into());
+            }
+        }
+        let first = self.last.is_none();
+        if first || (self.goal.follow && moved && due) {
             requests.push(PlatformRequest::PointGimbal {
                 pitch_rad: pitch,
                 yaw_rad: yaw,
             });
             self.last = Some((pitch, yaw));
             self.last_sent = Some(ctx.now);
-        }
-        if !self.goal.follow && self.last.is_some() {
-            return Step::Succeeded;
+            self.acked = false;
         }
         Step::Running {
             reference: None,
@@ -145,6 +174,7 @@ impl Behavior for PointGimbal {
 
     fn resume(&mut self, _ctx: &BehaviorContext) {
         self.last = None;
+        self.acked = false;
     }
 }
 
@@ -190,14 +220,18 @@ fn take_photo_spec() -> BehaviorSpec {
             goal,
             taken: 0,
             last: None,
+            pending: None,
         },
     )
 }
 
 pub struct TakePhoto {
     goal: TakePhotoGoal,
+    /// Photos the camera confirmed.
     taken: u32,
     last: Option<Duration>,
+    /// When the capture waiting for its ack was requested.
+    pending: Option<Duration>,
 }
 
 impl Behavior for TakePhoto {
@@ -206,20 +240,114 @@ impl Behavior for TakePhoto {
     }
 
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        if let Some(asked) = self.pending {
+            match ack_of(ctx, |r| matches!(r, PlatformRequest::TakePhoto)) {
+                Some(Ok(())) => {
+                    self.taken += 1;
+                    self.pending = None;
+                }
+                Some(Err(reason)) => return Step::Failed(format!("camera refused: {reason}")),
+                None if ctx.now.saturating_sub(asked) > ACK_TIMEOUT => {
+                    return Step::Failed("no answer to the capture command".into());
+                }
+                None => {}
+            }
+        }
         if self.taken >= self.goal.n {
             return Step::Succeeded;
         }
         let due = self.last.is_none_or(|t| {
             ctx.now.saturating_sub(t) >= Duration::from_secs_f64(self.goal.interval_s)
         });
-        if due {
+        if due && self.pending.is_none() {
             requests.push(PlatformRequest::TakePhoto);
-            self.taken += 1;
+            self.pending = Some(ctx.now);
             self.last = Some(ctx.now);
         }
         Step::Running {
             reference: None,
             feedback: json!({ "photos_taken": self.taken, "photos": self.goal.n }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::testing::Scene;
+    use crate::platform::RequestResult;
+
+    fn ack(request: PlatformRequest, outcome: Result<(), String>) -> Vec<RequestResult> {
+        vec![RequestResult { request, outcome }]
+    }
+
+    #[test]
+    fn point_gimbal_succeeds_only_once_acknowledged() {
+        let mut scene = Scene::flying();
+        let mut b = (point_gimbal_spec().create)(&json!({"x": 10.0, "y": 0.0, "z": 0.0})).unwrap();
+        b.activate(&scene.ctx(0)).unwrap();
+        let mut requests = Vec::new();
+        assert!(matches!(
+            b.run(&scene.ctx(0), &mut requests),
+            Step::Running { .. }
+        ));
+        let sent = requests.first().copied().unwrap();
+        assert!(matches!(sent, PlatformRequest::PointGimbal { .. }));
+        requests.clear();
+        assert!(matches!(
+            b.run(&scene.ctx(1), &mut requests),
+            Step::Running { .. }
+        ));
+        assert!(requests.is_empty(), "one command, then wait for its ack");
+        scene.request_results = ack(sent, Ok(()));
+        assert_eq!(b.run(&scene.ctx(2), &mut requests), Step::Succeeded);
+    }
+
+    #[test]
+    fn point_gimbal_fails_with_the_refusal_or_without_an_answer() {
+        let mut scene = Scene::flying();
+        let goal = json!({"x": 10.0, "y": 0.0, "z": 0.0});
+        let mut b = (point_gimbal_spec().create)(&goal).unwrap();
+        let mut requests = Vec::new();
+        b.run(&scene.ctx(0), &mut requests);
+        scene.request_results = ack(requests[0], Err("MAV_RESULT_DENIED".into()));
+        match b.run(&scene.ctx(1), &mut requests) {
+            Step::Failed(r) => assert!(r.contains("DENIED"), "{r}"),
+            other => panic!("{other:?}"),
+        }
+        let scene = Scene::flying();
+        let mut b = (point_gimbal_spec().create)(&goal).unwrap();
+        b.run(&scene.ctx(0), &mut requests);
+        assert!(matches!(
+            b.run(&scene.ctx(4), &mut requests),
+            Step::Running { .. }
+        ));
+        assert!(matches!(
+            b.run(&scene.ctx(6), &mut requests),
+            Step::Failed(_)
+        ));
+    }
+
+    #[test]
+    fn take_photo_counts_acknowledged_captures_only() {
+        let mut scene = Scene::flying();
+        let mut b = (take_photo_spec().create)(&json!({"n": 2, "interval_s": 0.0})).unwrap();
+        let mut requests = Vec::new();
+        b.run(&scene.ctx(0), &mut requests);
+        b.run(&scene.ctx(1), &mut requests);
+        assert_eq!(
+            requests,
+            [PlatformRequest::TakePhoto],
+            "no second capture before the ack"
+        );
+        scene.request_results = ack(PlatformRequest::TakePhoto, Ok(()));
+        b.run(&scene.ctx(2), &mut requests);
+        assert_eq!(requests.len(), 2);
+        let refused = ack(PlatformRequest::TakePhoto, Err("camera busy".into()));
+        scene.request_results = refused;
+        match b.run(&scene.ctx(3), &mut requests) {
+            Step::Failed(r) => assert!(r.contains("camera busy"), "{r}"),
+            other => panic!("{other:?}"),
         }
     }
 }
