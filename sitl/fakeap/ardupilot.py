@@ -83,6 +83,9 @@ class ArduPilotVehicle(Vehicle):
     def in_external_control(self):
         return self.mode == 4
 
+    def setpoints_expected(self):
+        return self.mode == 4 and not self.taking_off
+
     def statustext(self, severity, text):
         self.send(M.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0))
         self.note("statustext", text, severity=severity)

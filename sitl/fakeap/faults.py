@@ -55,8 +55,11 @@ def _percentile(sorted_vals, q):
 
 class SetpointStats:
     """Inter-arrival gaps (wall-clock ms, stamped when the datagram/segment is read) of
-    SET_POSITION_TARGET_LOCAL_NED received while the vehicle is under external control
-    (PX4 OFFBOARD, ArduPilot GUIDED). A gap is counted when both ends are in control."""
+    SET_POSITION_TARGET_LOCAL_NED received while the vehicle flies on the setpoint stream
+    (PX4 OFFBOARD, ArduPilot GUIDED outside its own NAV_TAKEOFF climb). A gap is counted only
+    when the stream was expected from one end to the other: the vehicle's tick breaks the
+    stream whenever it is not, so the phases follow the autopilot's own state, not wall-clock
+    windows."""
 
     def __init__(self, keep=100000):
         self.gaps_ms = deque(maxlen=keep)
@@ -66,6 +69,9 @@ class SetpointStats:
     def reset(self):
         self.gaps_ms.clear()
         self.count = 0
+        self.last_wall = None
+
+    def break_stream(self):
         self.last_wall = None
 
     def record(self, wall_s, in_control):

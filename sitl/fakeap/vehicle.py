@@ -105,6 +105,11 @@ class Vehicle(TelemetryMixin, SetpointMixin):
     def in_external_control(self):
         return False
 
+    def setpoints_expected(self):
+        """Whether the autopilot now flies on the companion's setpoint stream (and would fail
+        over without it). ArduPilot's own NAV_TAKEOFF climb in GUIDED is not such a time."""
+        return self.in_external_control()
+
     def handle_command(self, msg, cmd, p):
         return M.MAV_RESULT_UNSUPPORTED
 
@@ -220,7 +225,7 @@ class Vehicle(TelemetryMixin, SetpointMixin):
             self._command(msg, msg.command, p)
         elif t == "SET_POSITION_TARGET_LOCAL_NED":
             if self.addressed_to_me(msg):
-                self.stats.record(wall, self.in_external_control())
+                self.stats.record(wall, self.setpoints_expected())
                 self.last_setpoint_sim = self.clock.now()
                 self.on_setpoint_local(msg)
         elif t == "SET_POSITION_TARGET_GLOBAL_INT":
@@ -377,6 +382,8 @@ class Vehicle(TelemetryMixin, SetpointMixin):
             self.model.step(dt, False)
             return
         self.update(now, dt)
+        if not self.setpoints_expected():
+            self.stats.break_stream()
         self.model.step(dt, self.armed)
         if self.opts.collisions and self.world.collides(*self.model.body.pos):
             if not getattr(self, "_colliding", False):

@@ -131,6 +131,29 @@ def test_guided_setpoint_stats_link_drop_and_reconnect(fake_factory):
     assert link2.seen_or_recv("AUTOPILOT_VERSION", 2).flight_sw_version == 67567616
 
 
+def test_setpoint_stats_leave_out_the_autopilots_own_takeoff_climb(fake_factory):
+    """NAV_TAKEOFF climbs on ArduPilot's own target: the silence of the setpoint stream then is
+    by design and is not a gap; the stream before and after it is measured as usual."""
+    f = fake_factory("ardupilot", "--ekf-delay", "0.5")
+    link = f.connect()
+    request_streams(link)
+    link.recv("EKF_STATUS_REPORT", 5, lambda m: m.flags & 0x10)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, GUIDED) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    for _ in range(10):
+        link.send_local(vx=0.0, mask=3527)
+        time.sleep(0.04)
+    assert link.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 2) == M.MAV_RESULT_ACCEPTED
+    assert link.recv("LOCAL_POSITION_NED", 15, lambda m: m.z < -1.95) is not None
+    assert link.recv("EXTENDED_SYS_STATE", 4, lambda m: m.landed_state == 2)
+    for _ in range(10):
+        link.send_local(0, 0, -2, mask=3576)
+        time.sleep(0.04)
+    stats = f.control(cmd="setpoint_stats")
+    assert stats["count"] == 20 and stats["gaps"] == 18, stats
+    assert stats["max_ms"] < 150, stats
+
+
 def test_reposition_condition_yaw_and_reboot_drops_tcp(fake_factory):
     f = fake_factory("ardupilot", "--ekf-delay", "0.5", speed=2.0)
     link = f.connect()
