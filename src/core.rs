@@ -1,10 +1,12 @@
 //! One drone's deterministic core: estimator → frames → map → behavior server → controller.
 //!
 //! In (each tick): the time since start and what the platform reported ([`PlatformFeedback`]).
-//! Out: a [`TickOutput`] with the setpoint and platform requests for this tick, plus the
-//! behavior events that happened. The core never reads the clock and never does I/O, so a
+//! Out: a [`TickOutput`] with the setpoint and platform requests for this tick, the service
+//! calls the behaviors filed (plans, run by the host off the tick; the answers come back through
+//! [`DroneCore::deliver`] before a later tick), plus the behavior events that happened. The core never reads the clock and never does I/O, so a
 //! real-time driver, the simulator and tests tick exactly the same code.
 
+use crate::behavior::services::{ServiceAnswer, ServiceCall, ServiceDesk};
 use crate::behavior::{
     BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Registry,
     ServerError,
@@ -15,8 +17,11 @@ use crate::estimator::geodetic::GeodeticOrigin;
 use crate::estimator::{self, Estimator, EstimatorPlugin};
 use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
+use crate::planning::worker::PlanAnswer;
 use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Settings of one drone core.
@@ -50,6 +55,7 @@ impl CoreConfig {
 pub struct TickOutput {
     pub setpoint: Option<Setpoint>,
     pub requests: Vec<PlatformRequest>,
+    pub service_calls: Vec<ServiceCall>,
     pub events: Vec<BehaviorEvent>,
 }
 
@@ -75,6 +81,7 @@ pub struct DroneCore {
     estimator: Box<dyn Estimator>,
     frames: FrameTree,
     server: BehaviorServer,
+    services: ServiceDesk,
     map: Option<MapServer>,
     controller: Controller,
     state: EstimatedState,
@@ -90,6 +97,7 @@ impl DroneCore {
             estimator: estimator::build(config.estimator),
             controller: Controller::new(config.controller, capabilities.setpoints),
             server: BehaviorServer::new(registry),
+            services: ServiceDesk::default(),
             map: config.map.as_ref().map(MapServer::new),
             frames: FrameTree::new(),
             capabilities,
@@ -144,6 +152,20 @@ impl DroneCore {
         self.frames.set(frame, parent, motion)
     }
 
+    /// Hands a service's answer to the behavior holding `ticket`, before the next tick.
+    pub fn deliver(&self, ticket: u64, answer: ServiceAnswer, cancel: Arc<AtomicBool>) {
+        self.services.deliver(ticket, answer, cancel);
+    }
+
+    /// Hands a finished plan to the behavior that asked for it.
+    pub fn deliver_plan(&self, answer: PlanAnswer) {
+        self.deliver(
+            answer.ticket,
+            ServiceAnswer::Plan(answer.result),
+            answer.cancel,
+        );
+    }
+
     /// Applies a command to the behavior server with the state of the last tick.
     pub fn command(&mut self, cmd: BehaviorCommand) -> Result<Option<BehaviorId>, ServerError> {
         let ctx = BehaviorContext {
@@ -158,6 +180,7 @@ impl DroneCore {
             config: &self.config.behaviors,
             map: self.map.as_ref(),
             request_results: &[],
+            services: &self.services,
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -202,6 +225,7 @@ impl DroneCore {
             config: &self.config.behaviors,
             map: self.map.as_ref(),
             request_results: &feedback.request_results,
+            services: &self.services,
         };
         // Never command blind: without a link or a position estimate, behaviors end and the
         // autopilot's own failsafe takes over.
@@ -232,6 +256,7 @@ impl DroneCore {
         TickOutput {
             setpoint,
             requests: out.requests,
+            service_calls: self.services.drain_calls(),
             events: self.server.drain_events(),
         }
     }

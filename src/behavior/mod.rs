@@ -21,6 +21,7 @@ mod registry;
 mod rotate;
 mod sequence;
 mod server;
+pub mod services;
 mod takeoff;
 #[cfg(test)]
 pub(crate) mod testing;
@@ -95,6 +96,8 @@ pub struct BehaviorContext<'a> {
     /// Outcomes (the autopilot's acks) of platform requests completed since the last tick,
     /// for behaviors that wait for them (gimbal, camera).
     pub request_results: &'a [crate::platform::RequestResult],
+    /// Slow work (plans) asked on one tick, answered on a later one.
+    pub services: &'a services::ServiceDesk,
 }
 
 impl BehaviorContext<'_> {

@@ -5,8 +5,12 @@
 //! In: the goal (point, speed, yaw, planner, safety distance, unknown-cell policy, optional spin)
 //! and each tick the context with the drone's map. Out: the `follow_path` child's reference
 //! (yaw replaced by a turn rate when spinning) and feedback `distance_remaining`, `replans`,
-//! `estimated_time_remaining_s`, `planned_path`. Plans happen on activation and when the path
-//! ahead is blocked, never every tick; no path fails (or rejects) with the planner's reason.
+//! `estimated_time_remaining_s`, `planned_path`, `planning`. Plans happen on activation and
+//! when the path ahead is blocked, never every tick, and never on the tick itself: the plan is
+//! filed with the context's service desk and the vehicle holds where it is until the answer
+//! arrives (the next tick in simulated time). A goal that is plainly unreachable on the current
+//! map (outside it, or in or too near a mapped obstacle) is refused at start; no path fails with
+//! the planner's reason.
 
 use super::goal::{
     check_finite, check_positive, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs,
@@ -14,11 +18,12 @@ use super::goal::{
 use super::nav_path::NavPath;
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
+use super::services::Ticket;
 use super::{Behavior, BehaviorContext, Step};
 use crate::control::{MotionReference, YawTarget};
+use crate::mapping::server::MapServer;
 use crate::planning::{
-    PathPlanner, PlanBudget, PlanError, PlanRequest, PlannedPath, PlannerKind, Planners,
-    UnknownPolicy, MAX_UNKNOWN_EXTRA_COST,
+    PlanError, PlanRequest, PlannedPath, PlannerKind, UnknownPolicy, MAX_UNKNOWN_EXTRA_COST,
 };
 use crate::platform::PlatformRequest;
 use crate::types::Vec3;
@@ -151,15 +156,22 @@ const CHECK_PERIOD: Duration = Duration::from_millis(100);
 /// Shortest time between two replans (a blocked path waits this long before the next plan).
 const MIN_REPLAN_INTERVAL: Duration = Duration::from_millis(500);
 
+/// A plan asked for and not answered yet.
+struct Pending {
+    ticket: Ticket,
+    /// Where the vehicle holds meanwhile.
+    hold: MotionReference,
+}
+
 pub struct NavigateTo {
     goal: NavigateToGoal,
-    planners: Planners,
     /// The goal in `earth`, fixed at activation.
     target: Vec3,
     /// The child's yaw settings in `earth`.
     yaw_args: serde_json::Value,
     path: Option<NavPath>,
     child: Option<Box<dyn Behavior>>,
+    pending: Option<Pending>,
     replans: u32,
     checked_revision: u64,
     checked_at: Duration,
@@ -170,11 +182,11 @@ impl NavigateTo {
     fn new(goal: NavigateToGoal) -> Self {
         Self {
             goal,
-            planners: Planners::default(),
             target: Vec3::zeros(),
             yaw_args: json!({}),
             path: None,
             child: None,
+            pending: None,
             replans: 0,
             checked_revision: 0,
             checked_at: Duration::ZERO,
@@ -182,7 +194,8 @@ impl NavigateTo {
         }
     }
 
-    /// Resolves the goal and the yaw in `earth`, then plans and starts flying.
+    /// Resolves the goal and the yaw in `earth`, refuses a goal the map already rules out, and
+    /// asks for the first plan.
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
         let frame = frame_or_earth(&self.goal.frame_id);
         self.target = ctx
@@ -205,7 +218,40 @@ impl NavigateTo {
             }
         };
         self.replans = 0;
-        self.fly_new_plan(ctx).map_err(|e| e.to_string())
+        let map = ctx.map.ok_or(NavError::NoMap).map_err(|e| e.to_string())?;
+        self.goal_plausible(map).map_err(|e| e.to_string())?;
+        self.ask_plan(ctx, map);
+        Ok(())
+    }
+
+    /// What the map already says of the goal, read from the cells around it only: outside the
+    /// map, occupied or within the safety distance of an obstacle, or unknown when unknown
+    /// space is not to be flown. The planner checks the same on its own map; this catches it
+    /// at start, before anything flies.
+    fn goal_plausible(&self, map: &MapServer) -> Result<(), NavError> {
+        let grid = map.grid();
+        let spec = grid.spec();
+        let goal = nalgebra::Vector2::new(self.target.x, self.target.y);
+        let value = grid
+            .get_at(goal)
+            .ok_or(NavError::Plan(PlanError::GoalOutsideMap))?;
+        if self.goal.unknown == UnknownArg::Blocked && value < 0 {
+            return Err(NavError::Plan(PlanError::GoalOccupied));
+        }
+        let radius_m = self.goal.safety_distance + spec.resolution_m;
+        let steps = (radius_m / spec.resolution_m).ceil() as i64;
+        for dy in -steps..=steps {
+            for dx in -steps..=steps {
+                let offset = nalgebra::Vector2::new(dx as f64, dy as f64) * spec.resolution_m;
+                if offset.norm() > radius_m {
+                    continue;
+                }
+                if map.is_occupied_at(goal + offset) == Some(true) {
+                    return Err(NavError::Plan(PlanError::GoalOccupied));
+                }
+            }
+        }
+        Ok(())
     }
 
     fn request(&self, ctx: &BehaviorContext, resolution_m: f64) -> PlanRequest {
@@ -223,14 +269,22 @@ impl NavigateTo {
         }
     }
 
-    /// Plans from here on the current map and hands the path to a new `follow_path` child.
-    fn fly_new_plan(&mut self, ctx: &BehaviorContext) -> Result<(), NavError> {
-        let map = ctx.map.ok_or(NavError::NoMap)?;
-        let planning = map.planning_map();
-        let grid = planning.grid();
-        let budget = PlanBudget::expansions(grid.spec().cell_count().saturating_mul(4));
-        let request = self.request(ctx, grid.spec().resolution_m);
-        let path: PlannedPath = self.planners.plan(&request, &planning, &budget)?;
+    /// Files a plan from here on the current map; the vehicle holds here until it arrives.
+    fn ask_plan(&mut self, ctx: &BehaviorContext, map: &MapServer) {
+        let request = self.request(ctx, map.grid().spec().resolution_m);
+        let ticket = ctx.services.plan(request, map.snapshot());
+        self.pending = Some(Pending {
+            ticket,
+            hold: ctx.hold_here(),
+        });
+        self.child = None;
+        self.checked_revision = map.revision();
+        self.checked_at = ctx.now;
+        self.planned_at = ctx.now;
+    }
+
+    /// Hands a planned path to a new `follow_path` child.
+    fn fly(&mut self, ctx: &BehaviorContext, path: &PlannedPath) -> Result<(), NavError> {
         let waypoints: Vec<[f64; 3]> = path
             .waypoints_enu_m
             .iter()
@@ -245,10 +299,25 @@ impl NavigateTo {
         child.activate(ctx).map_err(NavError::FollowPath)?;
         self.child = Some(child);
         self.path = Some(NavPath::new(ctx.position(), &path.waypoints_enu_m));
-        self.checked_revision = map.revision();
-        self.checked_at = ctx.now;
-        self.planned_at = ctx.now;
         Ok(())
+    }
+
+    /// While a plan is pending: the hold, or the plan flown as soon as it arrived.
+    fn wait_for_plan(
+        &mut self,
+        ctx: &BehaviorContext,
+    ) -> Result<Option<MotionReference>, NavError> {
+        let Some(pending) = self.pending.as_ref() else {
+            return Ok(None);
+        };
+        match ctx.services.take_plan(&pending.ticket) {
+            None => Ok(Some(pending.hold)),
+            Some(result) => {
+                self.pending = None;
+                self.fly(ctx, &result?)?;
+                Ok(None)
+            }
+        }
     }
 
     /// Whether the map changed since the last check and now blocks the path ahead.
@@ -288,6 +357,7 @@ impl NavigateTo {
             "estimated_time_remaining_s": remaining / self.goal.speed,
             "actual_speed": ctx.state.velocity_enu_mps.norm(),
             "planned_path": self.path.as_ref().map(NavPath::points_json).unwrap_or_default(),
+            "planning": self.pending.is_some(),
         })
     }
 }
@@ -329,31 +399,44 @@ impl Behavior for NavigateTo {
     }
 
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        let spin_rate = self.goal.spin_rate;
+        let spin = move |r: MotionReference| match spin_rate {
+            Some(rate) => with_yaw(r, YawTarget::Rate(rate)),
+            None => r,
+        };
+        match self.wait_for_plan(ctx) {
+            Err(e) => return Step::Failed(e.to_string()),
+            Ok(Some(hold)) => {
+                return Step::Running {
+                    reference: Some(spin(hold)),
+                    feedback: self.feedback(ctx),
+                }
+            }
+            Ok(None) => {}
+        }
         if let Some(p) = self.path.as_mut() {
             p.advance(&ctx.position());
         }
         if seconds_since(ctx.now, self.planned_at) >= MIN_REPLAN_INTERVAL.as_secs_f64()
             && self.path_blocked(ctx)
         {
-            self.replans += 1;
-            if let Err(e) = self.fly_new_plan(ctx) {
-                return Step::Failed(e.to_string());
+            if let Some(map) = ctx.map {
+                self.replans += 1;
+                self.ask_plan(ctx, map);
+                return Step::Running {
+                    reference: Some(spin(ctx.hold_here())),
+                    feedback: self.feedback(ctx),
+                };
             }
         }
         let Some(child) = self.child.as_mut() else {
             return Step::Failed("navigate_to was not activated".into());
         };
         match child.run(ctx, requests) {
-            Step::Running { reference, .. } => {
-                let reference = match (reference, self.goal.spin_rate) {
-                    (Some(r), Some(rate)) => Some(with_yaw(r, YawTarget::Rate(rate))),
-                    (r, _) => r,
-                };
-                Step::Running {
-                    reference,
-                    feedback: self.feedback(ctx),
-                }
-            }
+            Step::Running { reference, .. } => Step::Running {
+                reference: reference.map(spin),
+                feedback: self.feedback(ctx),
+            },
             Step::Succeeded => Step::Succeeded,
             Step::Failed(reason) => Step::Failed(format!("follow_path: {reason}")),
         }

@@ -1,5 +1,6 @@
 //! Test support: a hand-set vehicle state to build [`BehaviorContext`]s from.
 
+use super::services::ServiceDesk;
 use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
@@ -20,6 +21,7 @@ pub(crate) struct Scene {
     pub dt_s: f64,
     /// Acks the platform reports in the next contexts.
     pub request_results: Vec<RequestResult>,
+    pub services: ServiceDesk,
 }
 
 impl Scene {
@@ -51,6 +53,7 @@ impl Scene {
             },
             dt_s: 1.0,
             request_results: Vec::new(),
+            services: ServiceDesk::default(),
         }
     }
 
@@ -76,6 +79,7 @@ impl Scene {
             config: &self.config,
             map: None,
             request_results: &self.request_results,
+            services: &self.services,
         }
     }
 }

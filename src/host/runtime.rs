@@ -13,6 +13,7 @@ use super::engine::{Command, Host, HostError, PersistedState, Reply};
 use super::status::{HostSnapshot, SharedEvent};
 use crate::mission::methods::methods;
 use crate::mission::store;
+use crate::planning::worker::Delivery;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -172,10 +173,16 @@ pub struct Spawned {
 
 /// Starts the control loop on its own thread.
 pub fn spawn(
-    host: Host,
+    mut host: Host,
     options: RuntimeOptions,
     shutdown: watch::Receiver<bool>,
 ) -> std::io::Result<Spawned> {
+    if options.pace != Pace::Max {
+        // Paced to the wall clock, a tick never waits for a plan.
+        host.set_plan_delivery(Delivery::RealTime {
+            deadline: PLAN_DEADLINE,
+        });
+    }
     let (commands, rx) = mpsc::channel(options.command_capacity.max(1));
     let (state_tx, state) = watch::channel(Arc::new(host.snapshot()));
     let (events, first_events) = broadcast::channel(options.event_capacity.max(16));
@@ -205,6 +212,9 @@ pub fn spawn(
         thread,
     })
 }
+
+/// A plan not done within this wall-clock time fails (its behavior fails with a timeout).
+const PLAN_DEADLINE: Duration = Duration::from_secs(2);
 
 /// Most simulated ticks run in one wake-up when the loop is late.
 const MAX_CATCH_UP: u32 = 50;

@@ -3,17 +3,29 @@
 //!
 //! In: a [`MapConfig`], then per tick the scans the platform reported and the time.
 //! Out: the grid, a revision that changes with every changed cell, the box of cells changed by
-//! the last insertion, and a [`PlanningMap`] derived at most once per revision, only when a
-//! planner asks for it (scans arrive at 10-20 Hz, plans are rare).
+//! the last insertion, and a [`MapSnapshot`] (a shared copy, made at most once per revision and
+//! only when a planner asks: scans arrive at 10-20 Hz, plans are rare) that planning derives its
+//! own planning map from, off the control tick.
 
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use super::config::MapConfig;
+use super::graph::TopoGraph;
 use super::grid::{CellBox, InsertParams, OccupancyGrid};
 use super::scan::RangeScan;
 use super::MapError;
-use crate::planning::PlanningMap;
+
+/// A drone's grid as it was at one revision, shared with the planner's worker thread.
+#[derive(Debug, Clone)]
+pub struct MapSnapshot {
+    pub grid: OccupancyGrid,
+    pub revision: u64,
+    pub occupied_threshold: i8,
+    /// When a cell last changed (s, core time).
+    pub updated_at_s: f64,
+    pub graph: Option<Arc<TopoGraph>>,
+}
 
 /// One drone's map.
 #[derive(Debug)]
@@ -26,8 +38,8 @@ pub struct MapServer {
     updated_at: Duration,
     rejected_scans: u64,
     last_rejection: Option<MapError>,
-    /// The planning map of `revision`, built on demand.
-    planning: Mutex<Option<(u64, Arc<PlanningMap>)>>,
+    /// The snapshot of `revision`, made on demand.
+    snapshot: Mutex<Option<Arc<MapSnapshot>>>,
 }
 
 impl MapServer {
@@ -41,7 +53,7 @@ impl MapServer {
             updated_at: Duration::ZERO,
             rejected_scans: 0,
             last_rejection: None,
-            planning: Mutex::new(None),
+            snapshot: Mutex::new(None),
         }
     }
 
@@ -94,23 +106,24 @@ impl MapServer {
         self.grid.get_at(p).map(|v| v >= self.occupied_threshold)
     }
 
-    /// The grid prepared for planning (distance field, Voronoi diagram, graph), rebuilt only
-    /// when the grid changed since the last call.
-    pub fn planning_map(&self) -> Arc<PlanningMap> {
-        let mut cache = self.planning.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some((revision, map)) = cache.as_ref() {
-            if *revision == self.revision {
-                return map.clone();
+    /// A shared copy of the grid at this revision, made only when the grid changed since the
+    /// last call.
+    pub fn snapshot(&self) -> Arc<MapSnapshot> {
+        let mut cache = self.snapshot.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(snap) = cache.as_ref() {
+            if snap.revision == self.revision {
+                return snap.clone();
             }
         }
-        let mut map = PlanningMap::new(self.grid.clone(), self.occupied_threshold)
-            .with_stamp(self.updated_at.as_secs_f64());
-        if let Some(g) = &self.graph {
-            map = map.with_graph((**g).clone());
-        }
-        let map = Arc::new(map);
-        *cache = Some((self.revision, map.clone()));
-        map
+        let snap = Arc::new(MapSnapshot {
+            grid: self.grid.clone(),
+            revision: self.revision,
+            occupied_threshold: self.occupied_threshold,
+            updated_at_s: self.updated_at.as_secs_f64(),
+            graph: self.graph.clone(),
+        });
+        *cache = Some(snap.clone());
+        snap
     }
 }
 
@@ -134,18 +147,18 @@ mod tests {
     }
 
     #[test]
-    fn scans_mark_hits_and_bump_the_revision_and_the_planning_map() {
+    fn scans_mark_hits_and_bump_the_revision_and_the_snapshot() {
         let mut m = MapServer::new(&MapConfig::open_field().unwrap());
-        let before = m.planning_map();
-        assert!(Arc::ptr_eq(&before, &m.planning_map()), "cached");
+        let before = m.snapshot();
+        assert!(Arc::ptr_eq(&before, &m.snapshot()), "cached");
         let changed = m.insert(Duration::from_secs(1), &[scan_east(2.0)]).unwrap();
         assert_eq!(m.revision(), 1);
         assert!(changed.width_cells() >= 20);
         assert_eq!(m.is_occupied_at(Vector2::new(2.05, 0.05)), Some(true));
         assert_eq!(m.is_occupied_at(Vector2::new(1.05, 0.05)), Some(false));
-        let after = m.planning_map();
-        assert!(!Arc::ptr_eq(&before, &after), "rebuilt after a change");
-        assert_eq!(after.stamp_s(), Some(1.0));
+        let after = m.snapshot();
+        assert!(!Arc::ptr_eq(&before, &after), "made again after a change");
+        assert_eq!((after.revision, after.updated_at_s), (1, 1.0));
     }
 
     #[test]

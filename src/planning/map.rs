@@ -22,6 +22,7 @@ pub struct PlanningMap {
     graph: Option<TopoGraph>,
     occupied_threshold: i8,
     stamp_s: Option<f64>,
+    revision: Option<u64>,
 }
 
 impl PlanningMap {
@@ -36,6 +37,7 @@ impl PlanningMap {
             graph: None,
             occupied_threshold,
             stamp_s: None,
+            revision: None,
         }
     }
 
@@ -48,6 +50,16 @@ impl PlanningMap {
     pub fn with_stamp(mut self, stamp_s: f64) -> Self {
         self.stamp_s = Some(stamp_s);
         self
+    }
+
+    /// The revision of the drone map this was built from, for caches.
+    pub fn with_revision(mut self, revision: u64) -> Self {
+        self.revision = Some(revision);
+        self
+    }
+
+    pub fn revision(&self) -> Option<u64> {
+        self.revision
     }
 
     pub fn grid(&self) -> &OccupancyGrid {

@@ -28,6 +28,7 @@ mod grid_planners;
 mod map;
 mod search;
 mod simplify;
+pub mod worker;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -189,6 +190,8 @@ pub enum PlanError {
     NoGraph,
     #[error("invalid request: {0}")]
     InvalidRequest(String),
+    #[error("planner unavailable: {0}")]
+    Unavailable(String),
 }
 
 impl PlanRequest {

@@ -8,6 +8,7 @@ use super::{Environment, SimWorld};
 use crate::behavior::{BehaviorEvent, Registry, RunState};
 use crate::core::{CoreConfig, DroneCore};
 use crate::flightlog::FlightLog;
+use crate::planning::worker::{Delivery, PlanWorker};
 use crate::platform::Platform;
 use crate::sim::world::World;
 use std::time::Duration;
@@ -42,6 +43,7 @@ pub struct SimRunner {
     tick: Duration,
     substeps: u32,
     reported_crash: Vec<bool>,
+    planner: PlanWorker,
 }
 
 /// Events of one drone in one tick.
@@ -76,6 +78,7 @@ impl SimRunner {
             now: Duration::ZERO,
             tick: Duration::from_secs_f64(1.0 / config.rate_hz.max(1.0)),
             substeps: config.physics_substeps.max(1),
+            planner: PlanWorker::new(Delivery::Lockstep),
         }
     }
 
@@ -91,6 +94,11 @@ impl SimRunner {
     pub fn step(&mut self) -> Vec<DroneEvents> {
         let now = self.now;
         let mut all_events = Vec::with_capacity(self.cores.len());
+        for answer in self.planner.collect() {
+            if let Some(core) = self.cores.get(answer.drone) {
+                core.deliver_plan(answer);
+            }
+        }
         for (i, core) in self.cores.iter_mut().enumerate() {
             let Some(vehicle) = self.world.vehicles.get_mut(i) else {
                 continue;
@@ -98,6 +106,9 @@ impl SimRunner {
             let feedback = vehicle.poll(now);
             let out = core.tick(now, &feedback);
             vehicle.command(now, out.setpoint, &out.requests);
+            for call in out.service_calls {
+                call.submit(i, &mut self.planner);
+            }
             if let Some(log) = self.log.as_mut() {
                 if log.pose_due(now, core.drone_id()) {
                     let active = core.server().active();

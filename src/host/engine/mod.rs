@@ -21,6 +21,7 @@ use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
 use crate::mission::executor::ExecutorSnapshot;
 use crate::mission::{ActionError, Limits, MissionExecutor, ValidationError};
+use crate::planning::worker::{Delivery, PlanWorker};
 use crate::types::LinkHealth;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -84,6 +85,8 @@ pub struct Host {
     map: Option<FleetMap>,
     /// Scans sent over the API, handed to each drone's next tick.
     api_scans: Vec<Vec<RangeScan>>,
+    /// Runs the drones' plans off the tick.
+    planner: PlanWorker,
 }
 
 impl Host {
@@ -109,6 +112,15 @@ impl Host {
             modes: vec![String::new(); n],
             map: None,
             api_scans: vec![Vec::new(); n],
+            planner: PlanWorker::new(Delivery::Lockstep),
+        }
+    }
+
+    /// How plans reach the behaviors: in lock step (the default: simulated time, reproducible)
+    /// or, paced to the wall clock, as soon as they are done and with a deadline.
+    pub fn set_plan_delivery(&mut self, delivery: Delivery) {
+        if self.planner.delivery() != delivery {
+            self.planner = PlanWorker::new(delivery);
         }
     }
 
@@ -227,6 +239,11 @@ impl Host {
     /// One control tick at `now` (real-time drivers pass the wall-clock time since start).
     pub fn step_at(&mut self, now: Duration) {
         self.now = now;
+        for answer in self.planner.collect() {
+            if let Some(core) = self.cores.get(answer.drone) {
+                core.deliver_plan(answer);
+            }
+        }
         for i in 0..self.cores.len() {
             let mut feedback = self.fleet.poll(i, now);
             if let Some(scans) = self.api_scans.get_mut(i) {
@@ -237,6 +254,9 @@ impl Host {
             };
             let out = core.tick(now, &feedback);
             self.fleet.command(i, now, out.setpoint, &out.requests);
+            for call in out.service_calls {
+                call.submit(i, &mut self.planner);
+            }
             if let Some(map) = self.map.as_mut() {
                 map.insert_all(core.drone_id(), &feedback.scans);
             }
