@@ -5,12 +5,15 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use kestrel::behavior::Registry;
+use kestrel::config::Config;
 use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
 use kestrel::estimator::Measurement;
 use kestrel::flightlog::FlightLog;
+use kestrel::host::demo::demo_missions;
+use kestrel::host::sim::simulated_host;
+use kestrel::host::Host;
+use kestrel::mission::{Action, MissionUpdate};
 use kestrel::platform::{Capabilities, PlatformFeedback};
-use kestrel::sim::runner::{SimConfig, SimRunner};
-use kestrel::sim::script::{demo_plans, Script};
 use kestrel::sim::world::World;
 use kestrel::types::{FlightStatus, LinkHealth, PlatformStatus, Pose, Vec3};
 use serde_json::json;
@@ -92,39 +95,38 @@ fn control_tick(c: &mut Criterion) {
     group.finish();
 }
 
-/// A runner for `drones` in the thesis `low` world, flying the demo, logging to nowhere.
-fn demo_runner(drones: usize) -> (SimRunner, Vec<Script>) {
+/// The production simulated host with `drones` in the thesis `low` world, each flying its
+/// demo mission, logging to nowhere.
+fn demo_host(drones: usize) -> Host {
     let world = World::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("sitl/worlds/low.json"))
         .unwrap_or_else(|e| panic!("{e}"));
-    let config = SimConfig {
-        drones,
-        rate_hz: RATE_HZ,
-        ..SimConfig::default()
-    };
-    let mut runner = SimRunner::new(
-        world,
-        &config,
-        |i| CoreConfig::new(&format!("drone_{i}")),
-        &Registry::with_motion_behaviors(),
-    );
-    runner.log = Some(FlightLog::new(Box::new(std::io::sink()), 10.0));
-    let scripts = demo_plans(&runner.world)
-        .into_iter()
-        .map(Script::new)
-        .collect();
-    (runner, scripts)
+    let mut config = Config::default();
+    config.drone.control_rate_hz = RATE_HZ;
+    let mut host = simulated_host(world, drones, 0, &config);
+    host.set_log(FlightLog::new(Box::new(std::io::sink()), 10.0));
+    host.step();
+    let missions = host.sim_world().map(demo_missions).unwrap_or_default();
+    for mission in missions {
+        let drone = mission["target"].as_str().map(str::to_string);
+        host.update(&MissionUpdate {
+            drone_id: drone,
+            mission_id: None,
+            item_id: None,
+            action: Action::Execute,
+            mission: Some(mission),
+        })
+        .unwrap_or_else(|e| panic!("demo mission: {e}"));
+    }
+    host
 }
 
 /// Simulated seconds per iteration: takeoff, go_to and most of the path of the demo.
 const SIMULATED_S: f64 = 20.0;
 
-fn simulate(runner: &mut SimRunner, scripts: &mut [Script]) {
+fn simulate(host: &mut Host) {
     let ticks = (SIMULATED_S * RATE_HZ) as usize;
     for _ in 0..ticks {
-        let events = runner.step();
-        for ((script, core), events) in scripts.iter_mut().zip(&mut runner.cores).zip(&events) {
-            script.update(core, events);
-        }
+        host.step();
     }
 }
 
@@ -135,10 +137,10 @@ fn simulated_flight(c: &mut Criterion) {
         group.throughput(Throughput::Elements((SIMULATED_S * RATE_HZ) as u64));
         group.bench_function(format!("{drones}_drones"), |b| {
             b.iter_batched(
-                || demo_runner(drones),
-                |(mut runner, mut scripts)| {
-                    simulate(&mut runner, &mut scripts);
-                    black_box(runner.now())
+                || demo_host(drones),
+                |mut host| {
+                    simulate(&mut host);
+                    black_box(host.now())
                 },
                 BatchSize::LargeInput,
             )

@@ -7,15 +7,15 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
 use kestrel::flightlog::FlightLog;
+use kestrel::host::demo::demo_missions;
 use kestrel::host::logwriter;
 use kestrel::host::runtime::Pace;
 use kestrel::host::scenario::Scenario;
 use kestrel::host::sim::{sim_world, simulated_host_in};
 use kestrel::host::Host;
 use kestrel::mission::{Action, MissionUpdate};
-use kestrel::sim::script::{demo_plans, PlanItem};
 use kestrel::sim::world::{SensorConfig, World};
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -78,15 +78,6 @@ pub fn parse_speedup(s: &str) -> Result<Pace> {
     Ok(Pace::Factor(f))
 }
 
-/// A demo plan as a mission for `drone`.
-fn demo_mission(drone: &str, plan: Vec<PlanItem>) -> Value {
-    let plan: Vec<Value> = plan
-        .into_iter()
-        .map(|(behavior, args)| json!({"behavior": behavior, "args": args}))
-        .collect();
-    json!({"target": drone, "plan": plan})
-}
-
 fn read_json(path: &Path) -> Result<Value> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -130,7 +121,7 @@ pub fn build(
     args: &SimArgs,
     config: &Config,
     scenario: Option<&Scenario>,
-) -> Result<(Host, Vec<Vec<PlanItem>>)> {
+) -> Result<(Host, Vec<Value>)> {
     let mut world = match &args.world {
         Some(p) => World::load(p)?,
         None => World::empty(),
@@ -146,7 +137,7 @@ pub fn build(
         .drones
         .max(scenario.and_then(|s| s.drones).unwrap_or(1));
     let sim = sim_world(world, drones, args.seed, config);
-    let demos = demo_plans(&sim);
+    let demos = demo_missions(&sim);
     let mut host = simulated_host_in(sim, config);
     // One tick, so every drone has a position before missions are validated and started.
     host.step();
@@ -197,10 +188,9 @@ pub fn run(args: SimArgs) -> Result<()> {
         vec![execute(&mut host, read_json(file)?)
             .with_context(|| format!("flying {}", file.display()))?]
     } else {
-        host.drone_ids()
+        demos
             .into_iter()
-            .zip(demos)
-            .map(|(d, plan)| execute(&mut host, demo_mission(&d, plan)))
+            .map(|mission| execute(&mut host, mission))
             .collect::<Result<Vec<_>>>()?
     };
     println!(

@@ -7,11 +7,11 @@
 mod common;
 
 use common::Harness;
+use common::SimConfig;
 use kestrel::behavior::BehaviorResult;
-use kestrel::core::{BehaviorCommand, CoreConfig};
+use kestrel::core::BehaviorCommand;
 use kestrel::mapping::config::MapSection;
 use kestrel::mapping::{GridSpec, OccupancyGrid};
-use kestrel::sim::runner::SimConfig;
 use kestrel::sim::world::World;
 use kestrel::types::Vec3;
 use nalgebra::Vector2;
@@ -55,18 +55,15 @@ fn harness(world: World) -> Harness {
         ..MapSection::default()
     };
     let map = section.config(None).unwrap();
-    Harness::with_core_config(world, SimConfig::default(), move |i| {
-        let mut c = CoreConfig::new(&format!("drone_{i}"));
+    Harness::with_core_config(world, SimConfig::default(), move |c| {
         c.map.clone_from(&map);
-        c
     })
 }
 
 /// Smallest distance (m) from any flight-log pose to any pole surface.
 fn min_pole_clearance(h: &mut Harness) -> f64 {
     let poles: Vec<(Vec3, f64)> = h
-        .runner
-        .world
+        .world()
         .world
         .cylinders
         .iter()
@@ -90,7 +87,7 @@ fn navigate(h: &mut Harness, goal: Value, limit_s: f64) -> (BehaviorResult, Valu
     let id = h.start(0, "navigate_to", goal);
     let mut feedback = Value::Null;
     h.run_until(limit_s, "navigate_to to finish", |h| {
-        if let Some(a) = h.runner.cores[0].server().active().first() {
+        if let Some(a) = h.host.cores()[0].server().active().first() {
             feedback = a.feedback.clone();
         }
         h.result(0, id).is_some()
@@ -275,10 +272,8 @@ fn with_a_known_map_and_no_sensor_it_flies_mapped_free_space_only() {
     };
     let mut map = section.config(None).unwrap().unwrap();
     map.initial = Arc::new(known_map(&world, *map.initial.spec()));
-    let mut h = Harness::with_core_config(world, SimConfig::default(), move |i| {
-        let mut c = CoreConfig::new(&format!("drone_{i}"));
+    let mut h = Harness::with_core_config(world, SimConfig::default(), move |c| {
         c.map = Some(map.clone());
-        c
     });
     h.take_off(0, HEIGHT_M);
     let (result, feedback) = navigate(
@@ -294,10 +289,8 @@ fn with_a_known_map_and_no_sensor_it_flies_mapped_free_space_only() {
 
 #[test]
 fn without_a_map_navigate_to_is_refused() {
-    let mut h = Harness::with_core_config(World::empty(), SimConfig::default(), |i| {
-        let mut c = CoreConfig::new(&format!("drone_{i}"));
+    let mut h = Harness::with_core_config(World::empty(), SimConfig::default(), |c| {
         c.map = None;
-        c
     });
     h.take_off(0, HEIGHT_M);
     let err = h

@@ -104,7 +104,7 @@ fn go_to_yaw_modes_turn_the_vehicle() {
         30.0,
     );
     h.run_for(2.0);
-    let yaw = h.runner.world.vehicles[0].state.yaw_rad;
+    let yaw = h.world().vehicles[0].state.yaw_rad;
     assert!((yaw + 1.0).abs() < 0.05, "{yaw}");
     // face_point: looks at the point while moving.
     h.fly(
@@ -114,7 +114,7 @@ fn go_to_yaw_modes_turn_the_vehicle() {
         30.0,
     );
     h.run_for(2.0);
-    let yaw = h.runner.world.vehicles[0].state.yaw_rad;
+    let yaw = h.world().vehicles[0].state.yaw_rad;
     assert!((yaw - std::f64::consts::FRAC_PI_2).abs() < 0.05, "{yaw}");
     assert_eq!(h.log_sequence(0).len(), 8, "takeoff and three go_to");
 }
@@ -131,7 +131,7 @@ fn a_short_go_to_still_ends_at_its_fixed_heading() {
         20.0,
     );
     h.run_for(3.0);
-    let yaw = h.runner.world.vehicles[0].state.yaw_rad;
+    let yaw = h.world().vehicles[0].state.yaw_rad;
     assert!((yaw - 3.0).abs() < 0.05, "stopped turning at {yaw} rad");
     assert!((h.position(0) - Vec3::new(0.3, 0.0, 2.0)).norm() < 0.2);
     h.assert_log(
@@ -317,7 +317,7 @@ fn stop_leaves_the_drone_hovering() {
     assert!(samples
         .iter()
         .all(|s| s.armed && s.flight == FlightStatus::Flying));
-    assert!(h.runner.cores[0].server().active().is_empty());
+    assert!(h.host.cores()[0].server().active().is_empty());
     h.assert_log(
         0,
         &[
@@ -344,7 +344,7 @@ fn land_touches_down_and_disarms() {
     let took = h.finished_at(0, id).unwrap() - start;
     // 3 m at 0.5 m/s is 6 s; disarming confirms right after touchdown.
     assert!(took > 5.5 && took < 10.0, "landing took {took} s");
-    let s = &h.runner.world.vehicles[0];
+    let s = &h.world().vehicles[0];
     assert!(!s.is_armed());
     assert_eq!(s.state.position_m.z, 0.0);
     assert!((s.state.position_m.xy() - Vec3::new(2.0, 1.0, 0.0).xy()).norm() < 0.2);
@@ -378,7 +378,7 @@ fn rotate_turns_in_place() {
         json!({ "by_angle": 2.0, "yaw_speed": 1.0 }),
         10.0,
     );
-    let yaw = h.runner.world.vehicles[0].state.yaw_rad;
+    let yaw = h.world().vehicles[0].state.yaw_rad;
     assert!((yaw - 2.0).abs() < 0.05, "{yaw}");
     assert!((h.position(0) - here).norm() < 0.1);
     h.assert_log(
@@ -464,20 +464,17 @@ fn a_landed_drone_takes_off_again_and_rtl_goes_to_the_new_home() {
 
 #[test]
 fn every_estimator_plugin_flies_the_simulator() {
-    use kestrel::core::CoreConfig;
+    use common::SimConfig;
     use kestrel::estimator::EstimatorPlugin;
-    use kestrel::sim::runner::SimConfig;
     use kestrel::sim::world::World;
     for plugin in [
         EstimatorPlugin::GroundTruth,
         EstimatorPlugin::AutopilotOdometry,
         EstimatorPlugin::ExternalPose,
     ] {
-        let mut h =
-            Harness::with_core_config(World::empty(), SimConfig::default(), |i| CoreConfig {
-                estimator: plugin,
-                ..CoreConfig::new(&format!("drone_{i}"))
-            });
+        let mut h = Harness::with_core_config(World::empty(), SimConfig::default(), |c| {
+            c.estimator = plugin;
+        });
         h.take_off(0, 2.0);
         let goal = Vec3::new(3.0, 2.0, 2.0);
         h.fly(

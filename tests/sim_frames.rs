@@ -8,10 +8,28 @@ use kestrel::behavior::BehaviorResult;
 use kestrel::core::BehaviorCommand;
 use kestrel::estimator::frames::{FrameMotion, EARTH};
 use kestrel::estimator::geodetic::GeoPoint;
+use kestrel::host::FrameRegistration;
 use kestrel::sim::world::World;
 use kestrel::types::{Pose, Vec3};
 use serde_json::json;
 use std::time::Duration;
+
+/// Registers a frame in `earth` for every drone, as the API does.
+fn register(h: &mut Harness, frame_id: &str, motion: &FrameMotion) {
+    let p = motion.pose_in_parent.position_m;
+    let v = motion.velocity_mps;
+    h.host
+        .set_frame(FrameRegistration {
+            frame_id: frame_id.into(),
+            parent: EARTH.into(),
+            translation_m: [p.x, p.y, p.z],
+            yaw_rad: motion.pose_in_parent.yaw_rad(),
+            velocity_mps: [v.x, v.y, v.z],
+            yaw_rate_radps: motion.yaw_rate_radps,
+            drone_id: None,
+        })
+        .unwrap();
+}
 
 #[test]
 fn go_to_in_a_moving_frame_tracks_it() {
@@ -20,13 +38,11 @@ fn go_to_in_a_moving_frame_tracks_it() {
     // A target drifting east at 0.5 m/s, starting 6 m north of the drone.
     let motion = FrameMotion {
         pose_in_parent: Pose::from_position_yaw(Vec3::new(0.0, 6.0, 0.0), 0.0),
-        stamp: h.runner.now(),
+        stamp: h.host.now(),
         velocity_mps: Vec3::new(0.5, 0.0, 0.0),
         yaw_rate_radps: 0.0,
     };
-    h.runner.cores[0]
-        .set_frame("target", EARTH, motion)
-        .unwrap();
+    register(&mut h, "target", &motion);
     let target_at = |t: Duration| h_frame_point(&motion, t, &Vec3::new(0.0, 0.0, 3.0));
     let id = h.start(
         0,
@@ -34,7 +50,7 @@ fn go_to_in_a_moving_frame_tracks_it() {
         json!({ "x": 0.0, "y": 0.0, "z": 3.0, "speed": 2.0, "frame_id": "target" }),
     );
     assert_eq!(h.wait_for(0, id, 30.0), BehaviorResult::Succeeded);
-    let now = h.runner.now();
+    let now = h.host.now();
     let goal_now = target_at(now);
     assert!(
         (h.position(0) - goal_now).norm() < 0.2,
@@ -67,13 +83,11 @@ fn follow_reference_stays_on_a_turning_frame() {
     // A nacelle 4 m east turning at 0.1 rad/s; the reference is 5 m in front of it.
     let motion = FrameMotion {
         pose_in_parent: Pose::from_position_yaw(Vec3::new(4.0, 0.0, 0.0), 0.0),
-        stamp: h.runner.now(),
+        stamp: h.host.now(),
         velocity_mps: Vec3::zeros(),
         yaw_rate_radps: 0.1,
     };
-    h.runner.cores[0]
-        .set_frame("nacelle", EARTH, motion)
-        .unwrap();
+    register(&mut h, "nacelle", &motion);
     let point = Vec3::new(-5.0, 0.0, 3.0);
     let id = h.start(
         0,
@@ -85,7 +99,7 @@ fn follow_reference_stays_on_a_turning_frame() {
     let mut worst: f64 = 0.0;
     for _ in 0..1500 {
         h.step();
-        let target = h_frame_point(&motion, h.runner.now(), &point);
+        let target = h_frame_point(&motion, h.host.now(), &point);
         worst = worst.max((h.position(0) - target).norm());
     }
     assert!(worst < 0.3, "fell {worst} m behind the turning frame");

@@ -3,10 +3,10 @@
 
 mod common;
 
+use common::SimConfig;
 use common::{world_with_pole, Harness};
 use kestrel::behavior::BehaviorResult;
 use kestrel::core::BehaviorCommand;
-use kestrel::sim::runner::SimConfig;
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::{FlightStatus, Vec3};
@@ -32,7 +32,7 @@ fn rtl_climbs_returns_and_lands() {
     let p = h.position(0);
     assert!(p.xy().norm() < 0.2, "landed at {p}, not home");
     assert_eq!(p.z, 0.0);
-    assert!(!h.runner.world.vehicles[0].is_armed());
+    assert!(!h.world().vehicles[0].is_armed());
     let flight = h.samples_between(0, start, h.now_s());
     // It climbs to the return height before heading home, and flies home at that height.
     let left = flight
@@ -74,7 +74,7 @@ fn a_drone_flown_into_a_pole_reports_a_collision() {
     assert!((hit_x - 4.55).abs() < 0.1, "hit at x = {hit_x}");
     // The flight is over: motors off, it falls and stays down, and cannot take off again.
     h.run_for(3.0);
-    let v = &h.runner.world.vehicles[0];
+    let v = &h.world().vehicles[0];
     assert_eq!(v.flight_status(), FlightStatus::Crashed);
     assert_eq!(v.state.position_m.z, 0.0);
     assert!(!v.is_armed());
@@ -125,10 +125,7 @@ fn two_drones_flown_into_each_other_both_report_it() {
     assert!(failed_with(&result, "collision with drone_1"), "{result:?}");
     h.step();
     for d in 0..2 {
-        assert_eq!(
-            h.runner.world.vehicles[d].flight_status(),
-            FlightStatus::Crashed
-        );
+        assert_eq!(h.world().vehicles[d].flight_status(), FlightStatus::Crashed);
     }
     let records = h.log_records();
     for d in ["drone_0", "drone_1"] {
@@ -153,7 +150,7 @@ fn a_go_to_against_an_overwhelming_wind_fails_with_a_reason() {
     let mut h = Harness::one_drone();
     h.take_off(0, 5.0);
     // A storm stronger than the vehicle's tilt limit can hold against.
-    h.runner.world.environment.wind_mps = Vec3::new(30.0, 0.0, 0.0);
+    h.world_mut().environment.wind_mps = Vec3::new(30.0, 0.0, 0.0);
     let id = h.start(
         0,
         "go_to",
@@ -162,7 +159,7 @@ fn a_go_to_against_an_overwhelming_wind_fails_with_a_reason() {
     let result = h.wait_for(0, id, 60.0);
     assert!(failed_with(&result, "no progress"), "{result:?}");
     // Then the server holds the vehicle as well as it can: still flying, still armed.
-    assert!(h.runner.world.vehicles[0].is_armed());
+    assert!(h.world().vehicles[0].is_armed());
     h.assert_log(
         0,
         &[
@@ -178,7 +175,7 @@ fn a_go_to_against_an_overwhelming_wind_fails_with_a_reason() {
 fn a_follow_path_the_vehicle_cannot_fly_fails_with_a_reason() {
     let mut h = Harness::one_drone();
     h.take_off(0, 5.0);
-    h.runner.world.environment.wind_mps = Vec3::new(30.0, 0.0, 0.0);
+    h.world_mut().environment.wind_mps = Vec3::new(30.0, 0.0, 0.0);
     let id = h.start(
         0,
         "follow_path",

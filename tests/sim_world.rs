@@ -1,11 +1,12 @@
-//! Whole flights in the thesis worlds: several drones, the demo script, the flight log, seeds.
+//! Whole flights in the thesis worlds: several drones, the demo missions, the flight log, seeds.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
 use common::Harness;
-use kestrel::sim::runner::SimConfig;
-use kestrel::sim::script::{demo_plans, Script, ScriptState};
+use common::SimConfig;
+use kestrel::host::demo::demo_missions;
+use kestrel::mission::{Action, MissionUpdate};
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::Vec3;
@@ -16,26 +17,38 @@ fn thesis_world(name: &str) -> World {
         .unwrap()
 }
 
-/// Flies the demo script on every drone until all scripts end; returns their final states.
-fn fly_demo(h: &mut Harness, limit_s: f64) -> Vec<ScriptState> {
-    let mut scripts: Vec<Script> = demo_plans(&h.runner.world)
-        .into_iter()
-        .map(Script::new)
-        .collect();
-    let mut seen = vec![0; scripts.len()];
-    while !scripts.iter().all(Script::finished) {
-        assert!(h.now_s() < limit_s, "demo still running after {limit_s} s");
-        for (i, script) in scripts.iter_mut().enumerate() {
-            let events: Vec<_> = h.events[i][seen[i]..]
-                .iter()
-                .map(|(_, e)| e.clone())
-                .collect();
-            seen[i] = h.events[i].len();
-            script.update(&mut h.runner.cores[i], &events);
-        }
-        h.step();
+/// Flies the demo mission of every drone on the host, as `kestrel sim` does, until every
+/// mission has ended; returns how each ended.
+fn fly_demo(h: &mut Harness, limit_s: f64) -> Vec<Result<(), String>> {
+    let mut ids = Vec::new();
+    for mission in demo_missions(h.world()) {
+        let drone = mission["target"].as_str().unwrap().to_string();
+        let updated = h
+            .host
+            .update(&MissionUpdate {
+                drone_id: Some(drone),
+                mission_id: None,
+                item_id: None,
+                action: Action::Execute,
+                mission: Some(mission),
+            })
+            .unwrap();
+        ids.push(updated.status.mission_id.unwrap());
     }
-    scripts.into_iter().map(|s| s.state).collect()
+    let outcomes = |h: &Harness| -> Vec<Option<Result<(), String>>> {
+        let cores = h.host.cores();
+        h.host
+            .executors()
+            .iter()
+            .zip(cores)
+            .zip(&ids)
+            .map(|((ex, core), id)| ex.status(core).outcome(*id))
+            .collect()
+    };
+    h.run_until(limit_s, "every demo mission to end", |h| {
+        outcomes(h).iter().all(Option::is_some)
+    });
+    outcomes(h).into_iter().flatten().collect()
 }
 
 const DEMO_SEQUENCE: [&str; 8] = [
@@ -55,7 +68,7 @@ fn seven_drones_take_off_and_land_at_the_thesis_start_poses_in_low() {
     let starts = world.starts_xy_yaw["7"].clone();
     let mut h = Harness::new(world, 7);
     for (i, [x, y, yaw]) in starts.iter().enumerate() {
-        let v = &h.runner.world.vehicles[i];
+        let v = &h.world().vehicles[i];
         assert_eq!(
             v.state.position_m,
             Vec3::new(*x, *y, 0.0),
@@ -64,11 +77,8 @@ fn seven_drones_take_off_and_land_at_the_thesis_start_poses_in_low() {
         assert_eq!(v.state.yaw_rad, kestrel::types::wrap_angle_rad(*yaw));
     }
     let results = fly_demo(&mut h, 120.0);
-    assert!(
-        results.iter().all(|r| *r == ScriptState::Succeeded),
-        "{results:?}"
-    );
-    let shapes = h.runner.world.shapes().to_vec();
+    assert!(results.iter().all(Result::is_ok), "{results:?}");
+    let shapes = h.world().shapes().to_vec();
     for (i, [x, y, _]) in starts.iter().enumerate() {
         let start = Vec3::new(*x, *y, 0.0);
         let samples = &h.samples[i];
@@ -125,10 +135,7 @@ fn seven_drones_take_off_and_land_at_the_thesis_start_poses_in_low() {
 fn the_demo_avoids_poles_in_the_densest_world() {
     let mut h = Harness::new(thesis_world("high"), 7);
     let results = fly_demo(&mut h, 120.0);
-    assert!(
-        results.iter().all(|r| *r == ScriptState::Succeeded),
-        "{results:?}"
-    );
+    assert!(results.iter().all(Result::is_ok), "{results:?}");
 }
 
 #[test]

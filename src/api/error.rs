@@ -3,6 +3,7 @@
 //! In: [`HostError`]s and request problems. Out: `{"error": {"code", "message", "details"}}`,
 //! or, for MissionUpdate answers, `{"accepted": false, "reason", "code", "details"}`.
 
+use crate::behavior::ServerError;
 use crate::host::HostError;
 use crate::mission::{ActionError, ValidationError};
 use axum::http::StatusCode;
@@ -59,6 +60,15 @@ impl ApiError {
                 HostError::Frame(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_frame"),
                 HostError::NotSupported(_) => (StatusCode::BAD_REQUEST, "not_supported"),
                 HostError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
+                HostError::Behavior(b) => match b {
+                    ServerError::UnknownBehavior(_) => (StatusCode::NOT_FOUND, "unknown_behavior"),
+                    ServerError::Rejected { .. } => {
+                        (StatusCode::UNPROCESSABLE_ENTITY, "goal_rejected")
+                    }
+                    ServerError::NotActive(_)
+                    | ServerError::NotRunning(_)
+                    | ServerError::NotPaused(_) => (StatusCode::CONFLICT, "behavior_state"),
+                },
             },
             ApiError::Unauthorized => (StatusCode::UNAUTHORIZED, "unauthorized"),
             ApiError::BadJson(_) => (StatusCode::BAD_REQUEST, "bad_json"),

@@ -56,7 +56,7 @@ pub enum BehaviorEvent {
     },
 }
 
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum ServerError {
     #[error("unknown behavior `{0}`")]
     UnknownBehavior(String),

@@ -38,6 +38,13 @@ pub trait Fleet: Send {
     fn is_simulated(&self) -> bool {
         false
     }
+    /// The simulator's world (ground truth for tests and benches); `None` for real vehicles.
+    fn sim_world(&self) -> Option<&SimWorld> {
+        None
+    }
+    fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
+        None
+    }
 }
 
 impl Fleet for Vec<Box<dyn Platform>> {
@@ -147,5 +154,11 @@ impl Fleet for SimFleet {
     }
     fn is_simulated(&self) -> bool {
         true
+    }
+    fn sim_world(&self) -> Option<&SimWorld> {
+        Some(&self.world)
+    }
+    fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
+        Some(&mut self.world)
     }
 }

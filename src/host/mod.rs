@@ -6,6 +6,7 @@
 //! slow reader can only lag on), the flight log, the persisted missions, and systemd
 //! READY/WATCHDOG notifications from the control loop.
 
+pub mod demo;
 pub mod engine;
 pub mod fleet;
 pub mod logwriter;

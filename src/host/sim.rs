@@ -37,8 +37,18 @@ pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> Sim
 
 /// A host flying the vehicles of an existing simulator world.
 pub fn simulated_host_in(sim: SimWorld, config: &Config) -> Host {
+    simulated_host_with(sim, config, |_| {})
+}
+
+/// The same host with each drone's core settings adjusted by `tweak` after the config's
+/// (tests: a known map, another estimator).
+pub fn simulated_host_with(
+    sim: SimWorld,
+    config: &Config,
+    tweak: impl Fn(&mut CoreConfig),
+) -> Host {
     let map = sim_map_config(&sim, config);
-    let (cores, fleet, host_config) = simulated_parts(sim, config);
+    let (cores, fleet, host_config) = simulated_parts_with(sim, config, tweak);
     let mut host = Host::new(cores, Box::new(fleet), host_config);
     if let Some(m) = map {
         match FleetMap::new(&m) {
@@ -64,6 +74,14 @@ fn sim_map_config(sim: &SimWorld, config: &Config) -> Option<MapConfig> {
 
 /// The pieces of a simulated host, for callers that wrap the fleet (benchmark probes).
 pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFleet, HostConfig) {
+    simulated_parts_with(sim, config, |_| {})
+}
+
+fn simulated_parts_with(
+    sim: SimWorld,
+    config: &Config,
+    tweak: impl Fn(&mut CoreConfig),
+) -> (Vec<DroneCore>, SimFleet, HostConfig) {
     let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
     let registry = payload::registry();
     let map = sim_map_config(&sim, config);
@@ -80,6 +98,7 @@ pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFl
             if let Some(o) = origin {
                 c.geo_origin = GeodeticOrigin(o);
             }
+            tweak(&mut c);
             DroneCore::new(c, v.capabilities(), registry.clone())
         })
         .collect();

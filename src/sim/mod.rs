@@ -5,8 +5,6 @@
 //! seed, world and commands give the same flight.
 
 pub mod dynamics;
-pub mod runner;
-pub mod script;
 pub mod sensors;
 pub mod shape;
 pub mod spatial;

@@ -1,13 +1,18 @@
-//! Simulator test harness: builds a [`SimRunner`] with an in-memory flight log, sends
-//! behavior commands, and steps simulated time until a condition holds (never sleeping).
+//! Simulator test harness on the production host: builds the same [`Host`] `kestrel sim`
+//! runs (simulated fleet, planner worker in lock step, flight log in memory), sends behavior
+//! commands, and steps simulated time until a condition holds (never sleeping).
 
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
-use kestrel::behavior::{BehaviorEvent, BehaviorId, BehaviorResult, Registry};
+use kestrel::behavior::{BehaviorEvent, BehaviorId, BehaviorResult};
+use kestrel::config::Config;
 use kestrel::core::{BehaviorCommand, CoreConfig};
 use kestrel::flightlog::{self, FlightLog};
-use kestrel::sim::runner::{SimConfig, SimRunner};
+use kestrel::host::sim::simulated_host_with;
+use kestrel::host::status::{EventBody, HostEvent};
+use kestrel::host::{Host, HostError};
 use kestrel::sim::world::World;
+use kestrel::sim::{Environment, SimWorld};
 use kestrel::types::{FlightStatus, Vec3};
 use serde_json::Value;
 use std::io::Write;
@@ -27,6 +32,27 @@ impl Write for SharedBuffer {
     }
 }
 
+/// What a simulated run is made of besides the world.
+#[derive(Debug, Clone)]
+pub struct SimConfig {
+    pub drones: usize,
+    pub seed: u64,
+    /// Control rate (Hz).
+    pub rate_hz: f64,
+    pub environment: Environment,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            drones: 1,
+            seed: 0,
+            rate_hz: 100.0,
+            environment: Environment::default(),
+        }
+    }
+}
+
 /// One vehicle state sample, recorded every control tick.
 #[derive(Debug, Clone, Copy)]
 pub struct Sample {
@@ -39,12 +65,15 @@ pub struct Sample {
 }
 
 pub struct Harness {
-    pub runner: SimRunner,
+    pub host: Host,
     log: SharedBuffer,
+    drone_ids: Vec<String>,
     /// Every behavior event so far, per drone, with its time (s).
     pub events: Vec<Vec<(f64, BehaviorEvent)>>,
     /// Per-drone state at every tick.
     pub samples: Vec<Vec<Sample>>,
+    /// Every other host event (alerts, mission status, safety), in order.
+    pub host_events: Vec<HostEvent>,
 }
 
 impl Harness {
@@ -59,27 +88,29 @@ impl Harness {
     }
 
     pub fn with_config(world: World, config: SimConfig) -> Self {
-        Self::with_core_config(world, config, |i| CoreConfig::new(&format!("drone_{i}")))
+        Self::with_core_config(world, config, |_| {})
     }
 
+    /// The production simulated host, with each core's settings adjusted by `tweak` (a known
+    /// map, another estimator).
     pub fn with_core_config(
         world: World,
         config: SimConfig,
-        core_config: impl Fn(usize) -> CoreConfig,
+        tweak: impl Fn(&mut CoreConfig),
     ) -> Self {
-        let mut runner = SimRunner::new(
-            world,
-            &config,
-            core_config,
-            &Registry::with_motion_behaviors(),
-        );
+        let mut settings = Config::default();
+        settings.drone.control_rate_hz = config.rate_hz;
+        let sim = SimWorld::new(world, config.drones, config.seed, config.environment);
+        let mut host = simulated_host_with(sim, &settings, tweak);
         let log = SharedBuffer::default();
-        runner.log = Some(FlightLog::new(Box::new(log.clone()), 10.0));
+        host.set_log(FlightLog::new(Box::new(log.clone()), 10.0));
         let mut h = Self {
-            runner,
+            drone_ids: host.drone_ids(),
+            host,
             log,
             events: vec![Vec::new(); config.drones],
             samples: vec![Vec::new(); config.drones],
+            host_events: Vec::new(),
         };
         // A host ticks its cores continuously; the first tick gives them a state estimate.
         h.step();
@@ -90,8 +121,17 @@ impl Harness {
         Self::new(World::empty(), 1)
     }
 
+    /// The simulator's world: ground truth.
+    pub fn world(&self) -> &SimWorld {
+        self.host.sim_world().expect("a simulated host")
+    }
+
+    pub fn world_mut(&mut self) -> &mut SimWorld {
+        self.host.sim_world_mut().expect("a simulated host")
+    }
+
     pub fn now_s(&self) -> f64 {
-        self.runner.now().as_secs_f64()
+        self.host.now().as_secs_f64()
     }
 
     pub fn start(&mut self, drone: usize, behavior: &str, goal: Value) -> BehaviorId {
@@ -110,8 +150,8 @@ impl Harness {
         &mut self,
         drone: usize,
         cmd: BehaviorCommand,
-    ) -> Result<Option<BehaviorId>, kestrel::behavior::ServerError> {
-        self.runner.cores[drone].command(cmd)
+    ) -> Result<Option<BehaviorId>, HostError> {
+        self.host.behavior_command(drone, cmd)
     }
 
     pub fn command(&mut self, drone: usize, cmd: BehaviorCommand) {
@@ -120,20 +160,37 @@ impl Harness {
 
     /// One control tick for every drone.
     pub fn step(&mut self) {
-        let events = self.runner.step();
+        self.host.step();
         let t = self.now_s();
-        for (i, evs) in events.into_iter().enumerate() {
-            self.events[i].extend(evs.into_iter().map(|e| (t, e)));
+        for e in self.host.drain_events() {
+            match e {
+                HostEvent::Event {
+                    drone,
+                    event: EventBody::Behavior(b),
+                    ..
+                } => {
+                    if let Some(i) = self.drone_ids.iter().position(|d| *d == drone) {
+                        self.events[i].push((t, b));
+                    }
+                }
+                other => self.host_events.push(other),
+            }
         }
-        for (i, v) in self.runner.world.vehicles.iter().enumerate() {
-            self.samples[i].push(Sample {
+        let samples: Vec<Sample> = self
+            .world()
+            .vehicles
+            .iter()
+            .map(|v| Sample {
                 t_s: t,
                 position_m: v.state.position_m,
                 velocity_mps: v.state.velocity_mps,
                 yaw_rad: v.state.yaw_rad,
                 armed: v.is_armed(),
                 flight: v.flight_status(),
-            });
+            })
+            .collect();
+        for (i, s) in samples.into_iter().enumerate() {
+            self.samples[i].push(s);
         }
     }
 
@@ -195,11 +252,11 @@ impl Harness {
     }
 
     pub fn position(&self, drone: usize) -> Vec3 {
-        self.runner.world.vehicles[drone].state.position_m
+        self.world().vehicles[drone].state.position_m
     }
 
     pub fn speed(&self, drone: usize) -> f64 {
-        self.runner.world.vehicles[drone].state.velocity_mps.norm()
+        self.world().vehicles[drone].state.velocity_mps.norm()
     }
 
     /// Samples of `drone` between two times (s).
@@ -213,9 +270,7 @@ impl Harness {
 
     /// The flight log so far, parsed.
     pub fn log_records(&mut self) -> Vec<Value> {
-        if let Some(log) = self.runner.log.as_mut() {
-            log.flush();
-        }
+        self.host.flush_log();
         let text = String::from_utf8(self.log.0.lock().unwrap().clone()).unwrap();
         flightlog::read(&text).unwrap()
     }

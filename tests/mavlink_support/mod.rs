@@ -360,7 +360,7 @@ impl Drop for Kestrel {
 pub fn demo_targets() -> Vec<[f64; 3]> {
     let mut targets = Vec::new();
     let mut last = [0.0, 0.0, 0.0];
-    for (behavior, goal) in kestrel::sim::script::demo_plan(kestrel::types::Vec3::zeros(), 0.0) {
+    for (behavior, goal) in kestrel::host::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0) {
         let point = |v: &Value| {
             [
                 v[0].as_f64().unwrap(),

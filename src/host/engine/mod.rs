@@ -14,7 +14,8 @@ pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uplo
 use super::fleet::Fleet;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use crate::behavior::RunState;
-use crate::core::DroneCore;
+use crate::behavior::{BehaviorId, ServerError};
+use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
@@ -22,6 +23,7 @@ use crate::mapping::scan::RangeScan;
 use crate::mission::executor::ExecutorSnapshot;
 use crate::mission::{ActionError, Limits, MissionExecutor, ValidationError};
 use crate::planning::worker::{Delivery, PlanWorker};
+use crate::sim::SimWorld;
 use crate::types::LinkHealth;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -45,6 +47,8 @@ pub enum HostError {
     NotSupported(String),
     #[error("{0}")]
     Unavailable(String),
+    #[error(transparent)]
+    Behavior(#[from] ServerError),
 }
 
 impl From<FrameError> for HostError {
@@ -138,6 +142,31 @@ impl Host {
 
     pub fn is_simulated(&self) -> bool {
         self.fleet.is_simulated()
+    }
+
+    /// The simulator's world (ground truth), `None` when flying real vehicles.
+    pub fn sim_world(&self) -> Option<&SimWorld> {
+        self.fleet.sim_world()
+    }
+
+    /// The simulator's world, to change the weather or the obstacles mid-run.
+    pub fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
+        self.fleet.sim_world_mut()
+    }
+
+    /// Sends a behavior command straight to one drone's behavior server, bypassing missions
+    /// (behavior-level tests and tools).
+    pub fn behavior_command(
+        &mut self,
+        drone: usize,
+        command: BehaviorCommand,
+    ) -> Result<Option<BehaviorId>, HostError> {
+        let known = self.drone_ids().join(", ");
+        let core = self
+            .cores
+            .get_mut(drone)
+            .ok_or_else(|| HostError::UnknownDrone(drone.to_string(), known))?;
+        Ok(core.command(command)?)
     }
 
     pub fn drone_ids(&self) -> Vec<String> {

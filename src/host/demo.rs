@@ -1,12 +1,11 @@
-//! A fixed list of behaviors flown one after another: the built-in demo flight.
+//! The built-in demo flight, as a mission per drone: take off, go to a point, follow a short
+//! path, land, placed from each drone's start pose clear of obstacles and of the others.
 //!
-//! In: each drone's start pose and the world's obstacles (to place the demo), then the behavior
-//! events of one drone. Out: the next behavior to start, or the end result.
+//! In: the simulator's world (start poses, obstacles) or one start pose. Out: mission JSON
+//! (Aerostack2's format) that the host validates and flies like any other.
 
-use super::world::Shape;
-use super::SimWorld;
-use crate::behavior::{BehaviorEvent, BehaviorResult};
-use crate::core::{BehaviorCommand, DroneCore};
+use crate::sim::world::Shape;
+use crate::sim::SimWorld;
 use crate::types::{Vec2, Vec3};
 use serde_json::{json, Value};
 
@@ -166,78 +165,27 @@ fn tracks_apart(a: &[Vec3], b: &[Vec3], separation_m: f64) -> bool {
         .all(|p| b.iter().all(|q| (flat(p) - flat(q)).norm() >= separation_m))
 }
 
-#[derive(Debug, Clone, PartialEq)]
-pub enum ScriptState {
-    Running { index: usize },
-    Succeeded,
-    Failed(String),
+/// A plan as the mission of `drone`.
+pub fn as_mission(drone: &str, plan: Vec<PlanItem>) -> Value {
+    let plan: Vec<Value> = plan
+        .into_iter()
+        .map(|(behavior, args)| json!({"behavior": behavior, "args": args}))
+        .collect();
+    json!({"target": drone, "plan": plan})
 }
 
-pub struct Script {
-    plan: Vec<PlanItem>,
-    pub state: ScriptState,
-    started: bool,
-}
-
-impl Script {
-    pub fn new(plan: Vec<PlanItem>) -> Self {
-        Self {
-            plan,
-            state: ScriptState::Running { index: 0 },
-            started: false,
-        }
-    }
-
-    pub fn finished(&self) -> bool {
-        !matches!(self.state, ScriptState::Running { .. })
-    }
-
-    /// Starts the first item on the first call, then advances on each finished behavior.
-    pub fn update(&mut self, core: &mut DroneCore, events: &[BehaviorEvent]) {
-        let ScriptState::Running { index } = self.state else {
-            return;
-        };
-        if !self.started {
-            self.started = true;
-            self.start(core, index);
-            return;
-        }
-        for e in events {
-            if let BehaviorEvent::Finished {
-                behavior, result, ..
-            } = e
-            {
-                match result {
-                    BehaviorResult::Succeeded => {
-                        let next = index + 1;
-                        if next >= self.plan.len() {
-                            self.state = ScriptState::Succeeded;
-                        } else {
-                            self.start(core, next);
-                        }
-                    }
-                    BehaviorResult::Failed(r) | BehaviorResult::Aborted(r) => {
-                        self.state = ScriptState::Failed(format!("{behavior}: {r}"))
-                    }
-                }
-                return;
-            }
-        }
-    }
-
-    fn start(&mut self, core: &mut DroneCore, index: usize) {
-        let Some((behavior, goal)) = self.plan.get(index).cloned() else {
-            return;
-        };
-        self.state = match core.command(BehaviorCommand::Start { behavior, goal }) {
-            Ok(_) => ScriptState::Running { index },
-            Err(e) => ScriptState::Failed(e.to_string()),
-        };
-    }
+/// The demo mission of every vehicle of `world` (`drone_0` ...), see [`demo_plans`].
+pub fn demo_missions(world: &SimWorld) -> Vec<Value> {
+    demo_plans(world)
+        .into_iter()
+        .enumerate()
+        .map(|(i, plan)| as_mission(&format!("drone_{i}"), plan))
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
     use crate::sim::world::{Cylinder, World};
     use crate::sim::Environment;
