@@ -72,6 +72,21 @@ impl CellBox {
         b
     }
 
+    /// The cells in both boxes, `None` when they do not overlap.
+    pub fn intersect(self, other: CellBox) -> Option<CellBox> {
+        let b = CellBox {
+            min: Cell {
+                x: self.min.x.max(other.min.x),
+                y: self.min.y.max(other.min.y),
+            },
+            max: Cell {
+                x: self.max.x.min(other.max.x),
+                y: self.max.y.min(other.max.y),
+            },
+        };
+        (b.min.x <= b.max.x && b.min.y <= b.max.y).then_some(b)
+    }
+
     pub fn width_cells(&self) -> u32 {
         self.max.x - self.min.x + 1
     }

@@ -64,6 +64,35 @@ impl LayeredMap {
         Ok(changed.and_then(|b| self.refuse(b)))
     }
 
+    /// Copies a box of a drone's own grid (on the global spec) into its layer and re-fuses it:
+    /// the scans were ray-cast once, by the drone's map server. Returns the changed box of the
+    /// global grid.
+    pub fn copy_region(
+        &mut self,
+        drone: &str,
+        own: &OccupancyGrid,
+        region: CellBox,
+    ) -> Result<Option<CellBox>, MapError> {
+        if own.spec() != self.global.spec() {
+            return Err(MapError::InvalidSpec(
+                "a drone grid copied into its layer must be on the global spec".into(),
+            ));
+        }
+        let Some(region) = region.intersect(self.global.spec().full_box()) else {
+            return Ok(None);
+        };
+        let layer = self.layer_mut(drone)?;
+        for y in region.min.y..=region.max.y {
+            for x in region.min.x..=region.max.x {
+                let c = Cell { x, y };
+                if let Some(v) = own.get(c) {
+                    layer.set(c, v)?;
+                }
+            }
+        }
+        Ok(self.refuse(region))
+    }
+
     /// Replaces a drone's layer with its own local grid, resampled (nearest cell centre) onto the
     /// global spec; global cells outside the local grid keep the layer's previous values.
     /// Returns the changed box of the global grid.

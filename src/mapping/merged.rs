@@ -69,6 +69,26 @@ impl FleetMap {
         Ok(())
     }
 
+    /// Whether a drone grid on `spec` can be copied in as is (see [`Self::copy_from_drone`]).
+    pub fn same_spec(&self, spec: &GridSpec) -> bool {
+        self.layers.global.spec() == spec
+    }
+
+    /// Takes a region the drone's own map server changed into the drone's layer: the drone's
+    /// scans are ray-cast once, by its own map server. The grid must be on the merged spec.
+    pub fn copy_from_drone(
+        &mut self,
+        drone: &str,
+        own: &OccupancyGrid,
+        region: CellBox,
+    ) -> Result<(), MapError> {
+        if let Some(changed) = self.layers.copy_region(drone, own, region)? {
+            let slot = self.pending.entry(drone.to_string()).or_insert(changed);
+            *slot = slot.union(changed);
+        }
+        Ok(())
+    }
+
     /// Inserts a drone's scans; invalid ones are skipped (the drone's own map counts them).
     pub fn insert_all(&mut self, drone: &str, scans: &[RangeScan]) {
         for scan in scans {
@@ -172,5 +192,34 @@ mod tests {
         let m = FleetMap::new(&config).unwrap();
         assert_eq!(m.layer_names(), [KNOWN_LAYER]);
         assert_eq!(m.merged().get(Cell { x: 10, y: 10 }), Some(100));
+    }
+
+    #[test]
+    fn a_drone_grid_copied_by_region_gives_the_same_merged_map_as_its_scans() {
+        use crate::mapping::server::MapServer;
+        let config = MapConfig::open_field().unwrap();
+        let scans = [scan_from(0.05, 0.05, 1.0), scan_from(3.05, 2.05, 2.5)];
+        let mut by_scans = FleetMap::new(&config).unwrap();
+        let mut by_copy = FleetMap::new(&config).unwrap();
+        let mut own = MapServer::new(&config);
+        for scan in &scans {
+            by_scans.insert("drone_0", scan).unwrap();
+            own.insert(Duration::from_secs(1), std::slice::from_ref(scan));
+            let region = own.last_changed().unwrap();
+            by_copy
+                .copy_from_drone("drone_0", own.grid(), region)
+                .unwrap();
+        }
+        assert_eq!(by_copy.merged(), by_scans.merged());
+        assert_eq!(by_copy.take_patches(), by_scans.take_patches());
+        let elsewhere = crate::mapping::config::MapSection {
+            size_m: Some([10.0, 10.0]),
+            ..Default::default()
+        };
+        let other = MapServer::new(&elsewhere.config(None).unwrap().unwrap());
+        assert!(!by_copy.same_spec(other.grid().spec()));
+        assert!(by_copy
+            .copy_from_drone("drone_0", other.grid(), other.grid().spec().full_box())
+            .is_err());
     }
 }

@@ -38,6 +38,8 @@ pub struct MapServer {
     updated_at: Duration,
     rejected_scans: u64,
     last_rejection: Option<MapError>,
+    /// Cells changed by the last insertion.
+    last_changed: Option<CellBox>,
     /// The snapshot of `revision`, made on demand.
     snapshot: Mutex<Option<Arc<MapSnapshot>>>,
 }
@@ -53,6 +55,7 @@ impl MapServer {
             updated_at: Duration::ZERO,
             rejected_scans: 0,
             last_rejection: None,
+            last_changed: None,
             snapshot: Mutex::new(None),
         }
     }
@@ -75,11 +78,17 @@ impl MapServer {
             self.revision += 1;
             self.updated_at = now;
         }
+        self.last_changed = changed;
         changed
     }
 
     pub fn grid(&self) -> &OccupancyGrid {
         &self.grid
+    }
+
+    /// The cells the last [`Self::insert`] changed (`None`: nothing changed).
+    pub fn last_changed(&self) -> Option<CellBox> {
+        self.last_changed
     }
 
     /// Changes whenever a cell changed.

@@ -287,7 +287,7 @@ impl Host {
                 call.submit(i, &mut self.planner);
             }
             if let Some(map) = self.map.as_mut() {
-                map.insert_all(core.drone_id(), &feedback.scans);
+                merge_into(map, core, &feedback.scans);
             }
             if let Some(ex) = self.executors.get_mut(i) {
                 ex.update(now, core, &out.events);
@@ -365,6 +365,25 @@ impl Host {
     pub fn flush_log(&mut self) {
         if let Some(log) = self.log.as_mut() {
             log.flush();
+        }
+    }
+}
+
+/// Brings a drone's new map data into the merged map: the cells its own map server changed this
+/// tick, copied (the scans are ray-cast once), or its scans ray-cast again when its grid is not on
+/// the merged spec (a drone configured with a map of its own).
+fn merge_into(map: &mut FleetMap, core: &DroneCore, scans: &[RangeScan]) {
+    let Some(own) = core.map() else {
+        map.insert_all(core.drone_id(), scans);
+        return;
+    };
+    if !map.same_spec(own.grid().spec()) {
+        map.insert_all(core.drone_id(), scans);
+        return;
+    }
+    if let Some(region) = own.last_changed() {
+        if let Err(e) = map.copy_from_drone(core.drone_id(), own.grid(), region) {
+            tracing::warn!("{}: merged map not updated: {e}", core.drone_id());
         }
     }
 }
