@@ -11,7 +11,6 @@ use crate::core::{CoreConfig, DroneCore};
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::mapping::config::MapConfig;
 use crate::mapping::merged::FleetMap;
-use crate::mission::Limits;
 use crate::platform::Platform;
 use crate::sim::world::World;
 use crate::sim::{Environment, SimWorld};
@@ -106,7 +105,7 @@ fn simulated_parts_with(
         cores,
         SimFleet::new(sim, PHYSICS_SUBSTEPS),
         HostConfig {
-            limits: Limits::from_config(config),
+            limits: config.mission_limits(),
             switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },

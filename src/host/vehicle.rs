@@ -6,7 +6,6 @@
 use super::engine::{Host, HostConfig};
 use crate::config::Config;
 use crate::core::DroneCore;
-use crate::mission::Limits;
 use crate::platform::Platform;
 use std::time::Duration;
 
@@ -17,7 +16,7 @@ pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Conf
         cores,
         Box::new(platforms),
         HostConfig {
-            limits: Limits::from_config(config),
+            limits: config.mission_limits(),
             switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },

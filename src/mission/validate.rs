@@ -9,7 +9,7 @@
 use super::methods::{canonicalize, escape_token, unescape_token, Canonical};
 use super::model::{MissionItem, PlanItem, ValidMission, CALL};
 use crate::behavior::{GoalSummary, Registry};
-use crate::config::{Config, GeofenceSection};
+use crate::config::GeofenceSection;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::{GeoPoint, GeodeticOrigin};
 use crate::types::Vec3;
@@ -43,23 +43,6 @@ pub struct Limits {
     pub geofence: GeofenceSection,
     pub max_items: usize,
     pub max_waypoints: usize,
-}
-
-impl Limits {
-    pub fn from_config(config: &Config) -> Self {
-        Self {
-            max_speed_mps: config.controller.max_horizontal_speed_mps,
-            geofence: config.geofence.clone(),
-            max_items: 1000,
-            max_waypoints: 10_000,
-        }
-    }
-}
-
-impl Default for Limits {
-    fn default() -> Self {
-        Self::from_config(&Config::default())
-    }
 }
 
 /// What validation checks a mission against, for one drone at one instant.

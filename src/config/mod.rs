@@ -2,10 +2,13 @@
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
 //! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`.
 
+pub mod bounds;
+
 use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
+use crate::mission::Limits;
 use crate::sim::world::SensorConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -155,6 +158,13 @@ impl Default for MissionSection {
     }
 }
 
+/// The limits of the default config.
+impl Default for Limits {
+    fn default() -> Self {
+        Config::default().mission_limits()
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("cannot read config {path}: {source}")]
@@ -173,6 +183,16 @@ pub enum ConfigError {
 }
 
 impl Config {
+    /// What missions are validated against: the vehicle's speed limit and the geofence.
+    pub fn mission_limits(&self) -> Limits {
+        Limits {
+            max_speed_mps: self.controller.max_horizontal_speed_mps,
+            geofence: self.geofence.clone(),
+            max_items: 1000,
+            max_waypoints: 10_000,
+        }
+    }
+
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         let p = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
@@ -207,65 +227,161 @@ impl Config {
         Ok(config)
     }
 
+    /// Every number within its bounds, every name and address well formed.
     fn validate(&self) -> Result<(), (String, String)> {
-        let positive = |field: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err((field.to_string(), format!("must be > 0, got {v}")))
-            }
-        };
-        positive("drone.control_rate_hz", self.drone.control_rate_hz)?;
-        let c = &self.controller;
-        positive(
-            "controller.max_horizontal_speed_mps",
-            c.max_horizontal_speed_mps,
+        use bounds::{count, non_negative, positive, within};
+        if self.drone.id.is_empty() {
+            return Err(("drone.id".into(), "must not be empty".into()));
+        }
+        within(
+            "drone.control_rate_hz",
+            self.drone.control_rate_hz,
+            (1.0, 1000.0),
+            false,
+            "Hz",
         )?;
-        positive("controller.max_up_speed_mps", c.max_up_speed_mps)?;
-        positive("controller.max_down_speed_mps", c.max_down_speed_mps)?;
-        positive("controller.max_yaw_rate_radps", c.max_yaw_rate_radps)?;
-        let b = &self.behaviors;
-        positive("behaviors.goal_threshold_m", b.goal_threshold_m)?;
-        positive("behaviors.max_acceleration_mps2", b.max_acceleration_mps2)?;
         if let Some(o) = &self.drone.geodetic_origin {
             o.validate()
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;
         }
+        self.validate_controller()?;
+        let b = &self.behaviors;
+        positive("behaviors.goal_threshold_m", b.goal_threshold_m, 10.0, "m")?;
+        positive(
+            "behaviors.waypoint_threshold_m",
+            b.waypoint_threshold_m,
+            10.0,
+            "m",
+        )?;
+        positive(
+            "behaviors.takeoff_threshold_m",
+            b.takeoff_threshold_m,
+            5.0,
+            "m",
+        )?;
+        positive(
+            "behaviors.max_acceleration_mps2",
+            b.max_acceleration_mps2,
+            20.0,
+            "m/s^2",
+        )?;
+        positive(
+            "behaviors.no_progress_timeout_s",
+            b.no_progress_timeout_s,
+            3600.0,
+            "s",
+        )?;
+        positive("behaviors.arm_timeout_s", b.arm_timeout_s, 600.0, "s")?;
+        positive("behaviors.ready_timeout_s", b.ready_timeout_s, 3600.0, "s")?;
+        positive("behaviors.hold_speed_mps", b.hold_speed_mps, 20.0, "m/s")?;
+        for (axis, w) in ["x", "y", "z"].iter().zip(self.sim.wind_enu_mps) {
+            within(
+                &format!("sim.wind_enu_mps.{axis}"),
+                w,
+                (-50.0, 50.0),
+                false,
+                "m/s",
+            )?;
+        }
+        non_negative(
+            "sim.turbulence_mps2",
+            self.sim.turbulence_mps2,
+            20.0,
+            "m/s^2",
+        )?;
         self.mavlink.validate()?;
-        if self.drone.id.is_empty() {
-            return Err(("drone.id".into(), "must not be empty".into()));
-        }
-        let g = &self.geofence;
-        positive("geofence.max_altitude_m", g.max_altitude_m)?;
-        if !(g.min_altitude_m.is_finite() && g.min_altitude_m < g.max_altitude_m) {
-            return Err((
-                "geofence.min_altitude_m".into(),
-                format!("must be below max_altitude_m, got {}", g.min_altitude_m),
-            ));
-        }
-        if let Some(r) = g.radius_m {
-            positive("geofence.radius_m", r)?;
-        }
-        if let Some(p) = &g.polygon_enu_m {
-            if p.len() < 3 || p.iter().flatten().any(|v| !v.is_finite()) {
-                return Err((
-                    "geofence.polygon_enu_m".into(),
-                    "needs at least 3 finite [x, y] vertices".into(),
-                ));
-            }
-        }
-        if !(self.mission.switch_hold_s.is_finite() && self.mission.switch_hold_s >= 0.0) {
-            return Err(("mission.switch_hold_s".into(), "must be >= 0".into()));
-        }
+        self.validate_geofence()?;
+        non_negative(
+            "mission.switch_hold_s",
+            self.mission.switch_hold_s,
+            60.0,
+            "s",
+        )?;
         if self.api.listen.parse::<std::net::SocketAddr>().is_err() {
             return Err((
                 "api.listen".into(),
                 format!("must be ADDR:PORT, got `{}`", self.api.listen),
             ));
         }
+        count(
+            "api.max_body_bytes",
+            self.api.max_body_bytes,
+            (1024, 64 << 20),
+        )?;
+        count("api.max_ws_clients", self.api.max_ws_clients, (1, 10_000))?;
         self.map.validate()?;
-        if self.api.max_body_bytes < 1024 {
-            return Err(("api.max_body_bytes".into(), "must be >= 1024".into()));
+        Ok(())
+    }
+
+    fn validate_controller(&self) -> Result<(), (String, String)> {
+        use bounds::{non_negative, non_negative3, positive};
+        let c = &self.controller;
+        positive(
+            "controller.max_horizontal_speed_mps",
+            c.max_horizontal_speed_mps,
+            50.0,
+            "m/s",
+        )?;
+        positive(
+            "controller.max_up_speed_mps",
+            c.max_up_speed_mps,
+            20.0,
+            "m/s",
+        )?;
+        positive(
+            "controller.max_down_speed_mps",
+            c.max_down_speed_mps,
+            20.0,
+            "m/s",
+        )?;
+        positive(
+            "controller.max_yaw_rate_radps",
+            c.max_yaw_rate_radps,
+            10.0,
+            "rad/s",
+        )?;
+        non_negative("controller.velocity_lag_s", c.velocity_lag_s, 5.0, "s")?;
+        for (name, g) in [
+            ("position", &c.position),
+            ("trajectory", &c.trajectory),
+            ("yaw", &c.yaw),
+        ] {
+            let key = |f: &str| format!("controller.{name}.{f}");
+            non_negative3(&key("kp"), &g.kp.into(), 1000.0, "")?;
+            non_negative3(&key("ki"), &g.ki.into(), 1000.0, "")?;
+            non_negative3(&key("kd"), &g.kd.into(), 1000.0, "")?;
+            non_negative3(&key("integral_limit"), &g.integral_limit.into(), 1e6, "")?;
+            non_negative3(&key("integral_zone"), &g.integral_zone.into(), 1e6, "")?;
+            non_negative(&key("derivative_alpha"), g.derivative_alpha, 1.0, "")?;
+        }
+        Ok(())
+    }
+
+    fn validate_geofence(&self) -> Result<(), (String, String)> {
+        use bounds::{count, positive, within};
+        let g = &self.geofence;
+        positive("geofence.max_altitude_m", g.max_altitude_m, 10_000.0, "m")?;
+        within(
+            "geofence.min_altitude_m",
+            g.min_altitude_m,
+            (-10_000.0, g.max_altitude_m),
+            false,
+            "m",
+        )?;
+        if g.min_altitude_m >= g.max_altitude_m {
+            return Err((
+                "geofence.min_altitude_m".into(),
+                format!("must be below max_altitude_m, got {}", g.min_altitude_m),
+            ));
+        }
+        if let Some(r) = g.radius_m {
+            positive("geofence.radius_m", r, 1e6, "m")?;
+        }
+        if let Some(p) = &g.polygon_enu_m {
+            count("geofence.polygon_enu_m (vertices)", p.len(), (3, 1000))?;
+            for v in p.iter().flatten() {
+                within("geofence.polygon_enu_m", *v, (-1e7, 1e7), false, "m")?;
+            }
         }
         Ok(())
     }
@@ -285,6 +401,45 @@ mod tests {
     fn sim_sensor_is_chosen_by_kind() {
         let c = Config::parse("[sim.sensor]\nkind = \"lidar360\"\n", "test").unwrap();
         assert_eq!(c.sim.sensor, Some(SensorConfig::lidar()));
+    }
+
+    #[test]
+    fn nan_negative_and_absurd_numbers_are_refused_with_the_key() {
+        for (text, key) in [
+            (
+                "[behaviors]\narm_timeout_s = -1.0\n",
+                "behaviors.arm_timeout_s",
+            ),
+            (
+                "[behaviors]\nready_timeout_s = nan\n",
+                "behaviors.ready_timeout_s",
+            ),
+            (
+                "[behaviors]\nhold_speed_mps = -2.0\n",
+                "behaviors.hold_speed_mps",
+            ),
+            (
+                "[controller]\nmax_horizontal_speed_mps = inf\n",
+                "controller.max_horizontal_speed_mps",
+            ),
+            (
+                "[controller.position]\nkp = [1.0, -1.0, 1.0]\nki = [0.0, 0.0, 0.0]\n\
+                 kd = [0.0, 0.0, 0.0]\nintegral_limit = [0.0, 0.0, 0.0]\nderivative_alpha = 1.0\n",
+                "controller.position.kp",
+            ),
+            ("[drone]\ncontrol_rate_hz = 1e9\n", "drone.control_rate_hz"),
+            ("[sim]\nturbulence_mps2 = -0.5\n", "sim.turbulence_mps2"),
+            (
+                "[sim]\nwind_enu_mps = [0.0, 1e6, 0.0]\n",
+                "sim.wind_enu_mps.y",
+            ),
+            ("[mission]\nswitch_hold_s = nan\n", "mission.switch_hold_s"),
+            ("[geofence]\nradius_m = -5.0\n", "geofence.radius_m"),
+            ("[api]\nmax_ws_clients = 0\n", "api.max_ws_clients"),
+        ] {
+            let e = Config::parse(text, "test").unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
     }
 
     #[test]
