@@ -535,7 +535,8 @@ impl Plan {
                                 self.fail(now, e);
                             }
                         }
-                        BehaviorResult::Failed(r) | BehaviorResult::Aborted(r) => {
+                        BehaviorResult::Failed { reason: r, .. }
+                        | BehaviorResult::Aborted { reason: r, .. } => {
                             if !link_ok && policy == LinkPolicy::Resume {
                                 say(
                                     now,

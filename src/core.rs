@@ -8,8 +8,8 @@
 
 use crate::behavior::services::{ServiceAnswer, ServiceCall, ServiceDesk};
 use crate::behavior::{
-    BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Registry,
-    ServerError,
+    BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Failure,
+    FailureCode, ParsedGoal, Registry, ServerError,
 };
 use crate::control::{Controller, ControllerConfig, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
@@ -66,6 +66,8 @@ pub enum BehaviorCommand {
         behavior: String,
         goal: serde_json::Value,
     },
+    /// Start a goal parsed and checked before (a validated mission item).
+    StartParsed(ParsedGoal),
     Pause(BehaviorId),
     Resume(BehaviorId),
     Stop(BehaviorId),
@@ -186,6 +188,7 @@ impl DroneCore {
             BehaviorCommand::Start { behavior, goal } => {
                 self.server.start(&behavior, &goal, &ctx).map(Some)
             }
+            BehaviorCommand::StartParsed(goal) => self.server.start_parsed(&goal, &ctx).map(Some),
             BehaviorCommand::Pause(id) => self.server.pause(id, &ctx).map(|_| None),
             BehaviorCommand::Resume(id) => self.server.resume(id, &ctx).map(|_| None),
             BehaviorCommand::Stop(id) => self.server.stop(id, &ctx).map(|_| None),
@@ -230,7 +233,10 @@ impl DroneCore {
         // Never command blind: without a link or a position estimate, behaviors end and the
         // autopilot's own failsafe takes over.
         if self.platform.link == LinkHealth::Lost && previous_link != LinkHealth::Lost {
-            self.server.stop_all("link to the autopilot lost", &ctx);
+            self.server.stop_all(
+                Failure::new(FailureCode::LinkLost, "link to the autopilot lost"),
+                &ctx,
+            );
             self.server.clear_hold();
         }
         if self.platform.flight == crate::types::FlightStatus::Crashed {
@@ -239,7 +245,8 @@ impl DroneCore {
                 .last_error
                 .clone()
                 .unwrap_or_else(|| "crashed".into());
-            self.server.fail_all(&reason, &ctx);
+            self.server
+                .fail_all(Failure::new(FailureCode::Crashed, reason), &ctx);
             self.server.clear_hold();
         }
         let out = self.server.tick(&ctx);

@@ -8,7 +8,7 @@ mod common;
 
 use common::Harness;
 use common::SimConfig;
-use kestrel::behavior::BehaviorResult;
+use kestrel::behavior::{BehaviorResult, FailureCode};
 use kestrel::core::BehaviorCommand;
 use kestrel::mapping::config::MapSection;
 use kestrel::mapping::{GridSpec, OccupancyGrid};
@@ -220,7 +220,10 @@ fn a_goal_inside_a_pole_seen_on_the_way_fails_with_the_planners_reason() {
         120.0,
     );
     match result {
-        BehaviorResult::Failed(reason) => assert!(reason.contains("goal is occupied"), "{reason}"),
+        BehaviorResult::Failed { code, reason } => {
+            assert!(reason.contains("goal is occupied"), "{reason}");
+            assert_eq!(code, FailureCode::GoalInObstacle);
+        }
         other => panic!("expected a failure, got {other:?}"),
     }
     assert!(min_pole_clearance(&mut h) >= SAFETY_M);

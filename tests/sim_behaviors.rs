@@ -4,7 +4,7 @@
 mod common;
 
 use common::{closest_approach, max_distance, Harness};
-use kestrel::behavior::BehaviorResult;
+use kestrel::behavior::{BehaviorResult, FailureCode};
 use kestrel::core::BehaviorCommand;
 use kestrel::types::{FlightStatus, Vec3};
 use serde_json::json;
@@ -305,7 +305,10 @@ fn stop_leaves_the_drone_hovering() {
     h.step();
     assert_eq!(
         h.result(0, id),
-        Some(BehaviorResult::Aborted("stopped".into()))
+        Some(BehaviorResult::Aborted {
+            code: FailureCode::Stopped,
+            reason: "stopped".into()
+        })
     );
     h.run_for(2.0);
     let hold = h.position(0);

@@ -13,7 +13,7 @@ use kestrel::types::{FlightStatus, Vec3};
 use serde_json::json;
 
 fn failed_with(result: &BehaviorResult, words: &str) -> bool {
-    matches!(result, BehaviorResult::Failed(reason) if reason.contains(words))
+    matches!(result, BehaviorResult::Failed { reason, .. } if reason.contains(words))
 }
 
 #[test]

@@ -62,8 +62,8 @@ impl ApiError {
                 HostError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
                 HostError::Behavior(b) => match b {
                     ServerError::UnknownBehavior(_) => (StatusCode::NOT_FOUND, "unknown_behavior"),
-                    ServerError::Rejected { .. } => {
-                        (StatusCode::UNPROCESSABLE_ENTITY, "goal_rejected")
+                    ServerError::Rejected { reason, .. } => {
+                        (StatusCode::UNPROCESSABLE_ENTITY, reason.code.as_str())
                     }
                     ServerError::NotActive(_)
                     | ServerError::NotRunning(_)

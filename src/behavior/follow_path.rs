@@ -1,11 +1,12 @@
 //! `follow_path`: fly a smooth trajectory through waypoints without stopping between them.
 
 use super::goal::{
-    check_finite, check_positive, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs,
+    activate_in_flight, check_finite, check_positive, frame_or_earth, modify_in_flight,
+    FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
-use super::registry::{BehaviorSpec, Goal, Resource};
+use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
 use super::server::seconds_since;
-use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Step};
+use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
@@ -77,7 +78,7 @@ pub struct FollowPath {
 }
 
 impl FollowPath {
-    fn new(goal: FollowPathGoal) -> Self {
+    pub(crate) fn new(goal: FollowPathGoal) -> Self {
         Self {
             goal,
             waypoints: Vec::new(),
@@ -89,7 +90,7 @@ impl FollowPath {
         }
     }
 
-    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn resolve_goal(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         let frame = frame_or_earth(&self.goal.frame_id);
         self.waypoints = self
             .goal
@@ -98,7 +99,7 @@ impl FollowPath {
             .map(|&[x, y, z]| {
                 ctx.frames
                     .point_to_earth(&Vec3::new(x, y, z), &frame, ctx.now)
-                    .map_err(|e| format!("cannot resolve path: {e}"))
+                    .map_err(|e| Failure::from(e).within("cannot resolve path"))
             })
             .collect::<Result<_, _>>()?;
         self.yaw = self.goal.yaw.resolve(ctx, &frame)?;
@@ -122,23 +123,25 @@ impl FollowPath {
     }
 }
 
-impl Behavior for FollowPath {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        if !ctx.is_flying() {
-            return Err("platform is not flying".into());
-        }
-        self.start(ctx)
+impl InFlight for FollowPath {
+    type Goal = FollowPathGoal;
+
+    fn goal_mut(&mut self) -> &mut FollowPathGoal {
+        &mut self.goal
     }
 
-    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
-        let goal: FollowPathGoal = parse_args(args)?;
-        goal.check()?;
-        let previous = std::mem::replace(&mut self.goal, goal);
-        if let Err(e) = self.start(ctx) {
-            self.goal = previous;
-            return Err(e);
-        }
-        Ok(())
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        self.resolve_goal(ctx)
+    }
+}
+
+impl Behavior for FollowPath {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        activate_in_flight(self, ctx)
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
+        modify_in_flight(self, ctx, goal)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
@@ -147,7 +150,7 @@ impl Behavior for FollowPath {
 
     fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
         let Some(trajectory) = self.trajectory.as_mut() else {
-            return Step::Failed("no trajectory".into());
+            return Step::Failed(Failure::new(FailureCode::Internal, "no trajectory"));
         };
         let sample = trajectory.advance(ctx.dt_s, &ctx.position());
         // The reference waits for a lagging vehicle, so a vehicle that cannot follow shows
@@ -157,9 +160,12 @@ impl Behavior for FollowPath {
             self.best_remaining_m = remaining_m;
             self.best_at = ctx.now;
         } else if seconds_since(ctx.now, self.best_at) > ctx.config.no_progress_timeout_s {
-            return Step::Failed(format!(
-                "no progress for {:.0} s, {remaining_m:.2} m of path left",
-                ctx.config.no_progress_timeout_s
+            return Step::Failed(Failure::new(
+                FailureCode::NoProgress,
+                format!(
+                    "no progress for {:.0} s, {remaining_m:.2} m of path left",
+                    ctx.config.no_progress_timeout_s
+                ),
             ));
         }
         // Waypoints count as passed when the vehicle comes within the threshold.

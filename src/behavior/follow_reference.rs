@@ -1,10 +1,13 @@
 //! `follow_reference`: track a point in a (possibly moving) frame with per-axis speed limits.
 //! Never finishes by itself; stop it or start another motion behavior.
 
-use super::goal::{check_finite, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs};
-use super::registry::{BehaviorSpec, Goal, Resource};
+use super::goal::{
+    activate_in_flight, check_finite, frame_or_earth, modify_in_flight, FramedPoint, InFlight,
+    ResolvedYaw, YawArgs,
+};
+use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
 use super::server::seconds_since;
-use super::{yaw_target, Behavior, BehaviorContext, Step};
+use super::{yaw_target, Behavior, BehaviorContext, Failure, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
 use crate::types::Vec3;
@@ -76,36 +79,38 @@ impl FollowReference {
             last_target: None,
         }
     }
-    fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, String> {
+    fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, Failure> {
         ctx.frames
             .point_to_earth(
                 &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
                 &self.goal.frame_id,
                 ctx.now,
             )
-            .map_err(|e| format!("cannot resolve reference: {e}"))
+            .map_err(|e| Failure::from(e).within("cannot resolve reference"))
     }
 }
 
-impl Behavior for FollowReference {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        if !ctx.is_flying() {
-            return Err("platform is not flying".into());
-        }
+impl InFlight for FollowReference {
+    type Goal = FollowReferenceGoal;
+
+    fn goal_mut(&mut self) -> &mut FollowReferenceGoal {
+        &mut self.goal
+    }
+
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         self.target(ctx)?;
         self.yaw = self.goal.yaw.resolve(ctx, &self.goal.frame_id)?;
         Ok(())
     }
+}
 
-    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
-        let goal: FollowReferenceGoal = parse_args(args)?;
-        goal.check()?;
-        let previous = std::mem::replace(&mut self.goal, goal);
-        if let Err(e) = self.activate(ctx) {
-            self.goal = previous;
-            return Err(e);
-        }
-        Ok(())
+impl Behavior for FollowReference {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        activate_in_flight(self, ctx)
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
+        modify_in_flight(self, ctx, goal)
     }
 
     fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {

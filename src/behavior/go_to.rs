@@ -1,11 +1,12 @@
 //! `go_to`: fly to a point in any frame (a moving frame is tracked), and `go_to_gps`.
 
 use super::goal::{
-    check_finite, check_positive, frame_or_earth, FramedPoint, ResolvedYaw, YawArgs,
+    activate_in_flight, check_finite, check_positive, frame_or_earth, modify_in_flight,
+    FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
-use super::registry::{BehaviorSpec, Goal, Resource};
+use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
 use super::server::seconds_since;
-use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Step};
+use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::MotionReference;
 use crate::estimator::frames::EARTH;
 use crate::estimator::geodetic::GeoPoint;
@@ -121,7 +122,7 @@ pub struct GoTo {
 }
 
 impl GoTo {
-    fn new(goal: GoToGoal) -> Self {
+    pub(crate) fn new(goal: GoToGoal) -> Self {
         Self {
             goal,
             yaw: ResolvedYaw::Fixed(0.0),
@@ -132,7 +133,7 @@ impl GoTo {
     }
 
     /// The goal in `earth` now.
-    fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, String> {
+    fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, Failure> {
         let frame = frame_or_earth(&self.goal.frame_id);
         let point = Vec3::new(self.goal.x, self.goal.y, self.goal.z);
         if frame == super::goal::WGS84 {
@@ -141,14 +142,25 @@ impl GoTo {
                 lon_deg: point.y,
                 alt_m: point.z,
             };
-            return ctx.geo_origin.to_enu(&geo).map_err(|e| e.to_string());
+            return ctx
+                .geo_origin
+                .to_enu(&geo)
+                .map_err(|e| Failure::new(FailureCode::FrameUnresolved, e.to_string()));
         }
         ctx.frames
             .point_to_earth(&point, &frame, ctx.now)
-            .map_err(|e| format!("cannot resolve goal: {e}"))
+            .map_err(|e| Failure::from(e).within("cannot resolve goal"))
+    }
+}
+
+impl InFlight for GoTo {
+    type Goal = GoToGoal;
+
+    fn goal_mut(&mut self) -> &mut GoToGoal {
+        &mut self.goal
     }
 
-    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         let frame = frame_or_earth(&self.goal.frame_id);
         let yaw_frame = if frame == super::goal::WGS84 {
             EARTH.to_string()
@@ -165,22 +177,12 @@ impl GoTo {
 }
 
 impl Behavior for GoTo {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        if !ctx.is_flying() {
-            return Err("platform is not flying".into());
-        }
-        self.start(ctx)
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        activate_in_flight(self, ctx)
     }
 
-    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
-        let goal: GoToGoal = super::goal::parse_args(args)?;
-        goal.check()?;
-        let previous = std::mem::replace(&mut self.goal, goal);
-        if let Err(e) = self.start(ctx) {
-            self.goal = previous;
-            return Err(e);
-        }
-        Ok(())
+    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
+        modify_in_flight(self, ctx, goal)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
@@ -207,9 +209,12 @@ impl Behavior for GoTo {
             self.best_distance_m = distance;
             self.best_at = ctx.now;
         } else if seconds_since(ctx.now, self.best_at) > ctx.config.no_progress_timeout_s {
-            return Step::Failed(format!(
-                "no progress for {:.0} s, {distance:.2} m from the goal",
-                ctx.config.no_progress_timeout_s
+            return Step::Failed(Failure::new(
+                FailureCode::NoProgress,
+                format!(
+                    "no progress for {:.0} s, {distance:.2} m from the goal",
+                    ctx.config.no_progress_timeout_s
+                ),
             ));
         }
         let reference = MotionReference::Position {

@@ -1,6 +1,7 @@
 //! Goal pieces shared by behaviors: framed points and yaw modes, parsed from JSON arguments.
 
-use super::BehaviorContext;
+use super::registry::ParsedGoal;
+use super::{BehaviorContext, Failure};
 use crate::estimator::frames::EARTH;
 use crate::types::Vec3;
 use schemars::JsonSchema;
@@ -80,32 +81,63 @@ impl YawArgs {
         }
     }
 
-    pub fn resolve(&self, ctx: &BehaviorContext, frame: &str) -> Result<ResolvedYaw, String> {
+    pub fn resolve(&self, ctx: &BehaviorContext, frame: &str) -> Result<ResolvedYaw, Failure> {
         Ok(match self.yaw_mode {
             YawMode::Keep => ResolvedYaw::Fixed(ctx.yaw()),
             YawMode::PathFacing => ResolvedYaw::PathFacing,
             YawMode::Fixed => {
                 let angle = self
                     .yaw_angle
-                    .ok_or("yaw_mode fixed needs yaw_angle (rad)")?;
-                ResolvedYaw::Fixed(
-                    ctx.frames
-                        .yaw_to_earth(angle, frame, ctx.now)
-                        .map_err(|e| e.to_string())?,
-                )
+                    .ok_or_else(|| Failure::invalid("yaw_mode fixed needs yaw_angle (rad)"))?;
+                ResolvedYaw::Fixed(ctx.frames.yaw_to_earth(angle, frame, ctx.now)?)
             }
             YawMode::FacePoint => {
                 let [x, y, z] = self
                     .face_point
-                    .ok_or("yaw_mode face_point needs face_point")?;
+                    .ok_or_else(|| Failure::invalid("yaw_mode face_point needs face_point"))?;
                 ResolvedYaw::Face(
                     ctx.frames
-                        .point_to_earth(&Vec3::new(x, y, z), frame, ctx.now)
-                        .map_err(|e| e.to_string())?,
+                        .point_to_earth(&Vec3::new(x, y, z), frame, ctx.now)?,
                 )
             }
         })
     }
+}
+
+/// Motion behaviors whose goal is resolved against the vehicle's state when they start and can
+/// be replaced in flight: their lifecycle rules are written here once.
+pub(crate) trait InFlight {
+    type Goal: Clone + 'static;
+    fn goal_mut(&mut self) -> &mut Self::Goal;
+    /// Resolves the current goal (frames, yaw) and prepares to fly it.
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure>;
+}
+
+/// `activate` of an [`InFlight`] behavior: only when airborne, then start.
+pub(crate) fn activate_in_flight<B: InFlight>(
+    b: &mut B,
+    ctx: &BehaviorContext,
+) -> Result<(), Failure> {
+    if !ctx.is_flying() {
+        return Err(Failure::not_flying());
+    }
+    b.start(ctx)
+}
+
+/// `modify` of an [`InFlight`] behavior: the new goal replaces the old one, which comes back
+/// if the new one cannot start (the flight goes on unchanged).
+pub(crate) fn modify_in_flight<B: InFlight>(
+    b: &mut B,
+    ctx: &BehaviorContext,
+    goal: &ParsedGoal,
+) -> Result<(), Failure> {
+    let new = goal.typed::<B::Goal>()?;
+    let previous = std::mem::replace(b.goal_mut(), new);
+    if let Err(e) = b.start(ctx) {
+        *b.goal_mut() = previous;
+        return Err(e);
+    }
+    Ok(())
 }
 
 /// Pseudo-frame of geographic goals: x = latitude (deg), y = longitude (deg), z = altitude AMSL (m).

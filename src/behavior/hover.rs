@@ -2,7 +2,7 @@
 
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{Behavior, BehaviorContext, Step};
+use super::{Behavior, BehaviorContext, Failure, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
 use schemars::JsonSchema;
@@ -55,9 +55,9 @@ impl Hover {
 }
 
 impl Behavior for Hover {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         if !ctx.is_flying() {
-            return Err("platform is not flying".into());
+            return Err(Failure::not_flying());
         }
         self.hold = Some(ctx.hold_here());
         self.started = ctx.now;

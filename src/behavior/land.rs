@@ -5,7 +5,7 @@
 
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{goal::check_positive, Behavior, BehaviorContext, Step};
+use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
 use crate::types::{FlightStatus, Vec3};
@@ -58,7 +58,7 @@ pub struct Land {
 const DISARM_TIMEOUT_S: f64 = 5.0;
 
 impl Land {
-    fn new(goal: LandGoal) -> Self {
+    pub(crate) fn new(goal: LandGoal) -> Self {
         Self {
             goal,
             hold_xy: Vec3::zeros(),
@@ -72,9 +72,12 @@ impl Land {
 }
 
 impl Behavior for Land {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         if !ctx.platform.armed {
-            return Err("not armed: already on the ground".into());
+            return Err(Failure::new(
+                FailureCode::NotFlying,
+                "not armed: already on the ground",
+            ));
         }
         self.hold_xy = ctx.position();
         self.yaw_rad = ctx.yaw();
@@ -97,9 +100,12 @@ impl Behavior for Land {
                 return Step::Succeeded;
             }
             if seconds_since(ctx.now, t) > DISARM_TIMEOUT_S {
-                return Step::Failed(format!(
-                    "landed but disarm refused: {}",
-                    ctx.platform.last_error.clone().unwrap_or_default()
+                return Step::Failed(Failure::new(
+                    FailureCode::AutopilotRefused,
+                    format!(
+                        "landed but disarm refused: {}",
+                        ctx.platform.last_error.clone().unwrap_or_default()
+                    ),
                 ));
             }
             requests.push(PlatformRequest::Disarm);
@@ -210,7 +216,10 @@ mod tests {
         let (step, _) = run(&mut land, &scene, Duration::from_secs(9));
         assert_eq!(
             step,
-            Step::Failed("landed but disarm refused: disarm refused: vehicle in air".into())
+            Step::Failed(Failure::new(
+                FailureCode::AutopilotRefused,
+                "landed but disarm refused: disarm refused: vehicle in air"
+            ))
         );
     }
 

@@ -9,6 +9,7 @@
 //! vehicle where it is); `resume` → running again from where it is; `modify(goal)` changes the
 //! goal in flight; `stop` → aborted. Results: succeeded, failed(reason), aborted(reason).
 
+mod failure;
 mod follow_path;
 mod follow_reference;
 mod go_to;
@@ -26,8 +27,9 @@ mod takeoff;
 #[cfg(test)]
 pub(crate) mod testing;
 
+pub use failure::{Failure, FailureCode};
 pub use goal::{FramedPoint, YawMode, WGS84};
-pub use registry::{BehaviorSpec, Goal, GoalSummary, Registry, Resource};
+pub use registry::{BehaviorSpec, Goal, GoalSummary, ParsedGoal, Registry, Resource};
 pub use server::{
     ActiveInfo, BehaviorEvent, BehaviorId, BehaviorResult, BehaviorServer, RunState, ServerError,
 };
@@ -126,7 +128,7 @@ pub enum Step {
         feedback: serde_json::Value,
     },
     Succeeded,
-    Failed(String),
+    Failed(Failure),
 }
 
 /// One behavior instance, created from a goal by its [`BehaviorSpec`].
@@ -136,10 +138,12 @@ pub enum Step {
 /// while running (never while paused). `modify` replaces the goal in flight; the default
 /// refuses. `resume` is called after a pause, before the next `run`.
 pub trait Behavior: Send {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String>;
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure>;
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step;
-    fn modify(&mut self, _ctx: &BehaviorContext, _args: &serde_json::Value) -> Result<(), String> {
-        Err("this behavior cannot be modified in flight".into())
+    fn modify(&mut self, _ctx: &BehaviorContext, _goal: &ParsedGoal) -> Result<(), Failure> {
+        Err(Failure::invalid(
+            "this behavior cannot be modified in flight",
+        ))
     }
     fn resume(&mut self, _ctx: &BehaviorContext) {}
 }

@@ -12,15 +12,19 @@
 //! map (outside it, or in or too near a mapped obstacle) is refused at start; no path fails with
 //! the planner's reason.
 
+use super::follow_path::{FollowPath, FollowPathGoal};
+use super::goal::YawMode;
 use super::goal::{
-    check_finite, check_positive, frame_or_earth, parse_args, FramedPoint, ResolvedYaw, YawArgs,
+    activate_in_flight, check_finite, check_positive, frame_or_earth, modify_in_flight,
+    FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
 use super::nav_path::NavPath;
-use super::registry::{BehaviorSpec, Goal, Resource};
+use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
 use super::server::seconds_since;
 use super::services::Ticket;
-use super::{Behavior, BehaviorContext, Step};
+use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::{MotionReference, YawTarget};
+use crate::estimator::frames::EARTH;
 use crate::mapping::server::MapServer;
 use crate::planning::{
     PlanError, PlanRequest, PlannedPath, PlannerKind, UnknownPolicy, MAX_UNKNOWN_EXTRA_COST,
@@ -168,7 +172,7 @@ pub struct NavigateTo {
     /// The goal in `earth`, fixed at activation.
     target: Vec3,
     /// The child's yaw settings in `earth`.
-    yaw_args: serde_json::Value,
+    yaw_args: YawArgs,
     path: Option<NavPath>,
     child: Option<Box<dyn Behavior>>,
     pending: Option<Pending>,
@@ -183,7 +187,7 @@ impl NavigateTo {
         Self {
             goal,
             target: Vec3::zeros(),
-            yaw_args: json!({}),
+            yaw_args: YawArgs::default(),
             path: None,
             child: None,
             pending: None,
@@ -196,7 +200,7 @@ impl NavigateTo {
 
     /// Resolves the goal and the yaw in `earth`, refuses a goal the map already rules out, and
     /// asks for the first plan.
-    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn resolve_goal(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         let frame = frame_or_earth(&self.goal.frame_id);
         self.target = ctx
             .frames
@@ -205,21 +209,24 @@ impl NavigateTo {
                 &frame,
                 ctx.now,
             )
-            .map_err(|e| format!("cannot resolve goal: {e}"))?;
+            .map_err(|e| Failure::from(e).within("cannot resolve goal"))?;
+        let yaw = |yaw_mode, yaw_angle, face_point| YawArgs {
+            yaw_mode,
+            yaw_angle,
+            face_point,
+        };
         self.yaw_args = if self.goal.spin_rate.is_some() {
-            json!({ "yaw_mode": "path_facing" })
+            yaw(YawMode::PathFacing, None, None)
         } else {
             match self.goal.yaw.resolve(ctx, &frame)? {
-                ResolvedYaw::Fixed(a) => json!({ "yaw_mode": "fixed", "yaw_angle": a }),
-                ResolvedYaw::PathFacing => json!({ "yaw_mode": "path_facing" }),
-                ResolvedYaw::Face(p) => {
-                    json!({ "yaw_mode": "face_point", "face_point": [p.x, p.y, p.z] })
-                }
+                ResolvedYaw::Fixed(a) => yaw(YawMode::Fixed, Some(a), None),
+                ResolvedYaw::PathFacing => yaw(YawMode::PathFacing, None, None),
+                ResolvedYaw::Face(p) => yaw(YawMode::FacePoint, None, Some([p.x, p.y, p.z])),
             }
         };
         self.replans = 0;
-        let map = ctx.map.ok_or(NavError::NoMap).map_err(|e| e.to_string())?;
-        self.goal_plausible(map).map_err(|e| e.to_string())?;
+        let map = ctx.map.ok_or_else(no_map)?;
+        self.goal_plausible(map)?;
         self.ask_plan(ctx, map);
         Ok(())
     }
@@ -228,15 +235,13 @@ impl NavigateTo {
     /// map, occupied or within the safety distance of an obstacle, or unknown when unknown
     /// space is not to be flown. The planner checks the same on its own map; this catches it
     /// at start, before anything flies.
-    fn goal_plausible(&self, map: &MapServer) -> Result<(), NavError> {
+    fn goal_plausible(&self, map: &MapServer) -> Result<(), Failure> {
         let grid = map.grid();
         let spec = grid.spec();
         let goal = nalgebra::Vector2::new(self.target.x, self.target.y);
-        let value = grid
-            .get_at(goal)
-            .ok_or(NavError::Plan(PlanError::GoalOutsideMap))?;
+        let value = grid.get_at(goal).ok_or(PlanError::GoalOutsideMap)?;
         if self.goal.unknown == UnknownArg::Blocked && value < 0 {
-            return Err(NavError::Plan(PlanError::GoalOccupied));
+            return Err(PlanError::GoalOccupied.into());
         }
         let radius_m = self.goal.safety_distance + spec.resolution_m;
         let steps = (radius_m / spec.resolution_m).ceil() as i64;
@@ -247,7 +252,7 @@ impl NavigateTo {
                     continue;
                 }
                 if map.is_occupied_at(goal + offset) == Some(true) {
-                    return Err(NavError::Plan(PlanError::GoalOccupied));
+                    return Err(PlanError::GoalOccupied.into());
                 }
             }
         }
@@ -283,30 +288,28 @@ impl NavigateTo {
         self.planned_at = ctx.now;
     }
 
-    /// Hands a planned path to a new `follow_path` child.
-    fn fly(&mut self, ctx: &BehaviorContext, path: &PlannedPath) -> Result<(), NavError> {
-        let waypoints: Vec<[f64; 3]> = path
-            .waypoints_enu_m
-            .iter()
-            .map(|p| [p.x, p.y, p.z])
-            .collect();
-        let mut goal = json!({ "path": waypoints, "speed": self.goal.speed, "frame_id": "earth" });
-        if let (Some(g), Some(y)) = (goal.as_object_mut(), self.yaw_args.as_object()) {
-            g.extend(y.clone());
-        }
-        let spec = super::follow_path::spec();
-        let mut child = (spec.create)(&goal).map_err(NavError::FollowPath)?;
-        child.activate(ctx).map_err(NavError::FollowPath)?;
-        self.child = Some(child);
+    /// Hands a planned path to a new `follow_path` child, built directly from its typed goal.
+    fn fly(&mut self, ctx: &BehaviorContext, path: &PlannedPath) -> Result<(), Failure> {
+        let goal = FollowPathGoal {
+            path: path
+                .waypoints_enu_m
+                .iter()
+                .map(|p| [p.x, p.y, p.z])
+                .collect(),
+            speed: self.goal.speed,
+            yaw: self.yaw_args.clone(),
+            frame_id: Some(EARTH.to_string()),
+        };
+        goal.check().map_err(Failure::invalid)?;
+        let mut child = FollowPath::new(goal);
+        child.activate(ctx).map_err(|e| e.within("follow_path"))?;
+        self.child = Some(Box::new(child));
         self.path = Some(NavPath::new(ctx.position(), &path.waypoints_enu_m));
         Ok(())
     }
 
     /// While a plan is pending: the hold, or the plan flown as soon as it arrived.
-    fn wait_for_plan(
-        &mut self,
-        ctx: &BehaviorContext,
-    ) -> Result<Option<MotionReference>, NavError> {
+    fn wait_for_plan(&mut self, ctx: &BehaviorContext) -> Result<Option<MotionReference>, Failure> {
         let Some(pending) = self.pending.as_ref() else {
             return Ok(None);
         };
@@ -362,34 +365,32 @@ impl NavigateTo {
     }
 }
 
-/// Why navigation cannot go on.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-enum NavError {
-    #[error("no map: mapping is off ([map] plugin = \"none\")")]
-    NoMap,
-    #[error("no path to the goal: {0}")]
-    Plan(#[from] PlanError),
-    #[error("follow_path: {0}")]
-    FollowPath(String),
+fn no_map() -> Failure {
+    Failure::new(
+        FailureCode::NoMap,
+        "no map: mapping is off ([map] plugin = \"none\")",
+    )
+}
+
+impl InFlight for NavigateTo {
+    type Goal = NavigateToGoal;
+
+    fn goal_mut(&mut self) -> &mut NavigateToGoal {
+        &mut self.goal
+    }
+
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        self.resolve_goal(ctx)
+    }
 }
 
 impl Behavior for NavigateTo {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        if !ctx.is_flying() {
-            return Err("platform is not flying".into());
-        }
-        self.start(ctx)
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        activate_in_flight(self, ctx)
     }
 
-    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
-        let goal: NavigateToGoal = parse_args(args)?;
-        goal.check()?;
-        let previous = std::mem::replace(&mut self.goal, goal);
-        if let Err(e) = self.start(ctx) {
-            self.goal = previous;
-            return Err(e);
-        }
-        Ok(())
+    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
+        modify_in_flight(self, ctx, goal)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
@@ -405,7 +406,7 @@ impl Behavior for NavigateTo {
             None => r,
         };
         match self.wait_for_plan(ctx) {
-            Err(e) => return Step::Failed(e.to_string()),
+            Err(e) => return Step::Failed(e),
             Ok(Some(hold)) => {
                 return Step::Running {
                     reference: Some(spin(hold)),
@@ -430,7 +431,10 @@ impl Behavior for NavigateTo {
             }
         }
         let Some(child) = self.child.as_mut() else {
-            return Step::Failed("navigate_to was not activated".into());
+            return Step::Failed(Failure::new(
+                FailureCode::Internal,
+                "navigate_to was not activated",
+            ));
         };
         match child.run(ctx, requests) {
             Step::Running { reference, .. } => Step::Running {
@@ -438,7 +442,7 @@ impl Behavior for NavigateTo {
                 feedback: self.feedback(ctx),
             },
             Step::Succeeded => Step::Succeeded,
-            Step::Failed(reason) => Step::Failed(format!("follow_path: {reason}")),
+            Step::Failed(reason) => Step::Failed(reason.within("follow_path")),
         }
     }
 }

@@ -2,10 +2,11 @@
 //! behavior server, missions and the API's behavior list (with its argument schema).
 
 use super::goal::{parse_args, FramedPoint};
-use super::Behavior;
+use super::{Behavior, Failure, FailureCode};
 use schemars::JsonSchema;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
+use std::any::Any;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -19,7 +20,7 @@ pub enum Resource {
 }
 
 /// A goal type: parsed from JSON, checked without flying, and able to say where it goes.
-pub trait Goal: DeserializeOwned + JsonSchema + Send + 'static {
+pub trait Goal: DeserializeOwned + JsonSchema + Clone + Send + Sync + 'static {
     /// Static checks (ranges, required combinations); the message names field and unit.
     fn check(&self) -> Result<(), String>;
     /// Points the goal flies to, for frame and geofence validation.
@@ -39,8 +40,56 @@ pub struct GoalSummary {
     pub speeds_mps: Vec<f64>,
 }
 
-type CreateFn = dyn Fn(&serde_json::Value) -> Result<Box<dyn Behavior>, String> + Send + Sync;
-type ValidateFn = dyn Fn(&serde_json::Value) -> Result<GoalSummary, String> + Send + Sync;
+/// A goal parsed and checked once (by mission validation, or when the API starts a behavior),
+/// then carried typed to the behavior: nothing parses it again.
+#[derive(Clone)]
+pub struct ParsedGoal {
+    behavior: &'static str,
+    /// The arguments as given, for events, logs and persistence.
+    args: serde_json::Value,
+    typed: Arc<dyn Any + Send + Sync>,
+    summary: GoalSummary,
+}
+
+impl std::fmt::Debug for ParsedGoal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "ParsedGoal({} {})", self.behavior, self.args)
+    }
+}
+
+impl PartialEq for ParsedGoal {
+    fn eq(&self, other: &Self) -> bool {
+        self.behavior == other.behavior && self.args == other.args
+    }
+}
+
+impl ParsedGoal {
+    pub fn behavior(&self) -> &'static str {
+        self.behavior
+    }
+
+    pub fn args(&self) -> &serde_json::Value {
+        &self.args
+    }
+
+    /// Where the goal flies and how fast, for frame and geofence checks.
+    pub fn summary(&self) -> &GoalSummary {
+        &self.summary
+    }
+
+    /// The typed goal; a goal of another behavior's type is refused.
+    pub fn typed<G: Clone + 'static>(&self) -> Result<G, Failure> {
+        self.typed.downcast_ref::<G>().cloned().ok_or_else(|| {
+            Failure::new(
+                FailureCode::Internal,
+                format!("a goal of {} given to another behavior", self.behavior),
+            )
+        })
+    }
+}
+
+type ParseFn = dyn Fn(&serde_json::Value) -> Result<ParsedGoal, Failure> + Send + Sync;
+type CreateFn = dyn Fn(&ParsedGoal) -> Result<Box<dyn Behavior>, Failure> + Send + Sync;
 
 #[derive(Clone)]
 pub struct BehaviorSpec {
@@ -49,8 +98,10 @@ pub struct BehaviorSpec {
     pub resource: Resource,
     /// JSON Schema of the goal arguments.
     pub args_schema: serde_json::Value,
+    /// Parses and checks arguments into a [`ParsedGoal`] of this behavior.
+    pub parse: Arc<ParseFn>,
+    /// Builds the behavior for a goal this spec parsed.
     pub create: Arc<CreateFn>,
-    pub validate: Arc<ValidateFn>,
 }
 
 impl BehaviorSpec {
@@ -67,20 +118,28 @@ impl BehaviorSpec {
             description,
             resource,
             args_schema,
-            create: Arc::new(move |args| {
-                let goal: G = parse_args(args)?;
-                goal.check()?;
-                Ok(Box::new(make(goal)) as Box<dyn Behavior>)
-            }),
-            validate: Arc::new(|args| {
-                let goal: G = parse_args(args)?;
-                goal.check()?;
-                Ok(GoalSummary {
-                    targets: goal.targets(),
-                    speeds_mps: goal.speeds_mps(),
+            parse: Arc::new(move |args| {
+                let goal: G = parse_args(args).map_err(Failure::invalid)?;
+                goal.check().map_err(Failure::invalid)?;
+                Ok(ParsedGoal {
+                    behavior: name,
+                    args: args.clone(),
+                    summary: GoalSummary {
+                        targets: goal.targets(),
+                        speeds_mps: goal.speeds_mps(),
+                    },
+                    typed: Arc::new(goal),
                 })
             }),
+            create: Arc::new(move |goal| {
+                Ok(Box::new(make(goal.typed::<G>()?)) as Box<dyn Behavior>)
+            }),
         }
+    }
+
+    /// Parses and builds in one go (children of composite behaviors, tests).
+    pub fn build(&self, args: &serde_json::Value) -> Result<Box<dyn Behavior>, Failure> {
+        (self.create)(&(self.parse)(args)?)
     }
 }
 

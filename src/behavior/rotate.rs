@@ -1,9 +1,9 @@
 //! `rotate`: turn in place to a heading (`yaw_angle`, in `frame_id`) or by an angle (`by_angle`)
 //! at `yaw_speed`.
 
-use super::goal::{frame_or_earth, parse_args};
-use super::registry::{BehaviorSpec, Goal, Resource};
-use super::{Behavior, BehaviorContext, Step};
+use super::goal::{activate_in_flight, frame_or_earth, modify_in_flight, InFlight};
+use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
+use super::{Behavior, BehaviorContext, Failure, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::platform::PlatformRequest;
 use crate::types::{wrap_angle_rad, Vec3};
@@ -72,37 +72,44 @@ impl Rotate {
         }
     }
 
-    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn resolve_goal(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         self.position = ctx.position();
         self.commanded_rad = ctx.yaw();
         self.remaining_rad = match (self.goal.yaw_angle, self.goal.by_angle) {
             (Some(angle), _) => {
-                let target = ctx
-                    .frames
-                    .yaw_to_earth(angle, &frame_or_earth(&self.goal.frame_id), ctx.now)
-                    .map_err(|e| e.to_string())?;
+                let target = ctx.frames.yaw_to_earth(
+                    angle,
+                    &frame_or_earth(&self.goal.frame_id),
+                    ctx.now,
+                )?;
                 wrap_angle_rad(target - ctx.yaw())
             }
             (None, Some(by)) => by,
-            (None, None) => return Err("give yaw_angle or by_angle".into()),
+            (None, None) => return Err(Failure::invalid("give yaw_angle or by_angle")),
         };
         Ok(())
     }
 }
 
-impl Behavior for Rotate {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        if !ctx.is_flying() {
-            return Err("platform is not flying".into());
-        }
-        self.start(ctx)
+impl InFlight for Rotate {
+    type Goal = RotateGoal;
+
+    fn goal_mut(&mut self) -> &mut RotateGoal {
+        &mut self.goal
     }
 
-    fn modify(&mut self, ctx: &BehaviorContext, args: &serde_json::Value) -> Result<(), String> {
-        let goal: RotateGoal = parse_args(args)?;
-        goal.check()?;
-        self.goal = goal;
-        self.start(ctx)
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        self.resolve_goal(ctx)
+    }
+}
+
+impl Behavior for Rotate {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        activate_in_flight(self, ctx)
+    }
+
+    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
+        modify_in_flight(self, ctx, goal)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {

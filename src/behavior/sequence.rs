@@ -1,9 +1,12 @@
 //! Composite behaviors: a sequence of registered behaviors run one after another, built from
 //! the primitives (never copied from them). `rtl` = climb to a height, go_to home, then land.
 
-use super::goal::check_positive;
+use super::go_to::{GoTo, GoToGoal};
+use super::goal::{check_positive, YawArgs};
+use super::land::{Land, LandGoal};
 use super::registry::{BehaviorSpec, Goal, Resource};
-use super::{Behavior, BehaviorContext, Step};
+use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
+use crate::estimator::frames::EARTH;
 use crate::platform::PlatformRequest;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -11,64 +14,59 @@ use serde_json::json;
 
 /// Runs child behaviors in order; fails as soon as one fails.
 pub struct Sequence {
-    /// Specs and goals of the children, built when the sequence activates.
-    plan: Vec<(BehaviorSpec, serde_json::Value)>,
+    /// The children, built from their typed goals; each activates when its turn comes.
+    plan: Vec<(&'static str, Box<dyn Behavior>)>,
     index: usize,
-    current: Option<Box<dyn Behavior>>,
 }
 
 impl Sequence {
-    pub fn new(plan: Vec<(BehaviorSpec, serde_json::Value)>) -> Self {
-        Self {
-            plan,
-            index: 0,
-            current: None,
-        }
+    pub fn new(plan: Vec<(&'static str, Box<dyn Behavior>)>) -> Self {
+        Self { plan, index: 0 }
     }
 
-    fn start_child(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        let (spec, goal) = self.plan.get(self.index).ok_or("sequence is empty")?;
-        let mut child = (spec.create)(goal)?;
-        child
-            .activate(ctx)
-            .map_err(|e| format!("{}: {e}", spec.name))?;
-        self.current = Some(child);
-        Ok(())
+    fn start_child(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        let (name, child) = self
+            .plan
+            .get_mut(self.index)
+            .ok_or_else(|| Failure::new(FailureCode::Internal, "sequence is empty"))?;
+        child.activate(ctx).map_err(|e| e.within(name))
     }
 
     fn child_name(&self) -> &'static str {
-        self.plan.get(self.index).map(|(s, _)| s.name).unwrap_or("")
+        self.plan.get(self.index).map(|(n, _)| *n).unwrap_or("")
     }
 }
 
 impl Behavior for Sequence {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         self.index = 0;
         self.start_child(ctx)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
-        if let Some(c) = self.current.as_mut() {
+        if let Some((_, c)) = self.plan.get_mut(self.index) {
             c.resume(ctx);
         }
     }
 
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
-        let Some(child) = self.current.as_mut() else {
-            return Step::Failed("no active step".into());
+        let name = self.child_name();
+        let Some((_, child)) = self.plan.get_mut(self.index) else {
+            return Step::Failed(Failure::new(FailureCode::Internal, "no active step"));
         };
         match child.run(ctx, requests) {
             Step::Running {
                 reference,
                 feedback,
             } => {
-                let feedback = json!({ "step": self.child_name(), "step_index": self.index, "step_feedback": feedback });
+                let feedback =
+                    json!({ "step": name, "step_index": self.index, "step_feedback": feedback });
                 Step::Running {
                     reference,
                     feedback,
                 }
             }
-            Step::Failed(reason) => Step::Failed(format!("{}: {reason}", self.child_name())),
+            Step::Failed(reason) => Step::Failed(reason.within(name)),
             Step::Succeeded => {
                 self.index += 1;
                 if self.index >= self.plan.len() {
@@ -138,23 +136,36 @@ impl Rtl {
 }
 
 impl Behavior for Rtl {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
-        let home = ctx
-            .home_enu_m
-            .ok_or("no home position: the vehicle has not armed")?;
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        let home = ctx.home_enu_m.ok_or_else(|| {
+            Failure::new(
+                FailureCode::NotReady,
+                "no home position: the vehicle has not armed",
+            )
+        })?;
         // Climb first (never descend) to the return height, fly home level, then land.
         let here = ctx.position();
         let cruise_z = (home.z + self.goal.height).max(here.z);
-        let go = |x: f64, y: f64| json!({ "x": x, "y": y, "z": cruise_z, "speed": self.goal.speed, "frame_id": "earth" });
+        let go = |x: f64, y: f64| -> (&'static str, Box<dyn Behavior>) {
+            let goal = GoToGoal {
+                x,
+                y,
+                z: cruise_z,
+                speed: self.goal.speed,
+                yaw: YawArgs::default(),
+                frame_id: Some(EARTH.to_string()),
+            };
+            ("go_to", Box::new(GoTo::new(goal)))
+        };
         let mut plan = Vec::new();
         if cruise_z - here.z > ctx.config.goal_threshold_m {
-            plan.push((super::go_to::spec(), go(here.x, here.y)));
+            plan.push(go(here.x, here.y));
         }
-        plan.push((super::go_to::spec(), go(home.x, home.y)));
-        plan.push((
-            super::land::spec(),
-            json!({ "speed": self.goal.land_speed }),
-        ));
+        plan.push(go(home.x, home.y));
+        let land = LandGoal {
+            speed: self.goal.land_speed,
+        };
+        plan.push(("land", Box::new(Land::new(land))));
         let mut sequence = Sequence::new(plan);
         sequence.activate(ctx)?;
         self.sequence = Some(sequence);
@@ -170,7 +181,7 @@ impl Behavior for Rtl {
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
         match self.sequence.as_mut() {
             Some(s) => s.run(ctx, requests),
-            None => Step::Failed("rtl was not activated".into()),
+            None => Step::Failed(Failure::new(FailureCode::Internal, "rtl was not activated")),
         }
     }
 }

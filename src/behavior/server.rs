@@ -4,8 +4,9 @@
 //! aborted, "preempted"). When no motion behavior runs, or one is paused, the server holds the
 //! vehicle where it was, so stop, pause and failure all leave it hovering.
 
-use super::registry::{Registry, Resource};
+use super::registry::{ParsedGoal, Registry, Resource};
 use super::{Behavior, BehaviorContext, Step};
+use super::{Failure, FailureCode};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
 use serde::{Deserialize, Serialize};
@@ -20,12 +21,49 @@ pub enum RunState {
     Paused,
 }
 
+/// How a behavior ended. Serialised as `{"result": "succeeded"}` or
+/// `{"result": "failed" | "aborted", "code": <stable code>, "reason": <message>}`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "result", content = "reason")]
+#[serde(rename_all = "snake_case", tag = "result")]
 pub enum BehaviorResult {
     Succeeded,
-    Failed(String),
-    Aborted(String),
+    Failed { code: FailureCode, reason: String },
+    Aborted { code: FailureCode, reason: String },
+}
+
+impl BehaviorResult {
+    pub fn failed(f: Failure) -> Self {
+        BehaviorResult::Failed {
+            code: f.code,
+            reason: f.message,
+        }
+    }
+
+    pub fn aborted(f: Failure) -> Self {
+        BehaviorResult::Aborted {
+            code: f.code,
+            reason: f.message,
+        }
+    }
+
+    /// Why it did not succeed (`None` when it did).
+    pub fn reason(&self) -> Option<&str> {
+        match self {
+            BehaviorResult::Succeeded => None,
+            BehaviorResult::Failed { reason, .. } | BehaviorResult::Aborted { reason, .. } => {
+                Some(reason)
+            }
+        }
+    }
+
+    pub fn code(&self) -> Option<FailureCode> {
+        match self {
+            BehaviorResult::Succeeded => None,
+            BehaviorResult::Failed { code, .. } | BehaviorResult::Aborted { code, .. } => {
+                Some(*code)
+            }
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -61,13 +99,26 @@ pub enum ServerError {
     #[error("unknown behavior `{0}`")]
     UnknownBehavior(String),
     #[error("goal rejected by {behavior}: {reason}")]
-    Rejected { behavior: String, reason: String },
+    Rejected { behavior: String, reason: Failure },
     #[error("no running behavior with id {0}")]
     NotActive(BehaviorId),
     #[error("behavior {0} is not running")]
     NotRunning(BehaviorId),
     #[error("behavior {0} is not paused")]
     NotPaused(BehaviorId),
+}
+
+impl ServerError {
+    /// The stable code clients switch on.
+    pub fn code(&self) -> FailureCode {
+        match self {
+            ServerError::UnknownBehavior(_) => FailureCode::InvalidGoal,
+            ServerError::Rejected { reason, .. } => reason.code,
+            ServerError::NotActive(_) | ServerError::NotRunning(_) | ServerError::NotPaused(_) => {
+                FailureCode::Internal
+            }
+        }
+    }
 }
 
 /// A snapshot of one active behavior, for status displays.
@@ -136,18 +187,42 @@ impl BehaviorServer {
             .map(|a| &a.info)
     }
 
-    /// Creates the behavior from its goal, lets it check the goal now, and starts it.
+    /// Parses the goal for behavior `name`, then starts it (see [`Self::start_parsed`]).
     pub fn start(
         &mut self,
         name: &str,
         goal: &serde_json::Value,
         ctx: &BehaviorContext,
     ) -> Result<BehaviorId, ServerError> {
+        let parsed = self.parse(name, goal)?;
+        self.start_parsed(&parsed, ctx)
+    }
+
+    /// Parses and checks `args` for behavior `name` without starting anything.
+    pub fn parse(&self, name: &str, args: &serde_json::Value) -> Result<ParsedGoal, ServerError> {
         let spec = self
             .registry
             .get(name)
             .ok_or_else(|| ServerError::UnknownBehavior(name.to_string()))?;
-        let rejected = |reason: String| ServerError::Rejected {
+        (spec.parse)(args).map_err(|reason| ServerError::Rejected {
+            behavior: name.to_string(),
+            reason,
+        })
+    }
+
+    /// Creates the behavior of a parsed goal, lets it check the goal against the vehicle's
+    /// state now, and starts it, preempting whatever held its resource.
+    pub fn start_parsed(
+        &mut self,
+        goal: &ParsedGoal,
+        ctx: &BehaviorContext,
+    ) -> Result<BehaviorId, ServerError> {
+        let name = goal.behavior();
+        let spec = self
+            .registry
+            .get(name)
+            .ok_or_else(|| ServerError::UnknownBehavior(name.to_string()))?;
+        let rejected = |reason: Failure| ServerError::Rejected {
             behavior: name.to_string(),
             reason,
         };
@@ -163,7 +238,10 @@ impl BehaviorServer {
         for id in preempted {
             self.finish(
                 id,
-                BehaviorResult::Aborted(format!("preempted by {name}")),
+                BehaviorResult::aborted(Failure::new(
+                    FailureCode::Preempted,
+                    format!("preempted by {name}"),
+                )),
                 ctx,
             );
         }
@@ -174,7 +252,7 @@ impl BehaviorServer {
                 id,
                 behavior: name.to_string(),
                 state: RunState::Running,
-                goal: goal.clone(),
+                goal: goal.args().clone(),
                 feedback: serde_json::Value::Null,
                 started_at_s: ctx.now.as_secs_f64(),
             },
@@ -185,7 +263,7 @@ impl BehaviorServer {
         self.events.push(BehaviorEvent::Started {
             id,
             behavior: name.to_string(),
-            goal: goal.clone(),
+            goal: goal.args().clone(),
         });
         Ok(id)
     }
@@ -215,24 +293,26 @@ impl BehaviorServer {
         Ok(())
     }
 
+    /// Replaces the goal of a running or paused behavior; on refusal the old goal stays.
     pub fn modify(
         &mut self,
         id: BehaviorId,
         goal: &serde_json::Value,
         ctx: &BehaviorContext,
     ) -> Result<(), ServerError> {
+        let name = self.find(id)?.info.behavior.clone();
+        let parsed = self.parse(&name, goal)?;
         let a = self.find(id)?;
-        let behavior = a.info.behavior.clone();
         a.behavior
-            .modify(ctx, goal)
+            .modify(ctx, &parsed)
             .map_err(|reason| ServerError::Rejected {
-                behavior: behavior.clone(),
+                behavior: name.clone(),
                 reason,
             })?;
         a.info.goal = goal.clone();
         self.events.push(BehaviorEvent::Modified {
             id,
-            behavior,
+            behavior: name,
             goal: goal.clone(),
         });
         Ok(())
@@ -241,18 +321,22 @@ impl BehaviorServer {
     /// Stops a behavior; it ends aborted and the vehicle holds where it is.
     pub fn stop(&mut self, id: BehaviorId, ctx: &BehaviorContext) -> Result<(), ServerError> {
         self.find(id)?;
-        self.finish(id, BehaviorResult::Aborted("stopped".into()), ctx);
+        self.finish(
+            id,
+            BehaviorResult::aborted(Failure::new(FailureCode::Stopped, "stopped")),
+            ctx,
+        );
         Ok(())
     }
 
     /// Stops everything (link loss, emergency); each ends aborted with `reason`.
-    pub fn stop_all(&mut self, reason: &str, ctx: &BehaviorContext) {
-        self.end_all(&BehaviorResult::Aborted(reason.to_string()), ctx);
+    pub fn stop_all(&mut self, reason: Failure, ctx: &BehaviorContext) {
+        self.end_all(&BehaviorResult::aborted(reason), ctx);
     }
 
     /// Ends everything because the flight itself failed (a crash); each ends failed with `reason`.
-    pub fn fail_all(&mut self, reason: &str, ctx: &BehaviorContext) {
-        self.end_all(&BehaviorResult::Failed(reason.to_string()), ctx);
+    pub fn fail_all(&mut self, reason: Failure, ctx: &BehaviorContext) {
+        self.end_all(&BehaviorResult::failed(reason), ctx);
     }
 
     fn end_all(&mut self, result: &BehaviorResult, ctx: &BehaviorContext) {
@@ -314,7 +398,7 @@ impl BehaviorServer {
                     }
                 }
                 Step::Succeeded => finished.push((a.info.id, BehaviorResult::Succeeded)),
-                Step::Failed(reason) => finished.push((a.info.id, BehaviorResult::Failed(reason))),
+                Step::Failed(reason) => finished.push((a.info.id, BehaviorResult::failed(reason))),
             }
         }
         for (id, result) in finished {
@@ -353,7 +437,7 @@ mod tests {
     use serde_json::json;
 
     /// Succeeds after `ticks` runs; counts how often it ran.
-    #[derive(serde::Deserialize, schemars::JsonSchema)]
+    #[derive(Clone, serde::Deserialize, schemars::JsonSchema)]
     struct CountGoal {
         ticks: u32,
     }
@@ -367,7 +451,7 @@ mod tests {
         runs: u32,
     }
     impl Behavior for Count {
-        fn activate(&mut self, _ctx: &BehaviorContext) -> Result<(), String> {
+        fn activate(&mut self, _ctx: &BehaviorContext) -> Result<(), Failure> {
             Ok(())
         }
         fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
@@ -455,7 +539,10 @@ mod tests {
             .unwrap();
         assert_eq!(
             results(&s.drain_events()),
-            [(first, BehaviorResult::Aborted("preempted by count".into()))]
+            [(
+                first,
+                BehaviorResult::aborted(Failure::new(FailureCode::Preempted, "preempted by count"))
+            )]
         );
         assert_eq!(s.active().len(), 1);
         assert_eq!(s.active()[0].id, second);
@@ -479,13 +566,16 @@ mod tests {
             .unwrap();
         let refused = s.modify(id, &json!({ "ticks": 2 }), &w.ctx(0));
         assert!(
-            matches!(&refused, Err(ServerError::Rejected { reason, .. }) if reason.contains("cannot be modified")),
+            matches!(&refused, Err(ServerError::Rejected { reason, .. }) if reason.message.contains("cannot be modified")),
             "{refused:?}"
         );
         s.stop(id, &w.ctx(1)).unwrap();
         assert_eq!(
             results(&s.drain_events()),
-            [(id, BehaviorResult::Aborted("stopped".into()))]
+            [(
+                id,
+                BehaviorResult::aborted(Failure::new(FailureCode::Stopped, "stopped"))
+            )]
         );
     }
 

@@ -2,7 +2,7 @@
 
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{goal::check_positive, Behavior, BehaviorContext, Step};
+use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
 use crate::types::{FlightStatus, LinkHealth, Vec3};
@@ -93,13 +93,16 @@ impl Takeoff {
 }
 
 impl Behavior for Takeoff {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         if ctx.platform.flight.is_airborne() {
-            return Err("already flying".into());
+            return Err(Failure::invalid("already flying"));
         }
         if ctx.platform.flight == FlightStatus::Crashed {
             let reason = ctx.platform.last_error.as_deref().unwrap_or("crashed");
-            return Err(format!("the vehicle crashed ({reason}) and must be reset"));
+            return Err(Failure::new(
+                FailureCode::Crashed,
+                format!("the vehicle crashed ({reason}) and must be reset"),
+            ));
         }
         if ctx.state.valid.position {
             self.capture_start(ctx);
@@ -122,9 +125,12 @@ impl Behavior for Takeoff {
                             "no position estimate".into()
                         }
                     });
-                    return Step::Failed(format!(
-                        "vehicle not ready to fly after {:.0} s: {reason}",
-                        ctx.config.ready_timeout_s
+                    return Step::Failed(Failure::new(
+                        FailureCode::NotReady,
+                        format!(
+                            "vehicle not ready to fly after {:.0} s: {reason}",
+                            ctx.config.ready_timeout_s
+                        ),
                     ));
                 }
                 self.phase = Phase::WaitReady { since: Some(since) };
@@ -159,12 +165,14 @@ impl Behavior for Takeoff {
                 self.phase = Phase::Climbing;
             } else {
                 if seconds_since(ctx.now, since) > ctx.config.arm_timeout_s {
-                    let reason = ctx
-                        .platform
-                        .last_error
-                        .clone()
-                        .unwrap_or_else(|| "no answer from the autopilot".into());
-                    return Step::Failed(format!("could not arm and enter offboard: {reason}"));
+                    let failure = match ctx.platform.last_error.clone() {
+                        Some(reason) => Failure::new(FailureCode::AutopilotRefused, reason),
+                        None => Failure::new(
+                            FailureCode::AutopilotSilent,
+                            "no answer from the autopilot",
+                        ),
+                    };
+                    return Step::Failed(failure.within("could not arm and enter offboard"));
                 }
                 if last_request.is_none_or(|t| ctx.now.saturating_sub(t) >= REQUEST_PERIOD) {
                     if !ctx.platform.armed {
@@ -191,12 +199,13 @@ impl Behavior for Takeoff {
             }
         }
         if !ctx.platform.armed {
-            return Step::Failed(
+            return Step::Failed(Failure::new(
+                FailureCode::AutopilotRefused,
                 ctx.platform
                     .last_error
                     .clone()
                     .unwrap_or_else(|| "disarmed during takeoff".into()),
-            );
+            ));
         }
         let error = self.target.z - ctx.position().z;
         if error.abs() < ctx.config.takeoff_threshold_m && ctx.state.velocity_enu_mps.z.abs() < 0.1
@@ -278,7 +287,10 @@ mod tests {
         let (step, _) = run(&mut takeoff, &scene, ms(15_100));
         assert_eq!(
             step,
-            Step::Failed("could not arm and enter offboard: arming denied: battery empty".into())
+            Step::Failed(Failure::new(
+                FailureCode::AutopilotRefused,
+                "could not arm and enter offboard: arming denied: battery empty"
+            ))
         );
     }
 
@@ -381,7 +393,10 @@ mod tests {
         let (step, _) = run(&mut takeoff, &scene, s(61));
         match step {
             Step::Failed(reason) => {
-                assert!(reason.contains("Arm: Need Position Estimate"), "{reason}")
+                assert!(
+                    reason.message.contains("Arm: Need Position Estimate"),
+                    "{reason}"
+                )
             }
             other => panic!("expected a failure, got {other:?}"),
         }

@@ -5,7 +5,8 @@
 //! In: goals and the vehicle state. Out: `PointGimbal` / `TakePhoto` platform requests.
 
 use crate::behavior::{
-    Behavior, BehaviorContext, BehaviorSpec, FramedPoint, Goal, Registry, Resource, Step,
+    Behavior, BehaviorContext, BehaviorSpec, Failure, FailureCode, FramedPoint, Goal, Registry,
+    Resource, Step,
 };
 use crate::platform::PlatformRequest;
 use crate::types::{wrap_angle_rad, Vec3};
@@ -111,15 +112,12 @@ fn ack_of(
 
 impl PointGimbal {
     /// (pitch, yaw) in the body frame (FLU: positive pitch looks down), rad.
-    fn angles(&self, ctx: &BehaviorContext) -> Result<(f64, f64), String> {
-        let target = ctx
-            .frames
-            .point_to_earth(
-                &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
-                &frame_of(&self.goal.frame_id),
-                ctx.now,
-            )
-            .map_err(|e| e.to_string())?;
+    fn angles(&self, ctx: &BehaviorContext) -> Result<(f64, f64), Failure> {
+        let target = ctx.frames.point_to_earth(
+            &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
+            &frame_of(&self.goal.frame_id),
+            ctx.now,
+        )?;
         let d = target - ctx.position();
         let pitch = (-d.z).atan2(d.xy().norm());
         let yaw = wrap_angle_rad(d.y.atan2(d.x) - ctx.yaw());
@@ -128,7 +126,7 @@ impl PointGimbal {
 }
 
 impl Behavior for PointGimbal {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), String> {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         self.angles(ctx).map(|_| ())
     }
 
@@ -145,7 +143,12 @@ impl Behavior for PointGimbal {
             .is_none_or(|t| ctx.now.saturating_sub(t) >= GIMBAL_PERIOD);
         match ack_of(ctx, |r| matches!(r, PlatformRequest::PointGimbal { .. })) {
             Some(Ok(())) => self.acked = true,
-            Some(Err(reason)) => return Step::Failed(format!("gimbal command refused: {reason}")),
+            Some(Err(reason)) => {
+                return Step::Failed(Failure::new(
+                    FailureCode::AutopilotRefused,
+                    format!("gimbal command refused: {reason}"),
+                ))
+            }
             None => {}
         }
         if !self.goal.follow && self.acked {
@@ -153,7 +156,10 @@ impl Behavior for PointGimbal {
         }
         if let Some(sent) = self.last_sent.filter(|_| !self.acked) {
             if ctx.now.saturating_sub(sent) > ACK_TIMEOUT {
-                return Step::Failed("no answer to the gimbal command".into());
+                return Step::Failed(Failure::new(
+                    FailureCode::AutopilotSilent,
+                    "no answer to the gimbal command",
+                ));
             }
         }
         let first = self.last.is_none();
@@ -235,7 +241,7 @@ pub struct TakePhoto {
 }
 
 impl Behavior for TakePhoto {
-    fn activate(&mut self, _ctx: &BehaviorContext) -> Result<(), String> {
+    fn activate(&mut self, _ctx: &BehaviorContext) -> Result<(), Failure> {
         Ok(())
     }
 
@@ -246,9 +252,17 @@ impl Behavior for TakePhoto {
                     self.taken += 1;
                     self.pending = None;
                 }
-                Some(Err(reason)) => return Step::Failed(format!("camera refused: {reason}")),
+                Some(Err(reason)) => {
+                    return Step::Failed(Failure::new(
+                        FailureCode::AutopilotRefused,
+                        format!("camera refused: {reason}"),
+                    ))
+                }
                 None if ctx.now.saturating_sub(asked) > ACK_TIMEOUT => {
-                    return Step::Failed("no answer to the capture command".into());
+                    return Step::Failed(Failure::new(
+                        FailureCode::AutopilotSilent,
+                        "no answer to the capture command",
+                    ));
                 }
                 None => {}
             }
@@ -284,7 +298,9 @@ mod tests {
     #[test]
     fn point_gimbal_succeeds_only_once_acknowledged() {
         let mut scene = Scene::flying();
-        let mut b = (point_gimbal_spec().create)(&json!({"x": 10.0, "y": 0.0, "z": 0.0})).unwrap();
+        let mut b = point_gimbal_spec()
+            .build(&json!({"x": 10.0, "y": 0.0, "z": 0.0}))
+            .unwrap();
         b.activate(&scene.ctx(0)).unwrap();
         let mut requests = Vec::new();
         assert!(matches!(
@@ -307,16 +323,16 @@ mod tests {
     fn point_gimbal_fails_with_the_refusal_or_without_an_answer() {
         let mut scene = Scene::flying();
         let goal = json!({"x": 10.0, "y": 0.0, "z": 0.0});
-        let mut b = (point_gimbal_spec().create)(&goal).unwrap();
+        let mut b = point_gimbal_spec().build(&goal).unwrap();
         let mut requests = Vec::new();
         b.run(&scene.ctx(0), &mut requests);
         scene.request_results = ack(requests[0], Err("MAV_RESULT_DENIED".into()));
         match b.run(&scene.ctx(1), &mut requests) {
-            Step::Failed(r) => assert!(r.contains("DENIED"), "{r}"),
+            Step::Failed(r) => assert!(r.message.contains("DENIED"), "{r}"),
             other => panic!("{other:?}"),
         }
         let scene = Scene::flying();
-        let mut b = (point_gimbal_spec().create)(&goal).unwrap();
+        let mut b = point_gimbal_spec().build(&goal).unwrap();
         b.run(&scene.ctx(0), &mut requests);
         assert!(matches!(
             b.run(&scene.ctx(4), &mut requests),
@@ -331,7 +347,9 @@ mod tests {
     #[test]
     fn take_photo_counts_acknowledged_captures_only() {
         let mut scene = Scene::flying();
-        let mut b = (take_photo_spec().create)(&json!({"n": 2, "interval_s": 0.0})).unwrap();
+        let mut b = take_photo_spec()
+            .build(&json!({"n": 2, "interval_s": 0.0}))
+            .unwrap();
         let mut requests = Vec::new();
         b.run(&scene.ctx(0), &mut requests);
         b.run(&scene.ctx(1), &mut requests);
@@ -346,7 +364,7 @@ mod tests {
         let refused = ack(PlatformRequest::TakePhoto, Err("camera busy".into()));
         scene.request_results = refused;
         match b.run(&scene.ctx(3), &mut requests) {
-            Step::Failed(r) => assert!(r.contains("camera busy"), "{r}"),
+            Step::Failed(r) => assert!(r.message.contains("camera busy"), "{r}"),
             other => panic!("{other:?}"),
         }
     }

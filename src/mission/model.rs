@@ -1,6 +1,7 @@
 //! Mission data: the JSON mission (Aerostack2's format), validated plan items, the
 //! MissionUpdate message and the mission status.
 
+use crate::behavior::{FailureCode, ParsedGoal};
 use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use serde_json::{Map, Value};
@@ -67,6 +68,10 @@ pub struct PlanItem {
     /// The goal passed to the behavior: the method mapped to canonical arguments, options removed.
     pub goal: Value,
     pub options: ItemOptions,
+    /// The goal as validation parsed and checked it, handed to the behavior as is (absent for a
+    /// mission restored from disk: its goal is parsed again when it starts).
+    #[serde(skip)]
+    pub parsed: Option<ParsedGoal>,
 }
 
 /// A mission that passed validation; nothing in it can be rejected for its form any more.
@@ -268,6 +273,10 @@ pub struct DoneResult {
     pub result: ItemResult,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// The behavior's stable failure code (`planner_no_path`, `link_lost`, ...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<String>)]
+    pub code: Option<FailureCode>,
 }
 
 /// Mission status: the thesis's fields first, then Kestrel's additions.
@@ -287,6 +296,10 @@ pub struct MissionStatus {
     pub item_index: Option<usize>,
     pub done_results: Vec<DoneResult>,
     pub last_error: Option<String>,
+    /// The stable code of `last_error` when a behavior's failure caused it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<String>)]
+    pub last_error_code: Option<FailureCode>,
 }
 
 impl MissionStatus {

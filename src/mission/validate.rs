@@ -8,6 +8,7 @@
 
 use super::methods::{canonicalize, escape_token, unescape_token, Canonical};
 use super::model::{MissionItem, PlanItem, ValidMission, CALL};
+use crate::behavior::ParsedGoal;
 use crate::behavior::{GoalSummary, Registry};
 use crate::config::GeofenceSection;
 use crate::estimator::frames::FrameTree;
@@ -251,8 +252,8 @@ fn validate_item(
             .collect::<Vec<_>>()
     })?;
     let goal = Value::Object(canonical.goal.clone());
-    let summary = check_goal(&behavior, &goal, &canonical, &args_pointer, ctx)?;
-    check_limits(&goal, &summary, &canonical, &args_pointer, ctx)?;
+    let parsed = check_goal(&behavior, &goal, &canonical, &args_pointer, ctx)?;
+    check_limits(&goal, parsed.summary(), &canonical, &args_pointer, ctx)?;
     Ok(PlanItem {
         item: MissionItem {
             behavior,
@@ -261,6 +262,7 @@ fn validate_item(
         },
         goal,
         options: canonical.options,
+        parsed: Some(parsed),
     })
 }
 
@@ -273,20 +275,21 @@ fn join(base: &str, suffix: &str) -> String {
     }
 }
 
-/// Runs the behavior's own parsing and checks; on failure, locates each problem.
+/// Runs the behavior's own parsing and checks, once: the parsed goal is what the behavior
+/// gets when the item starts. On failure, locates each problem.
 fn check_goal(
     behavior: &str,
     goal: &Value,
     canonical: &Canonical,
     args_pointer: &str,
     ctx: &ValidationContext,
-) -> Result<GoalSummary, Vec<ValidationError>> {
+) -> Result<ParsedGoal, Vec<ValidationError>> {
     let Some(spec) = ctx.registry.get(behavior) else {
         return Err(vec![at(args_pointer, "unknown behavior")]);
     };
-    let message = match (spec.validate)(goal) {
-        Ok(summary) => return Ok(summary),
-        Err(m) => m,
+    let message = match (spec.parse)(goal) {
+        Ok(parsed) => return Ok(parsed),
+        Err(f) => f.message,
     };
     let located = schema_errors(&spec.args_schema, goal, canonical, args_pointer);
     if !located.is_empty() {

@@ -245,6 +245,7 @@ impl MissionExecutor {
             }
         });
         self.last_error = None;
+        self.last_error_code = None;
         self.shown = Some(id);
         self.run = Some(Run {
             mission_id: id,

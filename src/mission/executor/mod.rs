@@ -15,7 +15,7 @@ pub use actions::{ActionError, Request};
 use actions::refused;
 
 use super::model::{DoneResult, ExecState, ItemResult, MissionStatus, OnFailure, ValidMission};
-use crate::behavior::{BehaviorEvent, BehaviorId, BehaviorResult};
+use crate::behavior::{BehaviorEvent, BehaviorId, BehaviorResult, FailureCode};
 use crate::core::{BehaviorCommand, DroneCore};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -79,6 +79,8 @@ pub struct MissionExecutor {
     /// The mission whose status is shown while idle: the last one run or loaded.
     shown: Option<u32>,
     last_error: Option<String>,
+    /// The stable code of the behavior failure behind `last_error`, if one was.
+    last_error_code: Option<FailureCode>,
     next_id: u32,
     revision: u64,
     switch_hold: Duration,
@@ -92,6 +94,7 @@ impl MissionExecutor {
             run: None,
             shown: None,
             last_error: None,
+            last_error_code: None,
             next_id: 1,
             revision: 0,
             switch_hold,
@@ -111,6 +114,7 @@ impl MissionExecutor {
             run: None,
             shown: snapshot.shown,
             last_error,
+            last_error_code: None,
             next_id: snapshot.next_id.max(1),
             revision: 1,
             switch_hold,
@@ -239,6 +243,7 @@ impl MissionExecutor {
             item_index: if active { Some(cursor) } else { None },
             done_results: loaded.progress.done.clone(),
             last_error: self.last_error.clone(),
+            last_error_code: self.last_error_code,
         }
     }
 
@@ -260,10 +265,23 @@ impl MissionExecutor {
         };
         let _ = core.command(BehaviorCommand::Stop(current.id));
         let id = run.mission_id;
-        self.record(id, current.index, ItemResult::Stopped, Some(reason.into()));
+        self.record(
+            id,
+            current.index,
+            ItemResult::Stopped,
+            Some(reason.into()),
+            None,
+        );
     }
 
-    fn record(&mut self, id: u32, index: usize, result: ItemResult, reason: Option<String>) {
+    fn record(
+        &mut self,
+        id: u32,
+        index: usize,
+        result: ItemResult,
+        reason: Option<String>,
+        code: Option<FailureCode>,
+    ) {
         if let Some(l) = self.missions.get_mut(&id) {
             let behavior = l
                 .mission
@@ -276,6 +294,7 @@ impl MissionExecutor {
                 behavior,
                 result,
                 reason,
+                code,
             });
         }
         self.touch();
@@ -296,6 +315,7 @@ impl MissionExecutor {
                 c.index,
                 ItemResult::Stopped,
                 Some(reason.to_string()),
+                None,
             );
         }
         self.close_parallel(&run, reason);
@@ -318,11 +338,19 @@ impl MissionExecutor {
         }
     }
 
-    fn fail(&mut self, core: &mut DroneCore, index: usize, behavior: &str, reason: &str) {
+    fn fail(
+        &mut self,
+        core: &mut DroneCore,
+        index: usize,
+        behavior: &str,
+        reason: &str,
+        code: Option<FailureCode>,
+    ) {
         let id = self.running_id().unwrap_or_default();
         let message = format!("mission {id} item {index} ({behavior}) failed: {reason}");
         tracing::warn!("{message}");
         self.end_run(core, "mission failed", Some(message));
+        self.last_error_code = code;
     }
 
     /// One tick: reacts to behaviors that ended, ends `run_for_s` items, starts what is due.
@@ -352,11 +380,13 @@ impl MissionExecutor {
             return;
         };
         let id = run.mission_id;
-        let (item_result, reason) = match result {
-            BehaviorResult::Succeeded => (ItemResult::Succeeded, None),
-            BehaviorResult::Failed(r) => (ItemResult::Failed, Some(r.clone())),
-            BehaviorResult::Aborted(r) => (ItemResult::Aborted, Some(r.clone())),
+        let item_result = match result {
+            BehaviorResult::Succeeded => ItemResult::Succeeded,
+            BehaviorResult::Failed { .. } => ItemResult::Failed,
+            BehaviorResult::Aborted { .. } => ItemResult::Aborted,
         };
+        let reason = result.reason().map(str::to_string);
+        let code = result.code();
         if let Some(current) = run.current.as_ref().filter(|c| c.id == behavior_id) {
             let index = current.index;
             run.current = None;
@@ -366,13 +396,14 @@ impl MissionExecutor {
                 .and_then(|l| l.mission.items.get(index))
                 .map(|i| i.options.on_failure)
                 .unwrap_or_default();
-            self.record(id, index, item_result, reason.clone());
+            self.record(id, index, item_result, reason.clone(), code);
             match (item_result, on_failure) {
                 (ItemResult::Succeeded, _) | (_, OnFailure::Continue) => {
                     self.with_progress(id, |p| p.cursor = index + 1);
                 }
                 (_, OnFailure::Abort) => {
-                    self.fail(core, index, behavior, reason.as_deref().unwrap_or("failed"));
+                    let reason = reason.as_deref().unwrap_or("failed");
+                    self.fail(core, index, behavior, reason, code);
                 }
             }
             return;
@@ -393,7 +424,8 @@ impl MissionExecutor {
         }
         self.touch();
         if item_result == ItemResult::Failed && p.on_failure == OnFailure::Abort {
-            self.fail(core, index, behavior, reason.as_deref().unwrap_or("failed"));
+            let reason = reason.as_deref().unwrap_or("failed");
+            self.fail(core, index, behavior, reason, code);
         }
     }
 
@@ -445,10 +477,14 @@ impl MissionExecutor {
                 self.complete(core);
                 return;
             };
-            let started = core.command(BehaviorCommand::Start {
-                behavior: item.item.behavior.clone(),
-                goal: item.goal.clone(),
-            });
+            let command = match item.parsed.clone() {
+                Some(goal) => BehaviorCommand::StartParsed(goal),
+                None => BehaviorCommand::Start {
+                    behavior: item.item.behavior.clone(),
+                    goal: item.goal.clone(),
+                },
+            };
+            let started = core.command(command);
             match started {
                 Ok(Some(behavior_id)) if item.options.wait => {
                     if let Some(run) = self.run.as_mut() {
@@ -463,7 +499,7 @@ impl MissionExecutor {
                 }
                 Ok(Some(behavior_id)) => {
                     let slot = self.missions.get(&id).map_or(0, |l| l.progress.done.len());
-                    self.record(id, index, ItemResult::Started, None);
+                    self.record(id, index, ItemResult::Started, None, None);
                     if let Some(run) = self.run.as_mut() {
                         run.parallel.push(Parallel {
                             id: behavior_id,
@@ -474,13 +510,13 @@ impl MissionExecutor {
                     self.with_progress(id, |p| p.cursor = index + 1);
                 }
                 Ok(None) | Err(_) => {
-                    let reason = match started {
-                        Err(e) => e.to_string(),
-                        _ => "the behavior server gave no id".into(),
+                    let (reason, code) = match started {
+                        Err(e) => (e.to_string(), Some(e.code())),
+                        _ => ("the behavior server gave no id".into(), None),
                     };
-                    self.record(id, index, ItemResult::Failed, Some(reason.clone()));
+                    self.record(id, index, ItemResult::Failed, Some(reason.clone()), code);
                     if item.options.on_failure == OnFailure::Abort {
-                        self.fail(core, index, &item.item.behavior, &reason);
+                        self.fail(core, index, &item.item.behavior, &reason, code);
                         return;
                     }
                     self.with_progress(id, |p| p.cursor = index + 1);
