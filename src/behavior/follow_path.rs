@@ -1,12 +1,11 @@
 //! `follow_path`: fly a smooth trajectory through waypoints without stopping between them.
 
 use super::goal::{
-    activate_in_flight, check_finite, check_positive, frame_or_earth, modify_in_flight,
-    FramedPoint, InFlight, ResolvedYaw, YawArgs,
+    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
-use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
+use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Failure, FailureCode, Step};
+use super::{heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
@@ -90,24 +89,6 @@ impl FollowPath {
         }
     }
 
-    fn resolve_goal(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        let frame = frame_or_earth(&self.goal.frame_id);
-        self.waypoints = self
-            .goal
-            .path
-            .iter()
-            .map(|&[x, y, z]| {
-                ctx.frames
-                    .point_to_earth(&Vec3::new(x, y, z), &frame, ctx.now)
-                    .map_err(|e| Failure::from(e).within("cannot resolve path"))
-            })
-            .collect::<Result<_, _>>()?;
-        self.yaw = self.goal.yaw.resolve(ctx, &frame)?;
-        self.next = 0;
-        self.plan(ctx);
-        Ok(())
-    }
-
     /// Plans the trajectory from where the vehicle is through the waypoints not yet passed.
     fn plan(&mut self, ctx: &BehaviorContext) {
         let limits = TrajectoryLimits {
@@ -131,17 +112,21 @@ impl InFlight for FollowPath {
     }
 
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        self.resolve_goal(ctx)
-    }
-}
-
-impl Behavior for FollowPath {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        activate_in_flight(self, ctx)
-    }
-
-    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
-        modify_in_flight(self, ctx, goal)
+        let frame = frame_or_earth(&self.goal.frame_id);
+        self.waypoints = self
+            .goal
+            .path
+            .iter()
+            .map(|&[x, y, z]| {
+                ctx.frames
+                    .point_to_earth(&Vec3::new(x, y, z), &frame, ctx.now)
+                    .map_err(|e| Failure::from(e).within("cannot resolve path"))
+            })
+            .collect::<Result<_, _>>()?;
+        self.yaw = self.goal.yaw.resolve(ctx, &frame)?;
+        self.next = 0;
+        self.plan(ctx);
+        Ok(())
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {

@@ -1,13 +1,10 @@
 //! `follow_reference`: track a point in a (possibly moving) frame with per-axis speed limits.
 //! Never finishes by itself; stop it or start another motion behavior.
 
-use super::goal::{
-    activate_in_flight, check_finite, frame_or_earth, modify_in_flight, FramedPoint, InFlight,
-    ResolvedYaw, YawArgs,
-};
-use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
+use super::goal::{check_finite, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs};
+use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{yaw_target, Behavior, BehaviorContext, Failure, Step};
+use super::{yaw_target, BehaviorContext, Failure, Step};
 use crate::control::MotionReference;
 use crate::platform::PlatformRequest;
 use crate::types::Vec3;
@@ -97,20 +94,11 @@ impl InFlight for FollowReference {
         &mut self.goal
     }
 
+    /// Resolves the goal against frames and the vehicle's state, ready to fly it.
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         self.target(ctx)?;
         self.yaw = self.goal.yaw.resolve(ctx, &self.goal.frame_id)?;
         Ok(())
-    }
-}
-
-impl Behavior for FollowReference {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        activate_in_flight(self, ctx)
-    }
-
-    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
-        modify_in_flight(self, ctx, goal)
     }
 
     fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {

@@ -1,12 +1,11 @@
 //! `go_to`: fly to a point in any frame (a moving frame is tracked), and `go_to_gps`.
 
 use super::goal::{
-    activate_in_flight, check_finite, check_positive, frame_or_earth, modify_in_flight,
-    FramedPoint, InFlight, ResolvedYaw, YawArgs,
+    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
-use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
+use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{heading_reached, yaw_target, Behavior, BehaviorContext, Failure, FailureCode, Step};
+use super::{heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::MotionReference;
 use crate::estimator::frames::EARTH;
 use crate::estimator::geodetic::GeoPoint;
@@ -160,6 +159,7 @@ impl InFlight for GoTo {
         &mut self.goal
     }
 
+    /// Resolves the goal against frames and the vehicle's state, ready to fly it.
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         let frame = frame_or_earth(&self.goal.frame_id);
         let yaw_frame = if frame == super::goal::WGS84 {
@@ -173,16 +173,6 @@ impl InFlight for GoTo {
         self.best_at = ctx.now;
         self.last_target = None;
         Ok(())
-    }
-}
-
-impl Behavior for GoTo {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        activate_in_flight(self, ctx)
-    }
-
-    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
-        modify_in_flight(self, ctx, goal)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {

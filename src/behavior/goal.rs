@@ -1,8 +1,9 @@
 //! Goal pieces shared by behaviors: framed points and yaw modes, parsed from JSON arguments.
 
 use super::registry::ParsedGoal;
-use super::{BehaviorContext, Failure};
+use super::{Behavior, BehaviorContext, Failure, Step};
 use crate::estimator::frames::EARTH;
+use crate::platform::PlatformRequest;
 use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize};
@@ -105,39 +106,42 @@ impl YawArgs {
 }
 
 /// Motion behaviors whose goal is resolved against the vehicle's state when they start and can
-/// be replaced in flight: their lifecycle rules are written here once.
-pub(crate) trait InFlight {
+/// be replaced in flight. Their lifecycle rules (only when airborne; a new goal replaces the old
+/// one, which comes back if it cannot start) are written once, in the [`Behavior`] impl below.
+pub(crate) trait InFlight: Send {
     type Goal: Clone + 'static;
     fn goal_mut(&mut self) -> &mut Self::Goal;
-    /// Resolves the current goal (frames, yaw) and prepares to fly it.
+    /// Resolves the current goal (frames, yaw) against the vehicle's state, ready to fly it.
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure>;
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step;
+    fn resume(&mut self, _ctx: &BehaviorContext) {}
 }
 
-/// `activate` of an [`InFlight`] behavior: only when airborne, then start.
-pub(crate) fn activate_in_flight<B: InFlight>(
-    b: &mut B,
-    ctx: &BehaviorContext,
-) -> Result<(), Failure> {
-    if !ctx.is_flying() {
-        return Err(Failure::not_flying());
+impl<B: InFlight> Behavior for B {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        if !ctx.is_flying() {
+            return Err(Failure::not_flying());
+        }
+        self.start(ctx)
     }
-    b.start(ctx)
-}
 
-/// `modify` of an [`InFlight`] behavior: the new goal replaces the old one, which comes back
-/// if the new one cannot start (the flight goes on unchanged).
-pub(crate) fn modify_in_flight<B: InFlight>(
-    b: &mut B,
-    ctx: &BehaviorContext,
-    goal: &ParsedGoal,
-) -> Result<(), Failure> {
-    let new = goal.typed::<B::Goal>()?;
-    let previous = std::mem::replace(b.goal_mut(), new);
-    if let Err(e) = b.start(ctx) {
-        *b.goal_mut() = previous;
-        return Err(e);
+    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
+        let new = goal.typed::<B::Goal>()?;
+        let previous = std::mem::replace(self.goal_mut(), new);
+        if let Err(e) = self.start(ctx) {
+            *self.goal_mut() = previous;
+            return Err(e);
+        }
+        Ok(())
     }
-    Ok(())
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        InFlight::run(self, ctx, requests)
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        InFlight::resume(self, ctx);
+    }
 }
 
 /// Pseudo-frame of geographic goals: x = latitude (deg), y = longitude (deg), z = altitude AMSL (m).

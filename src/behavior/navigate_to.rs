@@ -15,11 +15,10 @@
 use super::follow_path::{FollowPath, FollowPathGoal};
 use super::goal::YawMode;
 use super::goal::{
-    activate_in_flight, check_finite, check_positive, frame_or_earth, modify_in_flight,
-    FramedPoint, InFlight, ResolvedYaw, YawArgs,
+    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
 use super::nav_path::NavPath;
-use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
+use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::services::Ticket;
 use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
@@ -198,39 +197,6 @@ impl NavigateTo {
         }
     }
 
-    /// Resolves the goal and the yaw in `earth`, refuses a goal the map already rules out, and
-    /// asks for the first plan.
-    fn resolve_goal(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        let frame = frame_or_earth(&self.goal.frame_id);
-        self.target = ctx
-            .frames
-            .point_to_earth(
-                &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
-                &frame,
-                ctx.now,
-            )
-            .map_err(|e| Failure::from(e).within("cannot resolve goal"))?;
-        let yaw = |yaw_mode, yaw_angle, face_point| YawArgs {
-            yaw_mode,
-            yaw_angle,
-            face_point,
-        };
-        self.yaw_args = if self.goal.spin_rate.is_some() {
-            yaw(YawMode::PathFacing, None, None)
-        } else {
-            match self.goal.yaw.resolve(ctx, &frame)? {
-                ResolvedYaw::Fixed(a) => yaw(YawMode::Fixed, Some(a), None),
-                ResolvedYaw::PathFacing => yaw(YawMode::PathFacing, None, None),
-                ResolvedYaw::Face(p) => yaw(YawMode::FacePoint, None, Some([p.x, p.y, p.z])),
-            }
-        };
-        self.replans = 0;
-        let map = ctx.map.ok_or_else(no_map)?;
-        self.goal_plausible(map)?;
-        self.ask_plan(ctx, map);
-        Ok(())
-    }
-
     /// What the map already says of the goal, read from the cells around it only: outside the
     /// map, occupied or within the safety distance of an obstacle, or unknown when unknown
     /// space is not to be flown. The planner checks the same on its own map; this catches it
@@ -379,18 +345,37 @@ impl InFlight for NavigateTo {
         &mut self.goal
     }
 
+    /// Resolves the goal and the yaw in `earth`, refuses a goal the map already rules out, and
+    /// asks for the first plan.
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        self.resolve_goal(ctx)
-    }
-}
-
-impl Behavior for NavigateTo {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        activate_in_flight(self, ctx)
-    }
-
-    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
-        modify_in_flight(self, ctx, goal)
+        let frame = frame_or_earth(&self.goal.frame_id);
+        self.target = ctx
+            .frames
+            .point_to_earth(
+                &Vec3::new(self.goal.x, self.goal.y, self.goal.z),
+                &frame,
+                ctx.now,
+            )
+            .map_err(|e| Failure::from(e).within("cannot resolve goal"))?;
+        let yaw = |yaw_mode, yaw_angle, face_point| YawArgs {
+            yaw_mode,
+            yaw_angle,
+            face_point,
+        };
+        self.yaw_args = if self.goal.spin_rate.is_some() {
+            yaw(YawMode::PathFacing, None, None)
+        } else {
+            match self.goal.yaw.resolve(ctx, &frame)? {
+                ResolvedYaw::Fixed(a) => yaw(YawMode::Fixed, Some(a), None),
+                ResolvedYaw::PathFacing => yaw(YawMode::PathFacing, None, None),
+                ResolvedYaw::Face(p) => yaw(YawMode::FacePoint, None, Some([p.x, p.y, p.z])),
+            }
+        };
+        self.replans = 0;
+        let map = ctx.map.ok_or_else(no_map)?;
+        self.goal_plausible(map)?;
+        self.ask_plan(ctx, map);
+        Ok(())
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {

@@ -1,9 +1,9 @@
 //! `rotate`: turn in place to a heading (`yaw_angle`, in `frame_id`) or by an angle (`by_angle`)
 //! at `yaw_speed`.
 
-use super::goal::{activate_in_flight, frame_or_earth, modify_in_flight, InFlight};
-use super::registry::{BehaviorSpec, Goal, ParsedGoal, Resource};
-use super::{Behavior, BehaviorContext, Failure, Step};
+use super::goal::{frame_or_earth, InFlight};
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::{BehaviorContext, Failure, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::platform::PlatformRequest;
 use crate::types::{wrap_angle_rad, Vec3};
@@ -71,8 +71,16 @@ impl Rotate {
             commanded_rad: 0.0,
         }
     }
+}
 
-    fn resolve_goal(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+impl InFlight for Rotate {
+    type Goal = RotateGoal;
+
+    fn goal_mut(&mut self) -> &mut RotateGoal {
+        &mut self.goal
+    }
+
+    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         self.position = ctx.position();
         self.commanded_rad = ctx.yaw();
         self.remaining_rad = match (self.goal.yaw_angle, self.goal.by_angle) {
@@ -88,28 +96,6 @@ impl Rotate {
             (None, None) => return Err(Failure::invalid("give yaw_angle or by_angle")),
         };
         Ok(())
-    }
-}
-
-impl InFlight for Rotate {
-    type Goal = RotateGoal;
-
-    fn goal_mut(&mut self) -> &mut RotateGoal {
-        &mut self.goal
-    }
-
-    fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        self.resolve_goal(ctx)
-    }
-}
-
-impl Behavior for Rotate {
-    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
-        activate_in_flight(self, ctx)
-    }
-
-    fn modify(&mut self, ctx: &BehaviorContext, goal: &ParsedGoal) -> Result<(), Failure> {
-        modify_in_flight(self, ctx, goal)
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
