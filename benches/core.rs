@@ -4,6 +4,7 @@
 //! Results and targets are in BENCHMARKS.md (`## Core`).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use kestrel::behavior::fleet::{FleetInput, FleetView};
 use kestrel::behavior::Registry;
 use kestrel::config::Config;
 use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
@@ -19,9 +20,19 @@ use kestrel::types::{FlightStatus, LinkHealth, PlatformStatus, Pose, Vec3};
 use serde_json::json;
 use std::hint::black_box;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Duration;
 
 const RATE_HZ: f64 = 100.0;
+
+/// A fleet of one, with no merged map.
+fn alone() -> FleetInput<'static> {
+    static VIEW: std::sync::OnceLock<Arc<FleetView>> = std::sync::OnceLock::new();
+    FleetInput {
+        view: VIEW.get_or_init(Arc::default),
+        map: None,
+    }
+}
 
 /// What an airborne vehicle in offboard reports each tick.
 fn flying_feedback(position_m: Vec3) -> PlatformFeedback {
@@ -60,7 +71,7 @@ fn busy_core(behavior: &str, goal: serde_json::Value) -> (DroneCore, PlatformFee
         Registry::with_motion_behaviors(),
     );
     let feedback = flying_feedback(Vec3::new(1.0, 2.0, 3.0));
-    core.tick(Duration::ZERO, &feedback);
+    core.tick(Duration::ZERO, &feedback, alone());
     core.command(BehaviorCommand::Start {
         behavior: behavior.into(),
         goal,
@@ -88,7 +99,7 @@ fn control_tick(c: &mut Criterion) {
             b.iter(|| {
                 tick += 1;
                 let now = Duration::from_secs_f64(tick as f64 / RATE_HZ);
-                black_box(core.tick(now, black_box(&feedback)))
+                black_box(core.tick(now, black_box(&feedback), alone()))
             })
         });
     }

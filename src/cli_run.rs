@@ -12,6 +12,7 @@
 use crate::cli_serve::ServeOptions;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use kestrel::behavior::fleet::{FleetInput, FleetView};
 use kestrel::behavior::{BehaviorEvent, BehaviorResult, Registry, RunState};
 use kestrel::config::Config;
 use kestrel::control::{AcceptedSetpoints, Setpoint};
@@ -285,6 +286,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
     let policy = config.mavlink.on_link_regained;
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
+    let alone = std::sync::Arc::new(FleetView::default());
     let outcome = loop {
         tokio::select! {
             _ = interval.tick() => {}
@@ -292,7 +294,14 @@ async fn run_async(args: RunArgs) -> Result<()> {
         }
         let now = start.elapsed();
         let feedback = platform.poll(now);
-        let out = core.tick(now, &feedback);
+        let out = core.tick(
+            now,
+            &feedback,
+            FleetInput {
+                view: &alone,
+                map: None,
+            },
+        );
         platform.command(now, out.setpoint, &out.requests);
         let state = core.vehicle_state();
         for line in watch.changes(&state.platform) {

@@ -6,6 +6,7 @@
 //! [`DroneCore::deliver`] before a later tick), plus the behavior events that happened. The core never reads the clock and never does I/O, so a
 //! real-time driver, the simulator and tests tick exactly the same code.
 
+use crate::behavior::fleet::{DroneView, FleetInput, FleetView};
 use crate::behavior::services::{ServiceAnswer, ServiceCall, ServiceDesk};
 use crate::behavior::{
     BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Failure,
@@ -84,6 +85,8 @@ pub struct DroneCore {
     frames: FrameTree,
     server: BehaviorServer,
     services: ServiceDesk,
+    /// The fleet as the host last showed it (what commands between ticks see).
+    fleet: Arc<FleetView>,
     map: Option<MapServer>,
     controller: Controller,
     state: EstimatedState,
@@ -100,6 +103,7 @@ impl DroneCore {
             controller: Controller::new(config.controller, capabilities.setpoints),
             server: BehaviorServer::new(registry),
             services: ServiceDesk::default(),
+            fleet: Arc::default(),
             map: config.map.as_ref().map(MapServer::new),
             frames: FrameTree::new(),
             capabilities,
@@ -121,6 +125,23 @@ impl DroneCore {
             drone: self.config.drone_id.clone(),
             estimate: self.state,
             platform: self.platform.clone(),
+        }
+    }
+
+    /// This drone as the fleet view shows it.
+    pub fn fleet_entry(&self, stamp: Duration) -> DroneView {
+        let motion = self.server.motion();
+        DroneView {
+            id: self.config.drone_id.as_str().into(),
+            position_enu_m: self.state.pose.position_m,
+            velocity_enu_mps: self.state.velocity_enu_mps,
+            yaw_rad: self.state.pose.yaw_rad(),
+            flying: self.platform.flight.is_airborne() && self.platform.armed,
+            link: self.platform.link,
+            motion_behavior: motion.map(|(name, _)| name.into()),
+            goal_enu_m: motion.and_then(|(_, goal)| goal),
+            stamp,
+            local: true,
         }
     }
 
@@ -183,6 +204,8 @@ impl DroneCore {
             map: self.map.as_ref(),
             request_results: &[],
             services: &self.services,
+            fleet: &self.fleet,
+            fleet_map: None,
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -198,8 +221,15 @@ impl DroneCore {
         }
     }
 
-    /// One control tick at time `now` (since the start of the run).
-    pub fn tick(&mut self, now: Duration, feedback: &PlatformFeedback) -> TickOutput {
+    /// One control tick at time `now` (since the start of the run), with what the platform
+    /// reported and what the fleet looks like.
+    pub fn tick(
+        &mut self,
+        now: Duration,
+        feedback: &PlatformFeedback,
+        fleet: FleetInput<'_>,
+    ) -> TickOutput {
+        self.fleet = fleet.view.clone();
         let dt_s = self
             .last_tick
             .map_or(0.0, |t| now.saturating_sub(t).as_secs_f64());
@@ -229,6 +259,8 @@ impl DroneCore {
             map: self.map.as_ref(),
             request_results: &feedback.request_results,
             services: &self.services,
+            fleet: &self.fleet,
+            fleet_map: fleet.map,
         };
         // Never command blind: without a link or a position estimate, behaviors end and the
         // autopilot's own failsafe takes over.

@@ -187,3 +187,31 @@ fn the_same_seed_gives_the_same_flight() {
     assert_eq!(a, noisy_flight(11), "same seed, same log");
     assert_ne!(a, noisy_flight(12), "another seed, another flight");
 }
+
+#[test]
+fn every_drone_sees_the_others_positions_and_goals_in_the_fleet_view() {
+    let mut h = Harness::new(World::empty(), 2);
+    h.take_off(0, 2.0);
+    let goal = Vec3::new(6.0, 3.0, 2.0);
+    h.start(
+        0,
+        "go_to",
+        serde_json::json!({ "x": goal.x, "y": goal.y, "z": goal.z, "speed": 1.0 }),
+    );
+    h.run_for(2.0);
+    let view = h.host.fleet_view().clone();
+    assert_eq!(view.drones.len(), 2);
+    let d0 = view.get("drone_0").unwrap();
+    assert!(d0.flying && d0.local);
+    assert_eq!(d0.motion_behavior.as_deref(), Some("go_to"));
+    assert_eq!(d0.goal_enu_m, Some(goal));
+    let truth = h.world().vehicles[0].state.position_m;
+    assert!(
+        (d0.position_enu_m - truth).norm() < 0.1,
+        "{:?} vs {truth:?}",
+        d0.position_enu_m
+    );
+    let d1 = view.get("drone_1").unwrap();
+    assert!(!d1.flying && d1.motion_behavior.is_none());
+    assert_eq!(view.others("drone_1").count(), 1);
+}

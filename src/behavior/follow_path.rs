@@ -107,6 +107,10 @@ impl FollowPath {
 impl InFlight for FollowPath {
     type Goal = FollowPathGoal;
 
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        self.waypoints.last().copied()
+    }
+
     fn goal_mut(&mut self) -> &mut FollowPathGoal {
         &mut self.goal
     }

@@ -155,6 +155,10 @@ impl GoTo {
 impl InFlight for GoTo {
     type Goal = GoToGoal;
 
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        self.last_target.map(|(p, _)| p)
+    }
+
     fn goal_mut(&mut self) -> &mut GoToGoal {
         &mut self.goal
     }

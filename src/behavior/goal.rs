@@ -115,6 +115,9 @@ pub(crate) trait InFlight: Send {
     fn start(&mut self, ctx: &BehaviorContext) -> Result<(), Failure>;
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step;
     fn resume(&mut self, _ctx: &BehaviorContext) {}
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        None
+    }
 }
 
 impl<B: InFlight> Behavior for B {
@@ -141,6 +144,10 @@ impl<B: InFlight> Behavior for B {
 
     fn resume(&mut self, ctx: &BehaviorContext) {
         InFlight::resume(self, ctx);
+    }
+
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        InFlight::goal_enu_m(self)
     }
 }
 

@@ -10,6 +10,7 @@
 //! goal in flight; `stop` → aborted. Results: succeeded, failed(reason), aborted(reason).
 
 mod failure;
+pub mod fleet;
 mod follow_path;
 mod follow_reference;
 mod go_to;
@@ -100,6 +101,10 @@ pub struct BehaviorContext<'a> {
     pub request_results: &'a [crate::platform::RequestResult],
     /// Slow work (plans) asked on one tick, answered on a later one.
     pub services: &'a services::ServiceDesk,
+    /// Every drone's latest state (this one included), as the host saw it before this tick.
+    pub fleet: &'a fleet::FleetView,
+    /// The fleet's merged map (`None`: mapping off, or outside a tick).
+    pub fleet_map: Option<&'a crate::mapping::OccupancyGrid>,
 }
 
 impl BehaviorContext<'_> {
@@ -146,6 +151,11 @@ pub trait Behavior: Send {
         ))
     }
     fn resume(&mut self, _ctx: &BehaviorContext) {}
+    /// Where the behavior is taking the vehicle (`earth` ENU m), for the fleet view; `None`
+    /// when it has no single goal point.
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        None
+    }
 }
 
 /// Heading error (rad) below which a behavior with a heading goal counts it as reached.

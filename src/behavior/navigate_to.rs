@@ -341,6 +341,10 @@ fn no_map() -> Failure {
 impl InFlight for NavigateTo {
     type Goal = NavigateToGoal;
 
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        Some(self.target)
+    }
+
     fn goal_mut(&mut self) -> &mut NavigateToGoal {
         &mut self.goal
     }

@@ -180,6 +180,14 @@ impl BehaviorServer {
         self.active.iter().map(|a| a.info.clone()).collect()
     }
 
+    /// The motion behavior running or paused (name) and the point it flies to, if one.
+    pub fn motion(&self) -> Option<(&str, Option<crate::types::Vec3>)> {
+        self.active
+            .iter()
+            .find(|a| a.resource == Resource::Motion)
+            .map(|a| (a.info.behavior.as_str(), a.behavior.goal_enu_m()))
+    }
+
     pub fn info(&self, id: BehaviorId) -> Option<&ActiveInfo> {
         self.active
             .iter()

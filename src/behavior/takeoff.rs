@@ -93,6 +93,10 @@ impl Takeoff {
 }
 
 impl Behavior for Takeoff {
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        Some(self.target)
+    }
+
     fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
         if ctx.platform.flight.is_airborne() {
             return Err(Failure::invalid("already flying"));

@@ -1,5 +1,6 @@
 //! Test support: a hand-set vehicle state to build [`BehaviorContext`]s from.
 
+use super::fleet::FleetView;
 use super::services::ServiceDesk;
 use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
@@ -22,6 +23,7 @@ pub(crate) struct Scene {
     /// Acks the platform reports in the next contexts.
     pub request_results: Vec<RequestResult>,
     pub services: ServiceDesk,
+    pub fleet: FleetView,
 }
 
 impl Scene {
@@ -54,6 +56,7 @@ impl Scene {
             dt_s: 1.0,
             request_results: Vec::new(),
             services: ServiceDesk::default(),
+            fleet: FleetView::default(),
         }
     }
 
@@ -80,6 +83,8 @@ impl Scene {
             map: None,
             request_results: &self.request_results,
             services: &self.services,
+            fleet: &self.fleet,
+            fleet_map: None,
         }
     }
 }

@@ -13,6 +13,7 @@ pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uplo
 
 use super::fleet::Fleet;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use crate::behavior::fleet::{FleetInput, FleetView};
 use crate::behavior::RunState;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
@@ -28,6 +29,7 @@ use crate::types::LinkHealth;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Why a command failed; the API maps each to an HTTP status and a stable code.
@@ -91,6 +93,8 @@ pub struct Host {
     api_scans: Vec<Vec<RangeScan>>,
     /// Runs the drones' plans off the tick.
     planner: PlanWorker,
+    /// The fleet view the cores saw this tick.
+    fleet_view: Arc<FleetView>,
 }
 
 impl Host {
@@ -117,6 +121,7 @@ impl Host {
             map: None,
             api_scans: vec![Vec::new(); n],
             planner: PlanWorker::new(Delivery::Lockstep),
+            fleet_view: Arc::default(),
         }
     }
 
@@ -142,6 +147,11 @@ impl Host {
 
     pub fn is_simulated(&self) -> bool {
         self.fleet.is_simulated()
+    }
+
+    /// Every drone's state as the cores saw it at the last tick.
+    pub fn fleet_view(&self) -> &FleetView {
+        &self.fleet_view
     }
 
     /// The simulator's world (ground truth), `None` when flying real vehicles.
@@ -273,6 +283,11 @@ impl Host {
                 core.deliver_plan(answer);
             }
         }
+        // One snapshot of the fleet for every core this tick, as the last tick left it.
+        self.fleet_view = Arc::new(FleetView {
+            drones: self.cores.iter().map(|c| c.fleet_entry(now)).collect(),
+        });
+        let view = self.fleet_view.clone();
         for i in 0..self.cores.len() {
             let mut feedback = self.fleet.poll(i, now);
             if let Some(scans) = self.api_scans.get_mut(i) {
@@ -281,7 +296,11 @@ impl Host {
             let Some(core) = self.cores.get_mut(i) else {
                 continue;
             };
-            let out = core.tick(now, &feedback);
+            let fleet = FleetInput {
+                view: &view,
+                map: self.map.as_ref().map(FleetMap::merged),
+            };
+            let out = core.tick(now, &feedback, fleet);
             self.fleet.command(i, now, out.setpoint, &out.requests);
             for call in out.service_calls {
                 call.submit(i, &mut self.planner);
