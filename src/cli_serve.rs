@@ -1,6 +1,7 @@
 //! Serving a host: the control loop, the API, event printing and shutdown, shared by
-//! `kestrel sim` and (later) `kestrel run`.
+//! `kestrel sim` and `kestrel run`.
 
+use crate::cli_flights::{self, Flights};
 use anyhow::{Context, Result};
 use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
@@ -14,7 +15,8 @@ use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
 pub struct ServeOptions {
-    pub listen: SocketAddr,
+    /// Where to serve the API; `None`: no API (`kestrel run --no-api`).
+    pub listen: Option<SocketAddr>,
     /// `listen` is only the default: when it is taken, any free port of the same address does.
     pub listen_is_default: bool,
     pub token: Option<String>,
@@ -22,11 +24,14 @@ pub struct ServeOptions {
     pub pace: Pace,
     pub state_file: Option<PathBuf>,
     pub log: Option<LogFile>,
-    /// Missions flown at start: (drone index, mission id).
-    pub flights: Vec<(usize, u32)>,
-    /// Stop when every flight ended (or `max_time` passed).
+    /// Missions flown at start (and the demo, once it starts).
+    pub flights: Flights,
+    /// Start the demo flight once drone 0 is ready, waiting at most this long.
+    pub demo_within: Option<Duration>,
+    /// Stop when every flight ended.
     pub exit_when_done: bool,
-    pub max_time: Duration,
+    /// Stop after this long in any case (host time); `None`: run until interrupted.
+    pub max_time: Option<Duration>,
 }
 
 /// The API address (`--listen`, else the config's `[api] listen`) and token
@@ -69,6 +74,31 @@ pub fn report(outcome: &Outcome, exit_when_done: bool) -> Result<()> {
     }
 }
 
+/// A drone still landing after its flight ended (a failed mission lands, e.g. after a link loss
+/// with `on_link_regained = "land"`): the flight is over once it is down.
+fn landing(core: &kestrel::core::DroneCore) -> bool {
+    core.platform_status().armed
+        && core
+            .server()
+            .motion()
+            .is_some_and(|(name, _)| name == "land")
+}
+
+/// Binds the API's port; the default address falls back to a free port when taken.
+async fn bind(listen: SocketAddr, options: &ServeOptions) -> Result<tokio::net::TcpListener> {
+    api::auth::check_listen(listen, options.token.as_deref())?;
+    match tokio::net::TcpListener::bind(listen).await {
+        Ok(l) => Ok(l),
+        Err(e) if options.listen_is_default && e.kind() == std::io::ErrorKind::AddrInUse => {
+            println!("{listen} is taken; serving the API on a free port instead");
+            tokio::net::TcpListener::bind(SocketAddr::new(listen.ip(), 0))
+                .await
+                .with_context(|| format!("cannot listen on {}", listen.ip()))
+        }
+        Err(e) => Err(e).with_context(|| format!("cannot listen on {listen}")),
+    }
+}
+
 /// How the flights at start ended; `None` for a drone still flying.
 pub struct Outcome {
     pub results: Vec<(String, Option<Result<(), String>>)>,
@@ -76,8 +106,15 @@ pub struct Outcome {
     pub wall_s: f64,
 }
 
-fn outcomes(host: &Host, flights: &[(usize, u32)]) -> Vec<(String, Option<Result<(), String>>)> {
-    flights
+fn outcomes(host: &Host, flights: &Flights) -> Vec<(String, Option<Result<(), String>>)> {
+    let first = host.drone_ids().into_iter().next().unwrap_or_default();
+    if let Some(reason) = flights.failure() {
+        return vec![(first, Some(Err(reason)))];
+    }
+    let Some(started) = flights.started() else {
+        return vec![(first, None)];
+    };
+    started
         .iter()
         .filter_map(|&(i, id)| {
             let core = host.cores().get(i)?;
@@ -127,56 +164,62 @@ fn print_event(e: &HostEvent) {
 /// Runs the host and the API until interrupted (or, with `exit_when_done`, until every
 /// flight ended).
 pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
-    api::auth::check_listen(options.listen, options.token.as_deref())?;
-    let listener = match tokio::net::TcpListener::bind(options.listen).await {
-        Ok(l) => l,
-        Err(e) if options.listen_is_default && e.kind() == std::io::ErrorKind::AddrInUse => {
-            println!(
-                "{} is taken; serving the API on a free port instead",
-                options.listen
-            );
-            tokio::net::TcpListener::bind(SocketAddr::new(options.listen.ip(), 0))
-                .await
-                .with_context(|| format!("cannot listen on {}", options.listen.ip()))?
-        }
-        Err(e) => return Err(e).with_context(|| format!("cannot listen on {}", options.listen)),
+    let listener = match options.listen {
+        Some(listen) => Some(bind(listen, &options).await?),
+        None => None,
     };
-    let address = listener.local_addr().context("reading the API address")?;
     let flights = options.flights.clone();
     let max_time = options.max_time;
     let mut rt = RuntimeOptions::new(options.pace);
     rt.state_file = options.state_file.clone();
-    if options.exit_when_done {
+    if options.exit_when_done || max_time.is_some() {
         let flights = flights.clone();
+        let when_done = options.exit_when_done;
         rt.stop_when = Some(Box::new(move |host: &Host| {
-            host.now() > max_time || outcomes(host, &flights).iter().all(|(_, o)| o.is_some())
+            max_time.is_some_and(|m| host.now() > m)
+                || (when_done
+                    && outcomes(host, &flights).iter().all(|(_, o)| o.is_some())
+                    && !host.cores().iter().any(landing))
         }));
     }
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let wall = Instant::now();
     let spawned = runtime::spawn(host, rt, shutdown_rx).context("starting the control loop")?;
     let handle = spawned.handle;
-    let state = ApiState::new(
-        handle.clone(),
-        options.token.clone(),
-        &options.api,
-        options.log.clone(),
-    );
-    let app = api::router(state, &options.api);
-    let mut server_stop = shutdown_tx.subscribe();
-    let server = tokio::spawn(async move {
-        axum::serve(listener, app)
-            .with_graceful_shutdown(async move {
-                let _ = server_stop.wait_for(|stop| *stop).await;
-            })
-            .await
-    });
-    let auth = if options.token.is_some() {
-        "bearer token required"
-    } else {
-        "no token: loopback only"
-    };
-    println!("API on http://{address} ({auth})");
+    tokio::spawn(cli_flights::print_status_changes(handle.watch_state()));
+    if let Some(timeout) = options.demo_within {
+        tokio::spawn(cli_flights::start_demo_when_ready(
+            handle.clone(),
+            handle.watch_state(),
+            flights.clone(),
+            timeout,
+        ));
+    }
+    let mut server = None;
+    if let Some(listener) = listener {
+        let address = listener.local_addr().context("reading the API address")?;
+        let state = ApiState::new(
+            handle.clone(),
+            options.token.clone(),
+            &options.api,
+            options.log.clone(),
+        );
+        let app = api::router(state, &options.api);
+        let mut server_stop = shutdown_tx.subscribe();
+        server = Some(tokio::spawn(async move {
+            axum::serve(listener, app)
+                .with_graceful_shutdown(async move {
+                    let _ = server_stop.wait_for(|stop| *stop).await;
+                })
+                .await
+        }));
+        let auth = if options.token.is_some() {
+            "bearer token required"
+        } else {
+            "no token: loopback only"
+        };
+        println!("API on http://{address} ({auth})");
+    }
     let mut events = spawned.events;
     let printer = tokio::spawn(async move {
         loop {
@@ -194,7 +237,9 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
     tokio::pin!(join);
     let mut announced = false;
     let mut state_rx = handle.watch_state();
-    drop(handle);
+    // The control loop ends when every handle is gone: this one lives until shutdown, so a run
+    // without the API keeps going after the demo task let go of its handle.
+    let keep_alive = handle;
     let finished = loop {
         tokio::select! {
             _ = shutdown_signal() => break None,
@@ -204,30 +249,33 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
                     continue;
                 }
                 let snap = state_rx.borrow_and_update().clone();
-                let ended = flights.iter().all(|&(i, id)| {
-                    snap.drones
-                        .get(i)
-                        .and_then(|d| d.mission.as_ref())
-                        .and_then(|m| m.outcome(id))
-                        .is_some()
+                let ended = flights.started().is_some_and(|started| {
+                    started.iter().all(|&(i, id)| {
+                        snap.drones
+                            .get(i)
+                            .and_then(|d| d.mission.as_ref())
+                            .and_then(|m| m.outcome(id))
+                            .is_some()
+                    })
                 });
                 if ended && !options.exit_when_done {
                     announced = true;
-                    println!(
-                        "flights ended; still serving the API on http://{address} (Ctrl-C to stop)"
-                    );
+                    println!("flights ended; still running (Ctrl-C to stop)");
                 }
             }
         }
     };
     let _ = shutdown_tx.send(true);
+    drop(keep_alive);
     let host = match finished {
         Some(joined) => joined,
         None => join.await,
     }
     .context("waiting for the control loop")?
     .map_err(|_| anyhow::anyhow!("the control loop panicked"))?;
-    let _ = server.await;
+    if let Some(server) = server {
+        let _ = server.await;
+    }
     drop(state_rx);
     // Every sender is gone once the server stopped: the printer ends after the last event.
     if tokio::time::timeout(Duration::from_secs(1), printer)

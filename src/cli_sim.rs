@@ -2,6 +2,7 @@
 //! flies the demo mission; `--mission FILE` flies that mission, `--scenario FILE` registers
 //! its frames and flies its mission, `--no-demo` waits for the API.
 
+use crate::cli_flights::Flights;
 use crate::cli_serve::{self, ServeOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -142,9 +143,11 @@ pub fn build(
     // One tick, so every drone has a position before missions are validated and started.
     host.step();
     if let Some(dir) = &args.state_dir {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the state directory {}", dir.display()))?;
         let file = dir.join("state.json");
         if let Some(state) = kestrel::mission::store::load(&file)? {
-            host.restore(state, Duration::from_secs_f64(config.mission.switch_hold_s));
+            host.restore(state);
             println!("restored missions from {}", file.display());
         }
     }
@@ -200,7 +203,7 @@ pub fn run(args: SimArgs) -> Result<()> {
     );
     let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
     let options = ServeOptions {
-        listen,
+        listen: Some(listen),
         listen_is_default: args.listen.is_none()
             && config.api.listen == kestrel::config::ApiSection::default().listen,
         token,
@@ -208,9 +211,12 @@ pub fn run(args: SimArgs) -> Result<()> {
         pace,
         state_file: args.state_dir.as_ref().map(|d| d.join("state.json")),
         log: Some(log_file),
-        flights,
+        flights: Flights::new(flights, false),
+        demo_within: None,
         exit_when_done: args.exit_when_done,
-        max_time: Duration::from_secs_f64(args.max_sim_time_s),
+        max_time: args
+            .exit_when_done
+            .then(|| Duration::from_secs_f64(args.max_sim_time_s)),
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

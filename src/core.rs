@@ -20,6 +20,7 @@ use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
 use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest};
+use crate::safety::{Override, SafetyConfig, SafetyStage};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -35,6 +36,8 @@ pub struct CoreConfig {
     pub geo_origin: GeodeticOrigin,
     /// Mapping (`None` = off): the drone's scans build its grid, which `navigate_to` plans on.
     pub map: Option<MapConfig>,
+    /// What every setpoint is checked against before it leaves the core.
+    pub safety: SafetyConfig,
 }
 
 impl CoreConfig {
@@ -47,6 +50,7 @@ impl CoreConfig {
             geo_origin: GeodeticOrigin::default(),
             // The default section is a fixed, valid 40 m x 40 m grid.
             map: MapConfig::open_field().ok(),
+            safety: SafetyConfig::default(),
         }
     }
 }
@@ -58,6 +62,8 @@ pub struct TickOutput {
     pub requests: Vec<PlatformRequest>,
     pub service_calls: Vec<ServiceCall>,
     pub events: Vec<BehaviorEvent>,
+    /// The safety stage changed the setpoint (reported once per episode).
+    pub safety: Option<Override>,
 }
 
 /// A request to the behavior server from outside the core (mission executor, API).
@@ -89,6 +95,7 @@ pub struct DroneCore {
     fleet: Arc<FleetView>,
     map: Option<MapServer>,
     controller: Controller,
+    safety: SafetyStage,
     state: EstimatedState,
     platform: PlatformStatus,
     home_enu_m: Option<Vec3>,
@@ -101,6 +108,7 @@ impl DroneCore {
         Self {
             estimator: estimator::build(config.estimator),
             controller: Controller::new(config.controller, capabilities.setpoints),
+            safety: SafetyStage::new(config.safety.clone()),
             server: BehaviorServer::new(registry),
             services: ServiceDesk::default(),
             fleet: Arc::default(),
@@ -126,6 +134,16 @@ impl DroneCore {
             estimate: self.state,
             platform: self.platform.clone(),
         }
+    }
+
+    /// What the platform reported at the last tick.
+    pub fn platform_status(&self) -> &PlatformStatus {
+        &self.platform
+    }
+
+    /// The state estimate of the last tick.
+    pub fn estimate(&self) -> &EstimatedState {
+        &self.state
     }
 
     /// This drone as the fleet view shows it.
@@ -292,8 +310,19 @@ impl DroneCore {
                 None
             }
         };
+        let home = self.home_enu_m.unwrap_or(self.state.pose.position_m);
+        let flying = self.platform.flight.is_airborne() && self.platform.armed;
+        let (setpoint, safety) = self.safety.check(
+            &self.config.drone_id,
+            &self.state,
+            home,
+            flying,
+            setpoint,
+            &self.fleet,
+        );
         TickOutput {
             setpoint,
+            safety,
             requests: out.requests,
             service_calls: self.services.drain_calls(),
             events: self.server.drain_events(),

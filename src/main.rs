@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_flights;
 mod cli_map;
 mod cli_mission;
 mod cli_remote;

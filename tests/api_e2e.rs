@@ -549,21 +549,28 @@ async fn several_drones_share_one_api_and_a_lost_link_shows() {
     )
     .await;
     assert_eq!(code, 200);
-    let d = wait_status(&k, 1, 10.0, |d| d["link"] == "lost").await;
-    assert!(
-        d["mission"]["last_error"]
-            .as_str()
-            .unwrap_or_default()
-            .contains("link"),
-        "{d}"
-    );
+    // The mission waits for the link (README: "When the link to the autopilot drops").
+    let d = wait_status(&k, 1, 10.0, |d| {
+        d["link"] == "lost"
+            && d["mission"]["done_results"]
+                .as_array()
+                .is_some_and(|r| r.iter().any(|x| x["code"] == "link_lost"))
+    })
+    .await;
+    assert_eq!(d["mission"]["state"], 1, "still running, waiting: {d}");
     post(
         &k,
         "/api/sim/fault",
         &json!({"drone_id": "drone_1", "fault": "link_restored"}),
     )
     .await;
-    wait_status(&k, 1, 10.0, |d| d["link"] == "ok").await;
+    // Default `[mission] on_link_regained = "land"`: the mission ends and the drone lands.
+    let d = wait_status(&k, 1, 10.0, |d| {
+        d["link"] == "ok" && d["mission"]["last_error_code"] == "link_lost"
+    })
+    .await;
+    assert_eq!(d["mission"]["state"], 0, "{d}");
+    wait_status(&k, 1, 30.0, |d| d["armed"] == false).await;
 }
 
 #[test]

@@ -5,12 +5,21 @@
 
 mod mavlink_support;
 
-use mavlink_support::{closest_approaches, demo_targets, serial, Fake, Kestrel, Personality};
+use mavlink_support::{
+    closest_approaches, demo_mission, demo_targets, free_tcp_port, serial, Api, Fake, Kestrel,
+    Personality,
+};
 use serde_json::{json, Value};
 use std::time::Duration;
 
 const FLIGHT_TIMEOUT: Duration = Duration::from_secs(120);
-const DEMO: &[&str] = &["--mission-demo", "--exit-when-done", "--max-time-s", "110"];
+const DEMO: &[&str] = &[
+    "--mission-demo",
+    "--no-api",
+    "--exit-when-done",
+    "--max-time-s",
+    "110",
+];
 
 /// Flies the demo and checks every target; returns the fake, kestrel and the fake's setpoint
 /// statistics up to the end of the takeoff (they are reset then: the rest of the flight is
@@ -150,6 +159,11 @@ fn drop_link_during(fake: &Fake, kestrel: &Kestrel, behavior: &str) -> std::time
     dropped_at
 }
 
+/// When Kestrel saw the link go.
+fn dropped_at_line(kestrel: &Kestrel) -> std::time::Instant {
+    kestrel.line_at("link: lost").expect("a link loss")
+}
+
 fn link_lost_detected_quickly(kestrel: &Kestrel, dropped_at: std::time::Instant) {
     let lost = kestrel.wait_line("link: lost", Duration::from_secs(5));
     let detection = lost.duration_since(dropped_at);
@@ -165,55 +179,102 @@ fn link_lost_detected_quickly(kestrel: &Kestrel, dropped_at: std::time::Instant)
     );
 }
 
-#[test]
-fn px4_link_drop_mid_flight_resumes_the_plan() {
+/// `kestrel run` serving the API on a free port, with `config`.
+fn kestrel_with_api(p: Personality, fake: &Fake, config: &str) -> (Kestrel, Api) {
+    let port = free_tcp_port();
+    let listen = format!("127.0.0.1:{port}");
+    let kestrel = Kestrel::run(p, &fake.connection, config, &["--listen", &listen]);
+    (kestrel, Api::connect(port))
+}
+
+/// On the API path: the demo uploaded and started over REST, the link cut for 3 s during its
+/// go_to; with `resume` the interrupted go_to starts again and the mission finishes.
+fn link_drop_resumes_the_mission(p: Personality) {
     let _one = serial();
-    let p = Personality::Px4;
     let fake = Fake::start(p, &[]);
     let poller = fake.poll_states();
-    let config = "[mavlink]\non_link_regained = \"resume\"\n";
-    let mut kestrel = Kestrel::run(p, &fake.connection, config, DEMO);
+    let config = "[mission]\non_link_regained = \"resume\"\n";
+    let (kestrel, api) = kestrel_with_api(p, &fake, config);
+    api.fly(&demo_mission());
     let dropped_at = drop_link_during(&fake, &kestrel, "go_to");
     link_lost_detected_quickly(&kestrel, dropped_at);
-    let status = kestrel.wait(FLIGHT_TIMEOUT);
+    let mission = api.wait_mission_end(FLIGHT_TIMEOUT);
     let samples = poller.finish();
-    assert!(status.success(), "{}", kestrel.output());
-    assert!(kestrel.output().contains("resuming the plan"));
-    // PX4 went to AUTO.LAND on offboard loss; the resumed plan still reaches what follows.
+    let out = kestrel.output();
+    assert!(mission["last_error"].is_null(), "{mission}\n{out}");
+    assert_eq!(mission["pending_items"], 0, "{mission}");
+    let lost: Vec<&Value> = mission["done_results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|d| d["code"] == "link_lost")
+        .collect();
+    assert_eq!(lost.len(), 1, "{mission}");
+    let back = kestrel.line_after("link: ok", dropped_at_line(&kestrel));
+    assert!(
+        back.is_some_and(|t| kestrel
+            .line_after("\"started\",\"id\":3,\"behavior\":\"go_to\"", t)
+            .is_some()),
+        "the interrupted go_to must start again once the link is back:\n{out}"
+    );
+    // The autopilot's failsafe acted during the outage; the resumed plan still reaches what
+    // follows the interrupted go_to.
     let targets = demo_targets();
-    let after = targets.get(1..).unwrap();
-    let approaches = closest_approaches(&samples, after);
+    let approaches = closest_approaches(&samples, targets.get(1..).unwrap());
     assert!(
         approaches.iter().all(|d| *d <= 0.3),
-        "{approaches:.2?}\n{}",
-        kestrel.output()
+        "{approaches:.2?}\n{out}"
     );
     let end = fake.state();
-    assert_eq!(end["armed"], false, "{end}");
+    assert_eq!(
+        (end["armed"].clone(), end["on_ground"].clone()),
+        (json!(false), json!(true)),
+        "{end}"
+    );
+}
+
+/// The same with `land`: the mission ends with `link_lost` and the vehicle lands where it is.
+fn link_drop_lands(p: Personality) {
+    let _one = serial();
+    let fake = Fake::start(p, &[]);
+    let config = "[mission]\non_link_regained = \"land\"\n";
+    let (kestrel, api) = kestrel_with_api(p, &fake, config);
+    api.fly(&demo_mission());
+    let dropped_at = drop_link_during(&fake, &kestrel, "go_to");
+    link_lost_detected_quickly(&kestrel, dropped_at);
+    let mission = api.wait_mission_end(FLIGHT_TIMEOUT);
+    assert_eq!(mission["last_error_code"], "link_lost", "{mission}");
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    while fake.state()["armed"] == true && std::time::Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let end = fake.state();
+    assert_eq!(
+        (end["armed"].clone(), end["on_ground"].clone()),
+        (json!(false), json!(true)),
+        "{end}\n{}",
+        kestrel.output()
+    );
+}
+
+#[test]
+fn px4_link_drop_mid_flight_resumes_the_mission() {
+    link_drop_resumes_the_mission(Personality::Px4);
+}
+
+#[test]
+fn ardupilot_link_drop_mid_flight_resumes_the_mission() {
+    link_drop_resumes_the_mission(Personality::Ardupilot);
+}
+
+#[test]
+fn px4_link_drop_mid_flight_lands_when_configured() {
+    link_drop_lands(Personality::Px4);
 }
 
 #[test]
 fn ardupilot_link_drop_mid_flight_lands_when_configured() {
-    let _one = serial();
-    let p = Personality::Ardupilot;
-    let fake = Fake::start(p, &[]);
-    let config = "[mavlink]\non_link_regained = \"land\"\n";
-    let mut kestrel = Kestrel::run(p, &fake.connection, config, DEMO);
-    let dropped_at = drop_link_during(&fake, &kestrel, "go_to");
-    link_lost_detected_quickly(&kestrel, dropped_at);
-    let status = kestrel.wait(FLIGHT_TIMEOUT);
-    let out = kestrel.output();
-    println!("{out}");
-    assert!(!status.success(), "{out}");
-    assert!(out.contains("mode: LAND"), "{out}");
-    let end = fake.state();
-    assert_eq!(end["armed"], false, "{end}");
-    assert_eq!(end["on_ground"], true, "{end}");
-    assert!(
-        out.lines()
-            .any(|l| l.contains("flight failed") && l.contains("link to the autopilot lost")),
-        "{out}"
-    );
+    link_drop_lands(Personality::Ardupilot);
 }
 
 #[test]

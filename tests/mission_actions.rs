@@ -752,8 +752,9 @@ fn rtl_composes_go_to_home_and_land() {
     assert!(rig.near(0.0, 0.0, 0.0, 0.3), "{:?}", rig.position());
 }
 
+/// The rules after the link comes back are in tests/mission_link.rs.
 #[test]
-fn link_loss_fails_the_mission_with_the_reason() {
+fn link_loss_holds_the_mission_then_fails_it_when_the_link_stays_away() {
     let mut rig = flying_square_at(1);
     let (tx, _rx) = tokio::sync::oneshot::channel();
     rig.host.handle(kestrel::host::Command::Fault {
@@ -761,9 +762,18 @@ fn link_loss_fails_the_mission_with_the_reason() {
         link_lost: true,
         reply: tx,
     });
-    assert!(rig.run_until(2.0, |r| r.is_idle()));
-    let e = rig.status().last_error.unwrap();
-    assert!(e.contains("link"), "{e}");
+    assert!(!rig.run_until(25.0, |r| r.is_idle()), "waits for the link");
+    assert!(
+        rig.run_until(10.0, |r| r.is_idle()),
+        "[mission] link_wait_s = 30"
+    );
+    let status = rig.status();
+    let e = status.last_error.unwrap();
+    assert!(e.contains("did not come back within 30 s"), "{e}");
+    assert_eq!(
+        status.last_error_code,
+        Some(kestrel::behavior::FailureCode::LinkLost)
+    );
 }
 
 #[test]
@@ -773,10 +783,7 @@ fn a_restart_keeps_missions_loaded_but_never_resumes_them() {
         .unwrap();
     let saved = serde_json::to_string(&rig.host.persisted()).unwrap();
     let mut fresh = Rig::new();
-    fresh.host.restore(
-        serde_json::from_str(&saved).unwrap(),
-        std::time::Duration::from_secs(1),
-    );
+    fresh.host.restore(serde_json::from_str(&saved).unwrap());
     let ex = &fresh.host.executors()[0];
     assert_eq!(ex.missions().keys().copied().collect::<Vec<_>>(), [1, 7]);
     assert_eq!(ex.state(), ExecState::Idle);

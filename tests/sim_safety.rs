@@ -7,6 +7,7 @@ use common::SimConfig;
 use common::{world_with_pole, Harness};
 use kestrel::behavior::BehaviorResult;
 use kestrel::core::BehaviorCommand;
+use kestrel::host::{FrameRegistration, HostError};
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::{FlightStatus, Vec3};
@@ -111,7 +112,14 @@ fn a_drone_flown_into_a_pole_reports_a_collision() {
 
 #[test]
 fn two_drones_flown_into_each_other_both_report_it() {
-    let mut h = Harness::new(World::empty(), 2);
+    // The safety stage would keep them apart: switched off, the simulator's own contact
+    // detection is what is tested.
+    let mut config = SimConfig {
+        drones: 2,
+        ..SimConfig::default()
+    };
+    config.settings.safety.min_separation_m = 0.0;
+    let mut h = Harness::with_config(World::empty(), config);
     // Default starts: a row along x, 2 m apart.
     assert_eq!(h.position(1), Vec3::new(2.0, 0.0, 0.0));
     h.take_off(0, 2.0);
@@ -234,4 +242,126 @@ fn hover_holds_position_in_a_steady_wind_with_gusts() {
             "hover:finished:aborted",
         ],
     );
+}
+
+/// Registers `frame_id` in `earth` at `z_m` for every drone, moving up at `climb_mps`.
+fn frame_at(h: &mut Harness, frame_id: &str, z_m: f64, climb_mps: f64) -> Result<(), HostError> {
+    h.host.set_frame(FrameRegistration {
+        frame_id: frame_id.into(),
+        parent: "earth".into(),
+        translation_m: [0.0, 0.0, z_m],
+        yaw_rad: 0.0,
+        velocity_mps: [0.0, 0.0, climb_mps],
+        yaw_rate_radps: 0.0,
+        drone_id: None,
+    })
+}
+
+#[test]
+fn a_goal_in_a_frame_that_rises_past_the_ceiling_never_takes_the_vehicle_out() {
+    // go_to gives up when it gets no closer for a while; here it must keep chasing the frame.
+    let mut config = SimConfig::default();
+    config.settings.behaviors.no_progress_timeout_s = 3600.0;
+    let mut h = Harness::with_config(World::empty(), config);
+    frame_at(&mut h, "balloon", 0.0, 0.0).unwrap();
+    h.take_off(0, 2.0);
+    h.start(
+        0,
+        "go_to",
+        json!({ "x": 0.0, "y": 0.0, "z": 0.0, "speed": 5.0, "frame_id": "balloon" }),
+    );
+    // Moved after the goal was accepted: now 110 m up and climbing 0.2 m/s, to 500 m and
+    // beyond; the vehicle catches up with it below the ceiling.
+    frame_at(&mut h, "balloon", 110.0, 0.2).unwrap();
+    h.run_for(200.0);
+    let ceiling = 120.0;
+    let top = h.samples[0]
+        .iter()
+        .map(|s| s.position_m.z)
+        .fold(0.0, f64::max);
+    assert!(
+        top <= ceiling,
+        "flew to {top} m against a {ceiling} m ceiling"
+    );
+    assert!(top > ceiling - 5.0, "held near the ceiling, at {top} m");
+    assert!(h.samples[0]
+        .iter()
+        .all(|s| s.position_m.iter().all(|v| v.is_finite())));
+    let records = h.log_records();
+    let safety: Vec<_> = records.iter().filter(|r| r["type"] == "safety").collect();
+    assert!(!safety.is_empty(), "the override is logged");
+    assert!(safety[0]["reason"].as_str().unwrap().contains("ceiling"));
+}
+
+#[test]
+fn frames_at_absurd_places_are_refused_and_change_nothing() {
+    let mut h = Harness::one_drone();
+    frame_at(&mut h, "site", 0.0, 0.0).unwrap();
+    h.take_off(0, 2.0);
+    for (z, climb) in [(1e308, 0.0), (f64::INFINITY, 0.0), (0.0, 1e6), (5e5, 0.0)] {
+        let err = frame_at(&mut h, "site", z, climb).unwrap_err();
+        assert!(matches!(err, HostError::Frame(_)), "{err}");
+    }
+    for builtin in ["earth", "map", "odom", "base_link"] {
+        assert!(frame_at(&mut h, builtin, 0.0, 0.0).is_err(), "{builtin}");
+    }
+    let id = h.start(
+        0,
+        "go_to",
+        json!({ "x": 1.0, "y": 0.0, "z": 2.0, "speed": 1.0, "frame_id": "site" }),
+    );
+    assert_eq!(h.wait_for(0, id, 20.0), BehaviorResult::Succeeded);
+    assert!((h.position(0) - Vec3::new(1.0, 0.0, 2.0)).norm() < 0.2);
+}
+
+#[test]
+fn two_drones_whose_goals_cross_are_kept_apart() {
+    let mut h = Harness::new(World::empty(), 2);
+    h.take_off(0, 2.0);
+    h.take_off(1, 2.0);
+    // Head on, a little off centre: each goal is where the other drone starts, past it.
+    h.start(
+        0,
+        "go_to",
+        json!({ "x": 4.0, "y": 0.2, "z": 2.0, "speed": 1.0 }),
+    );
+    h.start(
+        1,
+        "go_to",
+        json!({ "x": -2.0, "y": -0.2, "z": 2.0, "speed": 1.0 }),
+    );
+    h.run_for(25.0);
+    let closest = h.samples[0]
+        .iter()
+        .zip(&h.samples[1])
+        .map(|(a, b)| (a.position_m - b.position_m).norm())
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        closest >= 0.9,
+        "came {closest:.2} m close (minimum separation 1.0 m)"
+    );
+    let records = h.log_records();
+    assert!(records.iter().all(|r| r["type"] != "collision"));
+    assert!(records.iter().any(
+        |r| r["type"] == "safety" && r["reason"].as_str().unwrap().contains("keeping at least")
+    ));
+}
+
+#[test]
+fn moving_a_frame_is_refused_when_it_would_invalidate_a_loaded_mission() {
+    let mut h = Harness::one_drone();
+    frame_at(&mut h, "site", 0.0, 0.0).unwrap();
+    let mission = json!({"target": "drone_0", "plan": [
+        {"behavior": "takeoff", "args": {"height": 2.0, "speed": 1.0}},
+        {"behavior": "go_to", "args": {"x": 0.0, "y": 0.0, "z": 5.0, "speed": 1.0, "frame_id": "site"}}]});
+    h.host.upload(&mission, None).unwrap();
+    let err = frame_at(&mut h, "site", 500.0, 0.0).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("loaded mission 1 would no longer be valid")
+            && err.to_string().contains("ceiling"),
+        "{err}"
+    );
+    frame_at(&mut h, "site", 20.0, 0.0).unwrap();
+    frame_at(&mut h, "elsewhere", 500.0, 0.0).unwrap();
 }

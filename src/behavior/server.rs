@@ -121,6 +121,24 @@ impl ServerError {
     }
 }
 
+/// How often an offboard claim is repeated while the autopilot has not switched yet.
+const OFFBOARD_CLAIM_PERIOD: Duration = Duration::from_secs(1);
+
+/// Asks for offboard for a behavior started outside it, until the autopilot is in it.
+fn claim_offboard(a: &mut Active, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) {
+    let Some(last) = a.claims_offboard else {
+        return;
+    };
+    if ctx.platform.offboard {
+        a.claims_offboard = None;
+        return;
+    }
+    if last == Duration::ZERO || ctx.now.saturating_sub(last) >= OFFBOARD_CLAIM_PERIOD {
+        requests.push(PlatformRequest::StartOffboard);
+        a.claims_offboard = Some(ctx.now.max(Duration::from_nanos(1)));
+    }
+}
+
 /// A snapshot of one active behavior, for status displays.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ActiveInfo {
@@ -138,6 +156,10 @@ struct Active {
     behavior: Box<dyn Behavior>,
     /// Where to hold while paused.
     hold: Option<MotionReference>,
+    /// Started while airborne outside offboard (after a link loss, or a pilot's mode change
+    /// followed by a new order): it asks the autopilot for offboard until it has it. A behavior
+    /// that loses offboard while running never asks again: whoever took control keeps it.
+    claims_offboard: Option<Duration>,
 }
 
 /// What one server tick produces.
@@ -267,6 +289,10 @@ impl BehaviorServer {
             resource,
             behavior,
             hold: None,
+            claims_offboard: (resource == Resource::Motion
+                && ctx.is_flying()
+                && !ctx.platform.offboard)
+                .then_some(Duration::ZERO),
         });
         self.events.push(BehaviorEvent::Started {
             id,
@@ -403,6 +429,9 @@ impl BehaviorServer {
                     a.info.feedback = feedback;
                     if a.resource == Resource::Motion {
                         motion_reference = reference;
+                        if reference.is_some() {
+                            claim_offboard(a, ctx, &mut out.requests);
+                        }
                     }
                 }
                 Step::Succeeded => finished.push((a.info.id, BehaviorResult::Succeeded)),
@@ -494,6 +523,43 @@ mod tests {
                 _ => None,
             })
             .collect()
+    }
+
+    fn offboard_requests(s: &mut BehaviorServer, w: &World, t_ms: u64) -> usize {
+        s.tick(&w.ctx_at(Duration::from_millis(t_ms)))
+            .requests
+            .iter()
+            .filter(|r| **r == PlatformRequest::StartOffboard)
+            .count()
+    }
+
+    #[test]
+    fn a_motion_behavior_started_outside_offboard_claims_it_until_it_has_it() {
+        let mut w = World::flying();
+        w.platform.offboard = false;
+        let mut s = server();
+        s.start("count", &json!({ "ticks": 1000 }), &w.ctx(0))
+            .unwrap();
+        assert_eq!(offboard_requests(&mut s, &w, 10), 1);
+        assert_eq!(offboard_requests(&mut s, &w, 500), 0, "once a second");
+        assert_eq!(offboard_requests(&mut s, &w, 1100), 1);
+        w.platform.offboard = true;
+        assert_eq!(offboard_requests(&mut s, &w, 2200), 0);
+        w.platform.offboard = false;
+        assert_eq!(
+            offboard_requests(&mut s, &w, 3300),
+            0,
+            "offboard taken away while running: never grabbed back"
+        );
+    }
+
+    #[test]
+    fn a_motion_behavior_started_in_offboard_never_asks_for_it() {
+        let w = World::flying();
+        let mut s = server();
+        s.start("count", &json!({ "ticks": 1000 }), &w.ctx(0))
+            .unwrap();
+        assert_eq!(offboard_requests(&mut s, &w, 10), 0);
     }
 
     #[test]

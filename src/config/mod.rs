@@ -1,6 +1,6 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
-//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`.
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`.
 
 pub mod bounds;
 
@@ -8,7 +8,9 @@ use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
+use crate::mission::executor::{ExecutorConfig, LinkRegained};
 use crate::mission::Limits;
+use crate::safety::SafetyConfig;
 use crate::sim::world::SensorConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -26,6 +28,26 @@ pub struct Config {
     pub geofence: GeofenceSection,
     pub mission: MissionSection,
     pub map: crate::mapping::config::MapSection,
+    pub safety: SafetySection,
+}
+
+/// The safety stage every setpoint passes (the geofence itself is `[geofence]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SafetySection {
+    /// Least distance kept between two flying drones of the fleet (m, centre to centre).
+    pub min_separation_m: f64,
+    /// A target beyond the geofence is held this far inside it (m).
+    pub geofence_margin_m: f64,
+}
+
+impl Default for SafetySection {
+    fn default() -> Self {
+        Self {
+            min_separation_m: 1.0,
+            geofence_margin_m: 0.5,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -147,6 +169,12 @@ pub struct MissionSection {
     /// Loaded missions and their progress are kept here; `--state-dir` and
     /// `$STATE_DIRECTORY` override it. Absent = `./kestrel-state`.
     pub state_dir: Option<PathBuf>,
+    /// When the link to the autopilot comes back after it was lost during an item: `land`
+    /// (end the mission and land), `hold` (pause the mission and hover) or `resume` (start the
+    /// interrupted item again). Meanwhile the autopilot's own failsafe flies the vehicle.
+    pub on_link_regained: LinkRegained,
+    /// How long a mission waits for a lost link before it fails (s).
+    pub link_wait_s: f64,
 }
 
 impl Default for MissionSection {
@@ -154,6 +182,8 @@ impl Default for MissionSection {
         Self {
             switch_hold_s: 1.0,
             state_dir: None,
+            on_link_regained: LinkRegained::default(),
+            link_wait_s: 30.0,
         }
     }
 }
@@ -183,6 +213,26 @@ pub enum ConfigError {
 }
 
 impl Config {
+    /// What the safety stage enforces in flight.
+    pub fn safety_config(&self) -> SafetyConfig {
+        SafetyConfig {
+            geofence: self.geofence.clone(),
+            geofence_margin_m: self.safety.geofence_margin_m,
+            min_separation_m: self.safety.min_separation_m,
+            limits: self.controller,
+            braking_mps2: self.behaviors.max_acceleration_mps2,
+        }
+    }
+
+    /// The mission executor's settings.
+    pub fn executor_config(&self) -> ExecutorConfig {
+        ExecutorConfig {
+            switch_hold: std::time::Duration::from_secs_f64(self.mission.switch_hold_s),
+            on_link_regained: self.mission.on_link_regained,
+            link_wait: std::time::Duration::from_secs_f64(self.mission.link_wait_s),
+        }
+    }
+
     /// What missions are validated against: the vehicle's speed limit and the geofence.
     pub fn mission_limits(&self) -> Limits {
         Limits {
@@ -310,6 +360,18 @@ impl Config {
         )?;
         count("api.max_ws_clients", self.api.max_ws_clients, (1, 10_000))?;
         self.map.validate()?;
+        non_negative(
+            "safety.min_separation_m",
+            self.safety.min_separation_m,
+            100.0,
+            "m",
+        )?;
+        non_negative(
+            "safety.geofence_margin_m",
+            self.safety.geofence_margin_m,
+            100.0,
+            "m",
+        )?;
         Ok(())
     }
 

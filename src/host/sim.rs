@@ -94,6 +94,7 @@ fn simulated_parts_with(
             c.behaviors = config.behaviors;
             c.estimator = config.estimator.plugin.unwrap_or_default();
             c.map.clone_from(&map);
+            c.safety = config.safety_config();
             if let Some(o) = origin {
                 c.geo_origin = GeodeticOrigin(o);
             }
@@ -106,7 +107,7 @@ fn simulated_parts_with(
         SimFleet::new(sim, PHYSICS_SUBSTEPS),
         HostConfig {
             limits: config.mission_limits(),
-            switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
+            executor: config.executor_config(),
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },
     )

@@ -37,6 +37,9 @@ pub struct DroneStatus {
     #[schema(value_type = String)]
     pub flight: FlightStatus,
     pub ready_to_fly: bool,
+    /// Autopilot reboots seen since Kestrel started.
+    #[serde(default)]
+    pub boot_counter: u32,
     pub battery: Option<BatteryStatus>,
     pub last_error: Option<String>,
     pub position_enu_m: [f64; 3],
@@ -64,6 +67,7 @@ impl DroneStatus {
             mode: s.platform.mode,
             flight: s.platform.flight,
             ready_to_fly: s.platform.ready_to_fly,
+            boot_counter: s.platform.boot_counter,
             battery: s.platform.battery.map(|b| BatteryStatus {
                 voltage_v: b.voltage_v,
                 remaining_fraction: b.remaining_fraction,

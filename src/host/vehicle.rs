@@ -17,7 +17,7 @@ pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Conf
         Box::new(platforms),
         HostConfig {
             limits: config.mission_limits(),
-            switch_hold: Duration::from_secs_f64(config.mission.switch_hold_s),
+            executor: config.executor_config(),
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },
     )

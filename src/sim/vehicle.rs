@@ -17,6 +17,9 @@ use std::time::Duration;
 const SETPOINT_TIMEOUT: Duration = Duration::from_millis(1000);
 const FULL_VOLTAGE_V: f64 = 16.8;
 const EMPTY_VOLTAGE_V: f64 = 13.2;
+/// An armed vehicle on the ground outside offboard disarms after this long.
+const AUTO_DISARM: Duration = Duration::from_secs(2);
+
 /// Battery drain while armed (fraction per second): a full pack lasts about 25 minutes.
 const DRAIN_PER_S: f64 = 1.0 / 1500.0;
 
@@ -30,6 +33,8 @@ pub struct SimVehicle {
     last_setpoint: Option<(Setpoint, Duration)>,
     /// Position held by the autopilot itself when offboard is lost.
     failsafe_hold: Option<Vec3>,
+    /// Since when the vehicle sits on the ground armed outside offboard (auto-disarm).
+    grounded_since: Option<Duration>,
     last_error: Option<String>,
     pending_results: Vec<RequestResult>,
     pub(super) pending_scans: Vec<RangeScan>,
@@ -51,6 +56,7 @@ impl SimVehicle {
             battery_fraction: 1.0,
             last_setpoint: None,
             failsafe_hold: None,
+            grounded_since: None,
             last_error: None,
             pending_results: Vec::new(),
             pending_scans: Vec::new(),
@@ -88,6 +94,13 @@ impl SimVehicle {
         }
     }
 
+    /// The autopilot lands by itself where it is (its own failsafe, or a pilot's LAND switch):
+    /// it leaves offboard, descends and disarms on the ground, as PX4 and ArduPilot do.
+    pub fn autopilot_land(&mut self) {
+        self.offboard = false;
+        self.failsafe_hold = None;
+    }
+
     /// Advances the physics by `dt_s` with the wind and a noise acceleration.
     pub fn step(&mut self, now: Duration, dt_s: f64, wind_mps: &Vec3, noise_mps2: &Vec3) {
         if self.armed {
@@ -101,6 +114,15 @@ impl SimVehicle {
             self.offboard = false;
             self.failsafe_hold = Some(self.state.position_m);
             self.last_error = Some("offboard setpoints lost: holding position".into());
+        }
+        // Landed outside offboard: the autopilot disarms by itself (PX4's COM_DISARM_LAND).
+        if self.armed && !self.offboard && self.state.on_ground() {
+            let since = *self.grounded_since.get_or_insert(now);
+            if now.saturating_sub(since) >= AUTO_DISARM {
+                self.armed = false;
+            }
+        } else {
+            self.grounded_since = None;
         }
         let drive = if !self.armed {
             Drive::Off

@@ -40,6 +40,8 @@ pub struct SimConfig {
     /// Control rate (Hz).
     pub rate_hz: f64,
     pub environment: Environment,
+    /// The config the host is built from (its `[drone] control_rate_hz` is `rate_hz`).
+    pub settings: Config,
 }
 
 impl Default for SimConfig {
@@ -49,6 +51,7 @@ impl Default for SimConfig {
             seed: 0,
             rate_hz: 100.0,
             environment: Environment::default(),
+            settings: Config::default(),
         }
     }
 }
@@ -98,7 +101,7 @@ impl Harness {
         config: SimConfig,
         tweak: impl Fn(&mut CoreConfig),
     ) -> Self {
-        let mut settings = Config::default();
+        let mut settings = config.settings.clone();
         settings.drone.control_rate_hz = config.rate_hz;
         let sim = SimWorld::new(world, config.drones, config.seed, config.environment);
         let mut host = simulated_host_with(sim, &settings, tweak);

@@ -256,6 +256,7 @@ impl Kestrel {
             .args(["--platform", platform])
             .args(["--connection", connection])
             .args(["--log", log.to_str().unwrap()])
+            .args(["--state-dir", dir.path().join("state").to_str().unwrap()])
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -428,4 +429,93 @@ pub fn closest_approaches(samples: &[Value], targets: &[[f64; 3]]) -> Vec<f64> {
 
 pub fn profile_path(p: Personality) -> &'static Path {
     Path::new(p.profile())
+}
+
+/// A blocking client of a Kestrel's HTTP API (the tests here are synchronous).
+pub struct Api {
+    base: String,
+    rt: tokio::runtime::Runtime,
+}
+
+impl Api {
+    /// Waits up to 30 s for `GET /api/health` on `port`.
+    pub fn connect(port: u16) -> Self {
+        let api = Api {
+            base: format!("http://127.0.0.1:{port}"),
+            rt: tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap(),
+        };
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while Instant::now() < deadline {
+            if api.try_get("/api/health").is_some() {
+                return api;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!("the API on {port} never answered");
+    }
+
+    fn try_get(&self, path: &str) -> Option<Value> {
+        let url = format!("{}{path}", self.base);
+        self.rt.block_on(async {
+            let r = reqwest::get(url).await.ok()?;
+            r.status().is_success().then_some(())?;
+            r.json().await.ok()
+        })
+    }
+
+    pub fn get(&self, path: &str) -> Value {
+        self.try_get(path)
+            .unwrap_or_else(|| panic!("GET {path} failed"))
+    }
+
+    /// POSTs JSON; returns (status, body).
+    pub fn post(&self, path: &str, body: &Value) -> (u16, Value) {
+        let url = format!("{}{path}", self.base);
+        self.rt.block_on(async {
+            let r = reqwest::Client::new()
+                .post(url)
+                .json(body)
+                .send()
+                .await
+                .unwrap();
+            let status = r.status().as_u16();
+            (status, r.json().await.unwrap_or(Value::Null))
+        })
+    }
+
+    /// Uploads and starts `mission`; returns its id.
+    pub fn fly(&self, mission: &Value) -> u64 {
+        let (status, uploaded) = self.post("/api/missions", mission);
+        assert_eq!(status, 201, "{uploaded}");
+        let id = uploaded["mission_id"].as_u64().unwrap();
+        let start = json!({"drone_id": "drone_0", "mission_id": id, "action": "START"});
+        let (status, started) = self.post("/api/mission_update", &start);
+        assert_eq!(status, 200, "{started}");
+        id
+    }
+
+    /// The mission status of drone 0, once its mission has ended (waits up to `timeout`).
+    pub fn wait_mission_end(&self, timeout: Duration) -> Value {
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            let status = self.get("/api/status");
+            let mission = &status["drones"][0]["mission"];
+            if mission["state"] == 0 && mission["mission_id"].is_u64() {
+                return mission.clone();
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        panic!("the mission did not end within {timeout:?}");
+    }
+}
+
+/// The demo flight from the origin, as mission JSON for drone 0.
+pub fn demo_mission() -> Value {
+    kestrel::host::demo::as_mission(
+        "drone_0",
+        kestrel::host::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0),
+    )
 }

@@ -4,7 +4,7 @@
 //! In: a [`Command`] with its one-shot reply. Out: the answer, and the changes in the host.
 
 use super::{Host, HostError};
-use crate::estimator::frames::{FrameMotion, EARTH};
+use crate::estimator::frames::{FrameMotion, BASE_LINK, EARTH, MAP, ODOM};
 use crate::host::status::EventBody;
 use crate::mission::executor::Progress;
 use crate::mission::{
@@ -134,8 +134,21 @@ pub struct FrameRegistration {
     pub drone_id: Option<String>,
 }
 
+/// Largest translation of a registered frame from its parent (m): 100 km.
+pub const MAX_FRAME_OFFSET_M: f64 = 1e5;
+/// Fastest a registered frame may move (m/s) and turn (rad/s).
+pub const MAX_FRAME_SPEED_MPS: f64 = 50.0;
+pub const MAX_FRAME_YAW_RATE_RADPS: f64 = 10.0;
+/// Most frames registered over the API (all drones together).
+pub const MAX_FRAMES: usize = 256;
+
 impl FrameRegistration {
+    /// Names and numbers: built-ins are not redefined, every number is finite and bounded.
     fn check(&self) -> Result<(), HostError> {
+        let bad = |what: String| Err(HostError::Frame(format!("{}: {what}", self.frame_id)));
+        if [EARTH, MAP, ODOM, BASE_LINK].contains(&self.frame_id.as_str()) {
+            return bad("a built-in frame cannot be redefined".into());
+        }
         let numbers = self
             .translation_m
             .iter()
@@ -143,11 +156,24 @@ impl FrameRegistration {
             .chain([&self.yaw_rad, &self.yaw_rate_radps]);
         for v in numbers {
             if !v.is_finite() {
-                return Err(HostError::Frame(format!(
-                    "{}: every number must be finite",
-                    self.frame_id
-                )));
+                return bad("every number must be finite".into());
             }
+        }
+        let norm = |v: &[f64; 3]| v.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if norm(&self.translation_m) > MAX_FRAME_OFFSET_M {
+            return bad(format!(
+                "translation_m is more than {MAX_FRAME_OFFSET_M} m from the parent"
+            ));
+        }
+        if norm(&self.velocity_mps) > MAX_FRAME_SPEED_MPS {
+            return bad(format!(
+                "velocity_mps is faster than {MAX_FRAME_SPEED_MPS} m/s"
+            ));
+        }
+        if self.yaw_rate_radps.abs() > MAX_FRAME_YAW_RATE_RADPS {
+            return bad(format!(
+                "yaw_rate_radps is faster than {MAX_FRAME_YAW_RATE_RADPS} rad/s"
+            ));
         }
         Ok(())
     }
@@ -393,9 +419,21 @@ impl Host {
         Ok(())
     }
 
-    /// Registers or updates a frame in every drone (or the one it names); all or none.
+    /// Registers or updates a frame in every drone (or the one it names); all or none. A loaded
+    /// mission that the new frame would make invalid (a goal beyond the geofence, a frame cycle)
+    /// refuses the change, with that mission's errors.
     pub fn set_frame(&mut self, frame: FrameRegistration) -> Result<(), HostError> {
         frame.check()?;
+        let known = self
+            .frames
+            .iter()
+            .any(|f| f.frame_id == frame.frame_id && f.drone_id == frame.drone_id);
+        if !known && self.frames.len() >= MAX_FRAMES {
+            return Err(HostError::Frame(format!(
+                "{}: {MAX_FRAMES} frames are registered already; replace one",
+                frame.frame_id
+            )));
+        }
         let targets: Vec<usize> = match &frame.drone_id {
             Some(d) => vec![self.route(Some(d))?],
             None => (0..self.cores.len()).collect(),
@@ -405,6 +443,7 @@ impl Host {
             if let Some(core) = self.cores.get(i) {
                 let mut trial = core.frames().clone();
                 trial.set(&frame.frame_id, &frame.parent, motion)?;
+                self.recheck_missions(i, &frame.frame_id, &trial)?;
             }
         }
         for &i in &targets {
@@ -417,6 +456,46 @@ impl Host {
         self.frames.push(frame);
         self.revision += 1;
         Ok(())
+    }
+
+    /// Validates again, against `frames`, every mission of drone `i` with a goal in `frame_id`.
+    fn recheck_missions(
+        &self,
+        i: usize,
+        frame_id: &str,
+        frames: &crate::estimator::frames::FrameTree,
+    ) -> Result<(), HostError> {
+        let (Some(ctx), Some(ex)) = (self.validation_context(i), self.executors.get(i)) else {
+            return Ok(());
+        };
+        let ctx = ValidationContext { frames, ..ctx };
+        for (id, loaded) in ex.missions() {
+            let uses = loaded.mission.items.iter().any(|item| {
+                item.parsed
+                    .as_ref()
+                    .is_some_and(|g| g.summary().targets.iter().any(|t| t.frame_id == frame_id))
+                    || item.goal.get("frame_id").and_then(Value::as_str) == Some(frame_id)
+            });
+            if !uses {
+                continue;
+            }
+            let written = serde_json::to_value(loaded.mission.as_written()).unwrap_or_default();
+            if let Err(errors) = crate::mission::validate::validate_value(&written, &ctx) {
+                let first: Vec<String> = errors.iter().take(3).map(ToString::to_string).collect();
+                return Err(HostError::Frame(format!(
+                    "{frame_id}: loaded mission {id} would no longer be valid: {}",
+                    first.join("; ")
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Simulator fault injection: cut (`true`) or restore drone `i`'s link.
+    pub fn set_link_lost(&mut self, i: usize, lost: bool) -> Result<(), HostError> {
+        self.fleet
+            .set_link_lost(i, lost)
+            .map_err(HostError::NotSupported)
     }
 
     /// Carries out one command and answers it.
@@ -461,11 +540,9 @@ impl Host {
                 link_lost,
                 reply,
             } => {
-                let result = self.route(Some(&drone_id)).and_then(|i| {
-                    self.fleet
-                        .set_link_lost(i, link_lost)
-                        .map_err(HostError::NotSupported)
-                });
+                let result = self
+                    .route(Some(&drone_id))
+                    .and_then(|i| self.set_link_lost(i, link_lost));
                 let _ = reply.send(result);
             }
             Command::FlushLog { reply } => {

@@ -21,6 +21,7 @@ use crate::estimator::frames::FrameError;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
+use crate::mission::executor::ExecutorConfig;
 use crate::mission::executor::ExecutorSnapshot;
 use crate::mission::{ActionError, Limits, MissionExecutor, ValidationError};
 use crate::planning::worker::{Delivery, PlanWorker};
@@ -68,13 +69,14 @@ pub struct PersistedState {
 
 pub struct HostConfig {
     pub limits: Limits,
-    pub switch_hold: Duration,
+    pub executor: ExecutorConfig,
     pub tick: Duration,
 }
 
 pub struct Host {
     cores: Vec<DroneCore>,
     executors: Vec<MissionExecutor>,
+    executor_config: ExecutorConfig,
     fleet: Box<dyn Fleet>,
     limits: Limits,
     frames: Vec<FrameRegistration>,
@@ -103,10 +105,11 @@ impl Host {
         let n = cores.len();
         Self {
             executors: (0..n)
-                .map(|_| MissionExecutor::new(config.switch_hold))
+                .map(|_| MissionExecutor::new(config.executor))
                 .collect(),
             cores,
             fleet,
+            executor_config: config.executor,
             limits: config.limits,
             frames: Vec::new(),
             revision: 0,
@@ -195,12 +198,12 @@ impl Host {
     }
 
     /// Restores missions (never running) and frames kept by a previous run.
-    pub fn restore(&mut self, state: PersistedState, switch_hold: Duration) {
+    pub fn restore(&mut self, state: PersistedState) {
         for (i, core) in self.cores.iter().enumerate() {
             if let (Some(snap), Some(ex)) =
                 (state.drones.get(core.drone_id()), self.executors.get_mut(i))
             {
-                *ex = MissionExecutor::restore(snap.clone(), switch_hold);
+                *ex = MissionExecutor::restore(snap.clone(), self.executor_config);
             }
         }
         for frame in state.frames {
@@ -326,6 +329,18 @@ impl Host {
             }
             for e in out.events {
                 self.event(i, EventBody::Behavior(e));
+            }
+            if let Some(o) = out.safety {
+                if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
+                    log.event(now, core.drone_id(), "safety", &o.reason);
+                }
+                tracing::warn!("safety: {}", o.reason);
+                self.event(
+                    i,
+                    EventBody::Alert {
+                        message: format!("safety: {}", o.reason),
+                    },
+                );
             }
             for r in &feedback.request_results {
                 if let Err(reason) = &r.outcome {

@@ -234,7 +234,7 @@ impl MissionExecutor {
             Some(old) => {
                 self.end_run(core, &format!("switched to mission {id}"), None);
                 tracing::info!("mission {old} stopped: switching to mission {id}");
-                Some(now + self.switch_hold)
+                Some(now + self.config.switch_hold)
             }
             None => None,
         };
@@ -253,6 +253,7 @@ impl MissionExecutor {
             current: None,
             parallel: Vec::new(),
             start_at,
+            link_wait: None,
         });
         self.advance(core, now);
         if self.run.is_none() {

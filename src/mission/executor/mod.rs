@@ -9,8 +9,11 @@
 //! in `tests/mission_actions.rs`, one test per rule.
 
 mod actions;
+mod link;
 
 pub use actions::{ActionError, Request};
+use link::LinkWait;
+pub use link::{ExecutorConfig, LinkRegained};
 
 use actions::refused;
 
@@ -71,6 +74,8 @@ struct Run {
     parallel: Vec<Parallel>,
     /// After a plan switch: hold until then before the first item starts.
     start_at: Option<Duration>,
+    /// The link to the autopilot was lost during an item: what to do when it is back.
+    link_wait: Option<LinkWait>,
 }
 
 pub struct MissionExecutor {
@@ -83,12 +88,11 @@ pub struct MissionExecutor {
     last_error_code: Option<FailureCode>,
     next_id: u32,
     revision: u64,
-    switch_hold: Duration,
+    config: ExecutorConfig,
 }
 
 impl MissionExecutor {
-    /// `switch_hold`: how long the vehicle holds between two plans when START switches.
-    pub fn new(switch_hold: Duration) -> Self {
+    pub fn new(config: ExecutorConfig) -> Self {
         Self {
             missions: BTreeMap::new(),
             run: None,
@@ -97,12 +101,12 @@ impl MissionExecutor {
             last_error_code: None,
             next_id: 1,
             revision: 0,
-            switch_hold,
+            config,
         }
     }
 
     /// Rebuilds an executor from a snapshot: missions loaded, nothing running.
-    pub fn restore(snapshot: ExecutorSnapshot, switch_hold: Duration) -> Self {
+    pub fn restore(snapshot: ExecutorSnapshot, config: ExecutorConfig) -> Self {
         let last_error = match snapshot.running {
             Some(id) => Some(format!(
                 "Kestrel restarted while mission {id} was running; it was not resumed"
@@ -117,7 +121,7 @@ impl MissionExecutor {
             last_error_code: None,
             next_id: snapshot.next_id.max(1),
             revision: 1,
-            switch_hold,
+            config,
         }
     }
 
@@ -362,9 +366,10 @@ impl MissionExecutor {
                 result,
             } = e
             {
-                self.on_finished(*id, behavior, result, core);
+                self.on_finished(*id, behavior, result, core, now);
             }
         }
+        self.follow_link(core, now);
         self.end_timed_item(core, now);
         self.advance(core, now);
     }
@@ -375,6 +380,7 @@ impl MissionExecutor {
         behavior: &str,
         result: &BehaviorResult,
         core: &mut DroneCore,
+        now: Duration,
     ) {
         let Some(run) = self.run.as_mut() else {
             return;
@@ -390,6 +396,11 @@ impl MissionExecutor {
         if let Some(current) = run.current.as_ref().filter(|c| c.id == behavior_id) {
             let index = current.index;
             run.current = None;
+            if code == Some(FailureCode::LinkLost) {
+                self.record(id, index, item_result, reason, code);
+                self.wait_for_link(index, now);
+                return;
+            }
             let on_failure = self
                 .missions
                 .get(&id)
@@ -423,7 +434,10 @@ impl MissionExecutor {
             index = d.item;
         }
         self.touch();
-        if item_result == ItemResult::Failed && p.on_failure == OnFailure::Abort {
+        if item_result == ItemResult::Failed
+            && p.on_failure == OnFailure::Abort
+            && code != Some(FailureCode::LinkLost)
+        {
             let reason = reason.as_deref().unwrap_or("failed");
             self.fail(core, index, behavior, reason, code);
         }
@@ -458,7 +472,7 @@ impl MissionExecutor {
             let Some(run) = self.run.as_mut() else {
                 return;
             };
-            if run.paused || run.current.is_some() {
+            if run.paused || run.current.is_some() || run.link_wait.is_some() {
                 return;
             }
             if let Some(t) = run.start_at {

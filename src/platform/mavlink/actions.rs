@@ -55,8 +55,6 @@ enum Step {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Origin {
     Request(PlatformRequest),
-    /// After the link came back (hold, land or re-enter offboard, as configured).
-    LinkPolicy,
 }
 
 #[derive(Debug)]
@@ -284,7 +282,6 @@ impl Action {
     pub fn request(&self) -> Option<PlatformRequest> {
         match self.origin {
             Origin::Request(r) => Some(r),
-            Origin::LinkPolicy => None,
         }
     }
 

@@ -3,7 +3,7 @@
 //! In: TOML (unknown keys refused). Out: the profile path, the connection and forwarding
 //! strings, and the [`SessionConfig`] (our ids, link policy, EKF origin).
 
-use super::session::{LinkPolicy, SessionConfig};
+use super::session::SessionConfig;
 use crate::estimator::geodetic::GeoPoint;
 use serde::{Deserialize, Serialize};
 
@@ -22,8 +22,10 @@ pub struct MavlinkSection {
     pub component_id: u8,
     /// Follow only this autopilot system id; absent = the first autopilot heard.
     pub target_system: Option<u8>,
-    /// When the link returns during a flight: `land`, `hold` or `resume`.
-    pub on_link_regained: LinkPolicy,
+    /// Moved to `[mission] on_link_regained` (the mission executor decides for every platform);
+    /// kept here only to refuse it with that advice.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub on_link_regained: Option<toml::Value>,
     /// EKF origin for flying without GPS (ArduPilot refuses GUIDED without one).
     pub ekf_origin: Option<GeoPoint>,
     /// Ground station endpoints that get the autopilot's stream, e.g. `udpout:127.0.0.1:14550`.
@@ -38,7 +40,7 @@ impl Default for MavlinkSection {
             system_id: None,
             component_id: 191,
             target_system: None,
-            on_link_regained: LinkPolicy::default(),
+            on_link_regained: None,
             ekf_origin: None,
             forward: Vec::new(),
         }
@@ -57,6 +59,12 @@ impl MavlinkSection {
         for f in &self.forward {
             address("mavlink.forward", f)?;
         }
+        if self.on_link_regained.is_some() {
+            return Err((
+                "mavlink.on_link_regained".into(),
+                "moved to [mission] on_link_regained (land, hold or resume)".into(),
+            ));
+        }
         if self.component_id == 0 {
             return Err(("mavlink.component_id".into(), "must be 1..=255".into()));
         }
@@ -72,7 +80,6 @@ impl MavlinkSection {
             system_id: self.system_id,
             component_id: self.component_id,
             target_system: self.target_system,
-            on_link_regained: self.on_link_regained,
             ekf_origin: self.ekf_origin,
         }
     }

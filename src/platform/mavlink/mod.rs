@@ -36,4 +36,4 @@ pub mod tlog;
 
 pub use facade::{LinkConfig, LinkError, MavlinkPlatform};
 pub use profile::{Profile, ProfileError};
-pub use session::{LinkPolicy, Session, SessionConfig};
+pub use session::{Session, SessionConfig};

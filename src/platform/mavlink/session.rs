@@ -20,7 +20,7 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, HEARTBEAT_DATA,
 };
 use mavlink::MavHeader;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::mem::discriminant;
 use std::time::Duration;
 
@@ -29,19 +29,6 @@ const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
 const ORIGIN_PERIOD: Duration = Duration::from_secs(2);
 const ORIGIN_ATTEMPTS: u8 = 10;
 const SILENCE_REPORT_PERIOD: Duration = Duration::from_secs(5);
-
-/// What the platform does when the link to the autopilot comes back during a flight.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum LinkPolicy {
-    /// Ask the autopilot to land where it is.
-    #[default]
-    Land,
-    /// Switch the autopilot to its own position hold and wait for new orders.
-    Hold,
-    /// Re-enter offboard as soon as setpoints stream again (the runner restarts the behavior).
-    Resume,
-}
 
 /// Settings of a session besides the profile.
 #[derive(Debug, Clone, PartialEq)]
@@ -52,7 +39,6 @@ pub struct SessionConfig {
     pub component_id: u8,
     /// Follow only this autopilot system id; `None` = the first one heard.
     pub target_system: Option<u8>,
-    pub on_link_regained: LinkPolicy,
     /// EKF origin sent with SET_GPS_GLOBAL_ORIGIN (indoors, without GPS).
     pub ekf_origin: Option<GeoPoint>,
 }
@@ -63,7 +49,6 @@ impl Default for SessionConfig {
             system_id: None,
             component_id: 191,
             target_system: None,
-            on_link_regained: LinkPolicy::default(),
             ekf_origin: None,
         }
     }
@@ -376,9 +361,8 @@ impl Session {
             tracing::debug!(target: "mavlink", "{origin:?}: {e}");
             self.model.set_error(e.clone());
         }
-        if let Origin::Request(request) = origin {
-            self.results.push(RequestResult { request, outcome });
-        }
+        let Origin::Request(request) = origin;
+        self.results.push(RequestResult { request, outcome });
     }
 
     fn run_actions(&mut self, now: Duration) {
@@ -478,33 +462,11 @@ impl Session {
         self.push(legacy::set_gps_global_origin(system, &origin));
     }
 
+    /// The link is back: the platform does nothing by itself. The mission executor decides
+    /// (`[mission] on_link_regained`), and a behavior it starts asks for offboard again.
     fn link_regained(&mut self) {
-        if !self.model.armed() {
-            return;
-        }
-        let policy = self.config.on_link_regained;
-        tracing::info!(target: "mavlink", "link back while armed: {policy:?}");
-        let action = match policy {
-            LinkPolicy::Land => Action::plan(
-                Origin::LinkPolicy,
-                PlatformRequest::Land,
-                &self.profile,
-                &self.model,
-            ),
-            LinkPolicy::Hold => Ok(Action::set_mode(
-                Origin::LinkPolicy,
-                self.profile.roles.hold.clone(),
-            )),
-            LinkPolicy::Resume => Action::plan(
-                Origin::LinkPolicy,
-                PlatformRequest::StartOffboard,
-                &self.profile,
-                &self.model,
-            ),
-        };
-        match action {
-            Ok(a) => self.actions.push(a),
-            Err(e) => self.finish(Origin::LinkPolicy, Err(e)),
+        if self.model.armed() {
+            tracing::info!(target: "mavlink", "link back while armed");
         }
     }
 }

@@ -1,0 +1,195 @@
+use super::*;
+use crate::behavior::fleet::DroneView;
+use crate::types::{LinkHealth, Pose, Validity};
+use std::time::Duration;
+
+fn at(x: f64, y: f64, z: f64) -> EstimatedState {
+    EstimatedState {
+        pose: Pose::from_position_yaw(Vec3::new(x, y, z), 0.0),
+        valid: Validity::ALL,
+        ..EstimatedState::default()
+    }
+}
+
+fn position(x: f64, y: f64, z: f64) -> Setpoint {
+    Setpoint::Position {
+        position_enu_m: Vec3::new(x, y, z),
+        velocity_ff_enu_mps: Vec3::zeros(),
+        yaw: YawTarget::Angle(0.0),
+    }
+}
+
+fn velocity(x: f64, y: f64, z: f64) -> Setpoint {
+    Setpoint::Velocity {
+        velocity_enu_mps: Vec3::new(x, y, z),
+        yaw: YawTarget::Angle(0.0),
+    }
+}
+
+fn drone(id: &str, x: f64, y: f64) -> DroneView {
+    DroneView {
+        id: id.into(),
+        position_enu_m: Vec3::new(x, y, 2.0),
+        velocity_enu_mps: Vec3::zeros(),
+        yaw_rad: 0.0,
+        flying: true,
+        link: LinkHealth::Ok,
+        motion_behavior: None,
+        goal_enu_m: None,
+        stamp: Duration::ZERO,
+        local: true,
+    }
+}
+
+fn check(
+    stage: &mut SafetyStage,
+    state: &EstimatedState,
+    sp: Setpoint,
+) -> (Setpoint, Option<Override>) {
+    let (out, o) = stage.check(
+        "me",
+        state,
+        Vec3::zeros(),
+        true,
+        Some(sp),
+        &FleetView::default(),
+    );
+    (out.unwrap_or_else(|| panic!("a setpoint")), o)
+}
+
+#[test]
+fn a_target_above_the_ceiling_is_held_under_it_and_reported_once() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let state = at(0.0, 0.0, 100.0);
+    let (out, first) = check(&mut stage, &state, position(0.0, 0.0, 500.0));
+    assert_eq!(out, position(0.0, 0.0, 119.5));
+    let first = first.unwrap_or_else(|| panic!("reported"));
+    assert_eq!(first.kind, OverrideKind::Geofence);
+    assert!(first.reason.contains("ceiling"), "{}", first.reason);
+    let (_, again) = check(&mut stage, &state, position(0.0, 0.0, 500.0));
+    assert!(again.is_none(), "one report per episode");
+    let (out, none) = check(&mut stage, &state, position(1.0, 0.0, 100.0));
+    assert_eq!((out, none), (position(1.0, 0.0, 100.0), None));
+}
+
+#[test]
+fn non_finite_setpoints_become_a_hold_even_on_the_ground() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let state = at(3.0, 4.0, 0.0);
+    for bad in [
+        position(f64::NAN, 0.0, 1.0),
+        velocity(0.0, f64::INFINITY, 0.0),
+        Setpoint::Velocity {
+            velocity_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Rate(f64::NAN),
+        },
+    ] {
+        let (out, o) = stage.check(
+            "me",
+            &state,
+            Vec3::zeros(),
+            false,
+            Some(bad),
+            &FleetView::default(),
+        );
+        assert_eq!(out, Some(position(3.0, 4.0, 0.0)));
+        stage.active = None;
+        assert_eq!(o.map(|o| o.kind), Some(OverrideKind::NonFinite));
+    }
+}
+
+#[test]
+fn a_velocity_that_would_carry_the_vehicle_through_the_fence_stops_it_inside() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let state = at(998.0, 0.0, 10.0);
+    let (out, o) = check(&mut stage, &state, velocity(5.0, 0.0, 0.0));
+    assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Geofence));
+    match out {
+        Setpoint::Position { position_enu_m, .. } => {
+            assert!(position_enu_m.x <= 999.5 + 1e-9, "{position_enu_m}")
+        }
+        other => panic!("expected a hold inside, got {other:?}"),
+    }
+}
+
+#[test]
+fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let fleet = FleetView {
+        drones: vec![drone("me", 0.0, 0.0), drone("other", 1.5, 0.0)],
+    };
+    let state = at(0.0, 0.0, 2.0);
+    let (out, o) = stage.check(
+        "me",
+        &state,
+        Vec3::zeros(),
+        true,
+        Some(velocity(1.0, 1.0, 0.0)),
+        &fleet,
+    );
+    assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Separation));
+    match out {
+        Some(Setpoint::Velocity {
+            velocity_enu_mps, ..
+        }) => {
+            assert!(
+                velocity_enu_mps.x.abs() < 1e-9,
+                "no closing: {velocity_enu_mps}"
+            );
+            assert!((velocity_enu_mps.y - 1.0).abs() < 1e-9, "sideways kept");
+        }
+        other => panic!("{other:?}"),
+    }
+    let (out, o) = stage.check(
+        "me",
+        &state,
+        Vec3::zeros(),
+        true,
+        Some(velocity(-1.0, 0.0, 0.0)),
+        &fleet,
+    );
+    assert_eq!(
+        (out, o),
+        (Some(velocity(-1.0, 0.0, 0.0)), None),
+        "moving away is free"
+    );
+}
+
+#[test]
+fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let fleet = FleetView {
+        drones: vec![drone("other", 0.6, 0.0)],
+    };
+    let (out, _) = stage.check(
+        "me",
+        &at(0.0, 0.0, 2.0),
+        Vec3::zeros(),
+        true,
+        Some(position(0.0, 0.0, 2.0)),
+        &fleet,
+    );
+    match out {
+        Some(Setpoint::Velocity {
+            velocity_enu_mps, ..
+        }) => assert!(velocity_enu_mps.x < -0.3),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_velocity_beyond_the_limits_is_scaled_back() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let (out, o) = check(&mut stage, &at(0.0, 0.0, 5.0), velocity(12.0, 0.0, 4.0));
+    assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Limit));
+    let l = ControllerConfig::default();
+    match out {
+        Setpoint::Velocity {
+            velocity_enu_mps, ..
+        } => {
+            assert!(velocity_enu_mps.xy().norm() <= l.max_horizontal_speed_mps * 1.1 + 1e-9);
+            assert!(velocity_enu_mps.z <= l.max_up_speed_mps * 1.1 + 1e-9);
+        }
+        other => panic!("{other:?}"),
+    }
+}
