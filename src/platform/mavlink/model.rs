@@ -556,8 +556,16 @@ impl VehicleModel {
         if self.wanted_system.is_some_and(|s| s != system_id) {
             return None;
         }
+        let silent = self.link_lost || self.link(now) == LinkHealth::Lost;
+        let this = (system_id, header.component_id);
         match self.autopilot {
-            Some((sys, comp)) if sys != system_id || comp != header.component_id => return None,
+            // Another autopilot is followed only once the selected one has fallen silent.
+            Some(selected) if selected != this && !silent => return None,
+            Some(selected) if selected != this => {
+                tracing::warn!(target: "mavlink", "autopilot {selected:?} silent: following {this:?}");
+                self.forget_estimate();
+                self.boot_clock = BootClock::default();
+            }
             _ => {}
         }
         let expected = self.profile.autopilot.mav_autopilot();
@@ -571,9 +579,8 @@ impl VehicleModel {
         } else {
             self.wrong_autopilot = None;
         }
-        let first =
-            self.autopilot.is_none() || self.link_lost || self.link(now) == LinkHealth::Lost;
-        self.autopilot = Some((system_id, header.component_id));
+        let first = self.autopilot.is_none() || silent;
+        self.autopilot = Some(this);
         self.last_seen = Some(now);
         self.link_lost = false;
         self.custom_mode = Some(hb.custom_mode);
@@ -730,6 +737,33 @@ mod tests {
         }
         assert!(events.is_empty(), "{} false reboot reports", events.len());
         assert_eq!(m.status(Duration::from_secs(60)).boot_counter, 0);
+    }
+
+    #[test]
+    fn another_autopilot_is_followed_only_after_the_first_falls_silent() {
+        let rogue = MavHeader {
+            system_id: 7,
+            ..ap()
+        };
+        let mut m = VehicleModel::new(px4_profile(), None);
+        assert!(m.ingest(Duration::ZERO, &rogue, &hb(0, false)).is_some());
+        assert!(m
+            .ingest(Duration::from_millis(500), &ap(), &hb(0, false))
+            .is_none());
+        assert_eq!(m.autopilot(), Some((7, ap().component_id)));
+        // The first one falls silent: the next autopilot heard is followed.
+        let later = Duration::from_secs(10);
+        let ev = m.ingest(later, &ap(), &hb(0, false));
+        assert!(
+            matches!(ev, Some(ModelEvent::Contact { system_id: 1, .. })),
+            "{ev:?}"
+        );
+        assert_eq!(m.link(later), LinkHealth::Ok);
+        // With a configured system id the rogue never captures it.
+        let mut m = VehicleModel::new(px4_profile(), Some(1));
+        assert!(m.ingest(Duration::ZERO, &rogue, &hb(0, false)).is_none());
+        assert!(m.ingest(Duration::ZERO, &ap(), &hb(0, false)).is_some());
+        assert_eq!(m.autopilot(), Some((1, ap().component_id)));
     }
 
     #[test]
