@@ -20,7 +20,8 @@ pub struct MavlinkSection {
     pub system_id: Option<u8>,
     /// Our component id (191 = onboard computer).
     pub component_id: u8,
-    /// Follow only this autopilot system id; absent = the first autopilot heard.
+    /// Follow only this autopilot system id; absent = the first autopilot heard, replaced by
+    /// another only after it falls silent (heartbeat timeout).
     pub target_system: Option<u8>,
     /// Moved to `[mission] on_link_regained` (the mission executor decides for every platform);
     /// kept here only to refuse it with that advice.

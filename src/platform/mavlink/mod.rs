@@ -18,6 +18,7 @@
 //! - [`tlog`]: reading recorded captures for replay tests and benchmarks.
 
 pub mod actions;
+mod boot_clock;
 pub mod commands;
 pub mod config;
 pub mod events;

@@ -6,6 +6,7 @@
 //! [`ModelEvent`]s the session reacts to (first contact, reboot, texts). Pure: no I/O, no clock;
 //! replay tests feed it recorded messages.
 
+use super::boot_clock::BootClock;
 use super::events::{self, AutopilotText};
 use super::frames;
 use super::profile::Profile;
@@ -26,8 +27,6 @@ const ESTIMATE_TIMEOUT: Duration = Duration::from_millis(500);
 const TEXT_HISTORY: usize = 64;
 /// Scans kept between two polls; older ones are dropped (and counted).
 const SCAN_BUFFER: usize = 256;
-/// The boot clock going back by more than this means the autopilot restarted.
-const REBOOT_BACKSTEP_MS: u32 = 500;
 const SYS_STATUS_PREARM_CHECK: u32 = 0x1000_0000;
 
 /// What the session must react to after a message.
@@ -82,7 +81,7 @@ pub struct VehicleModel {
     home_enu_m: Option<Vec3>,
     home_amsl_m: Option<f64>,
     origin_seen: bool,
-    boot_ms: Option<u32>,
+    boot_clock: BootClock,
     boot_counter: u32,
     reset_counter: u32,
     texts: VecDeque<AutopilotText>,
@@ -112,7 +111,7 @@ impl VehicleModel {
             home_enu_m: None,
             home_amsl_m: None,
             origin_seen: false,
-            boot_ms: None,
+            boot_clock: BootClock::default(),
             boot_counter: 0,
             reset_counter: 0,
             texts: VecDeque::new(),
@@ -343,7 +342,7 @@ impl VehicleModel {
                     ),
                     at: now,
                 });
-                return self.boot_time(a.time_boot_ms);
+                return self.boot_time(a.time_boot_ms, now);
             }
             MavMessage::ATTITUDE_QUATERNION(a) => {
                 if let Some(q) = frames::attitude_from_mav_quaternion([a.q1, a.q2, a.q3, a.q4]) {
@@ -357,7 +356,7 @@ impl VehicleModel {
                         at: now,
                     });
                 }
-                return self.boot_time(a.time_boot_ms);
+                return self.boot_time(a.time_boot_ms, now);
             }
             MavMessage::LOCAL_POSITION_NED(p) => {
                 let v = [p.x, p.y, p.z, p.vx, p.vy, p.vz];
@@ -369,11 +368,11 @@ impl VehicleModel {
                         stale: false,
                     });
                 }
-                return self.boot_time(p.time_boot_ms);
+                return self.boot_time(p.time_boot_ms, now);
             }
             MavMessage::ODOMETRY(o) => self.odometry_message(now, o),
-            MavMessage::GLOBAL_POSITION_INT(g) => return self.boot_time(g.time_boot_ms),
-            MavMessage::SYSTEM_TIME(t) => return self.boot_time(t.time_boot_ms),
+            MavMessage::GLOBAL_POSITION_INT(g) => return self.boot_time(g.time_boot_ms, now),
+            MavMessage::SYSTEM_TIME(t) => return self.boot_time(t.time_boot_ms, now),
             MavMessage::EXTENDED_SYS_STATE(s) => self.landed_state = Some(s.landed_state),
             MavMessage::SYS_STATUS(s) => {
                 let present = s.onboard_control_sensors_present.bits();
@@ -532,17 +531,14 @@ impl VehicleModel {
         }
     }
 
-    fn boot_time(&mut self, time_boot_ms: u32) -> Option<ModelEvent> {
-        let previous = self.boot_ms.replace(time_boot_ms);
-        match previous {
-            Some(prev) if time_boot_ms.saturating_add(REBOOT_BACKSTEP_MS) < prev => {
-                self.boot_counter += 1;
-                self.forget_estimate();
-                self.last_error = Some("the autopilot rebooted".into());
-                Some(ModelEvent::Rebooted)
-            }
-            _ => None,
+    fn boot_time(&mut self, time_boot_ms: u32, now: Duration) -> Option<ModelEvent> {
+        if !self.boot_clock.observe(time_boot_ms, now) {
+            return None;
         }
+        self.boot_counter += 1;
+        self.forget_estimate();
+        self.last_error = Some("the autopilot rebooted".into());
+        Some(ModelEvent::Rebooted)
     }
 
     fn heartbeat(
@@ -560,8 +556,16 @@ impl VehicleModel {
         if self.wanted_system.is_some_and(|s| s != system_id) {
             return None;
         }
+        let silent = self.link_lost || self.link(now) == LinkHealth::Lost;
+        let this = (system_id, header.component_id);
         match self.autopilot {
-            Some((sys, comp)) if sys != system_id || comp != header.component_id => return None,
+            // Another autopilot is followed only once the selected one has fallen silent.
+            Some(selected) if selected != this && !silent => return None,
+            Some(selected) if selected != this => {
+                tracing::warn!(target: "mavlink", "autopilot {selected:?} silent: following {this:?}");
+                self.forget_estimate();
+                self.boot_clock = BootClock::default();
+            }
             _ => {}
         }
         let expected = self.profile.autopilot.mav_autopilot();
@@ -575,9 +579,8 @@ impl VehicleModel {
         } else {
             self.wrong_autopilot = None;
         }
-        let first =
-            self.autopilot.is_none() || self.link_lost || self.link(now) == LinkHealth::Lost;
-        self.autopilot = Some((system_id, header.component_id));
+        let first = self.autopilot.is_none() || silent;
+        self.autopilot = Some(this);
         self.last_seen = Some(now);
         self.link_lost = false;
         self.custom_mode = Some(hb.custom_mode);
@@ -695,19 +698,72 @@ mod tests {
         m.ingest(Duration::ZERO, &ap(), &lp);
         assert!(m.readiness(Duration::ZERO).is_ok());
         assert_eq!(m.ingest(Duration::ZERO, &ap(), &at(59_990)), None);
-        assert_eq!(
-            m.ingest(Duration::ZERO, &ap(), &at(300)),
-            Some(ModelEvent::Rebooted)
-        );
-        let s = m.status(Duration::ZERO);
+        // The restarted clock is believed once it has counted on for a second (boot_clock.rs).
+        let events: Vec<_> = (0..=20u32)
+            .filter_map(|i| {
+                let now = Duration::from_millis(u64::from(i) * 50);
+                m.ingest(now, &ap(), &at(300 + i * 50))
+            })
+            .collect();
+        assert_eq!(events, vec![ModelEvent::Rebooted]);
+        let s = m.status(Duration::from_secs(1));
         assert_eq!(s.boot_counter, 1);
         assert!(!s.ready_to_fly);
-        let odometry = m.odometry(Duration::ZERO);
+        let odometry = m.odometry(Duration::from_secs(1));
         assert!(
             matches!(odometry, Some(Measurement::AutopilotOdometry { valid, .. }) if !valid.position),
             "the estimate from before the reboot is kept, invalid: {odometry:?}"
         );
         assert_eq!(s.last_error.as_deref(), Some("the autopilot rebooted"));
+    }
+
+    #[test]
+    fn spoofed_boot_times_are_not_reboots() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        m.ingest(Duration::ZERO, &ap(), &hb(0, false));
+        let time = |ms| {
+            MavMessage::SYSTEM_TIME(SYSTEM_TIME_DATA {
+                time_boot_ms: ms,
+                ..SYSTEM_TIME_DATA::DEFAULT
+            })
+        };
+        let mut events = Vec::new();
+        for i in 0..3_000u32 {
+            let now = Duration::from_millis(u64::from(i) * 20);
+            let live = 120_000 + i * 20;
+            for ms in [live, i % 50, live / 3, u32::MAX] {
+                events.extend(m.ingest(now, &ap(), &time(ms)));
+            }
+        }
+        assert!(events.is_empty(), "{} false reboot reports", events.len());
+        assert_eq!(m.status(Duration::from_secs(60)).boot_counter, 0);
+    }
+
+    #[test]
+    fn another_autopilot_is_followed_only_after_the_first_falls_silent() {
+        let rogue = MavHeader {
+            system_id: 7,
+            ..ap()
+        };
+        let mut m = VehicleModel::new(px4_profile(), None);
+        assert!(m.ingest(Duration::ZERO, &rogue, &hb(0, false)).is_some());
+        assert!(m
+            .ingest(Duration::from_millis(500), &ap(), &hb(0, false))
+            .is_none());
+        assert_eq!(m.autopilot(), Some((7, ap().component_id)));
+        // The first one falls silent: the next autopilot heard is followed.
+        let later = Duration::from_secs(10);
+        let ev = m.ingest(later, &ap(), &hb(0, false));
+        assert!(
+            matches!(ev, Some(ModelEvent::Contact { system_id: 1, .. })),
+            "{ev:?}"
+        );
+        assert_eq!(m.link(later), LinkHealth::Ok);
+        // With a configured system id the rogue never captures it.
+        let mut m = VehicleModel::new(px4_profile(), Some(1));
+        assert!(m.ingest(Duration::ZERO, &rogue, &hb(0, false)).is_none());
+        assert!(m.ingest(Duration::ZERO, &ap(), &hb(0, false)).is_some());
+        assert_eq!(m.autopilot(), Some((1, ap().component_id)));
     }
 
     #[test]
