@@ -1,96 +1,28 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 //! End to end: the real `kestrel sim` process, driven through its HTTP and WebSocket API.
 
+mod support;
+
 use futures::{SinkExt, StreamExt};
 use serde_json::{json, Value};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
+use support::Kestrel;
 use tokio_tungstenite::tungstenite::Message;
 
 const TOKEN: &str = "e2e-secret";
-
-struct Kestrel {
-    child: Child,
-    base: String,
-    port: u16,
-}
-
-impl Drop for Kestrel {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-async fn start(dir: &Path, extra: &[&str]) -> Kestrel {
-    let port = free_port();
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_kestrel"));
-    cmd.args(["sim", "--no-demo", "--speedup", "20", "--listen"])
-        .arg(format!("127.0.0.1:{port}"))
-        .arg("--state-dir")
-        .arg(dir.join("state"))
-        .arg("--log")
-        .arg(dir.join("flight.jsonl"))
-        .args(extra)
-        .env("KESTREL_API_TOKEN", TOKEN)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
-    let child = cmd.spawn().unwrap();
-    let k = Kestrel {
-        child,
-        base: format!("http://127.0.0.1:{port}"),
-        port,
-    };
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while Instant::now() < deadline {
-        if let Ok(r) = reqwest::get(format!("{}/api/health", k.base)).await {
-            if r.status().is_success() {
-                return k;
-            }
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    panic!("kestrel did not come up");
-}
 
 fn client() -> reqwest::Client {
     reqwest::Client::new()
 }
 
-async fn get(k: &Kestrel, path: &str) -> (u16, Value) {
-    let r = client()
-        .get(format!("{}{path}", k.base))
-        .bearer_auth(TOKEN)
-        .send()
-        .await
-        .unwrap();
-    let status = r.status().as_u16();
-    (status, r.json().await.unwrap_or(Value::Null))
-}
-
-async fn post(k: &Kestrel, path: &str, body: &Value) -> (u16, Value) {
-    let r = client()
-        .post(format!("{}{path}", k.base))
-        .bearer_auth(TOKEN)
-        .json(body)
-        .send()
-        .await
-        .unwrap();
-    let status = r.status().as_u16();
-    (status, r.json().await.unwrap_or(Value::Null))
+async fn start(dir: &Path, extra: &[&str]) -> Kestrel {
+    Kestrel::sim(dir, TOKEN, extra).await
 }
 
 async fn update(k: &Kestrel, body: Value) -> Value {
-    let (code, v) = post(k, "/api/mission_update", &body).await;
+    let (code, v) = k.post("/api/mission_update", &body).await;
     assert_eq!(code, 200, "{body} -> {v}");
     assert_eq!(v["accepted"], true, "{v}");
     v
@@ -109,7 +41,7 @@ fn takeoff_go_land() -> Value {
 async fn wait_status(k: &Kestrel, i: usize, max_s: f64, done: impl Fn(&Value) -> bool) -> Value {
     let deadline = Instant::now() + Duration::from_secs_f64(max_s);
     loop {
-        let (_, s) = get(k, "/api/status").await;
+        let (_, s) = k.get("/api/status").await;
         let d = s["drones"][i].clone();
         if done(&d) {
             return d;
@@ -153,7 +85,7 @@ async fn a_client_uploads_takeoff_go_land_and_follows_it_over_websocket() {
         ))
         .await
         .unwrap();
-    let (code, up) = post(&k, "/api/missions", &takeoff_go_land()).await;
+    let (code, up) = k.post("/api/missions", &takeoff_go_land()).await;
     assert_eq!(code, 201, "{up}");
     let id = up["mission_id"].as_u64().unwrap();
     update(
@@ -269,7 +201,7 @@ async fn requests_without_the_token_are_refused() {
             .status(),
         200
     );
-    let (_, missions) = get(&k, "/api/missions").await;
+    let (_, missions) = k.get("/api/missions").await;
     assert_eq!(missions, json!([]), "nothing was loaded");
 }
 
@@ -317,7 +249,7 @@ async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
         (d["position_enu_m"][2].as_f64().unwrap() - 5.0).abs() < 0.5,
         "{d}"
     );
-    let (_, view) = get(&k, "/api/missions/1").await;
+    let (_, view) = k.get("/api/missions/1").await;
     let plan = &view["plan"]["plan"];
     assert_eq!(plan[1]["args"]["z"], 5.0);
     assert_eq!(plan[2]["args"]["x"], -4.0);
@@ -347,7 +279,7 @@ async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
         (p[0].as_f64().unwrap() - 2.0).abs() < 0.5 && p[2].as_f64().unwrap() < 0.2,
         "{p}"
     );
-    let (_, missions) = get(&k, "/api/missions").await;
+    let (_, missions) = k.get("/api/missions").await;
     let patrol_view = missions
         .as_array()
         .unwrap()
@@ -434,42 +366,42 @@ async fn bad_requests_are_rejected_precisely_and_nothing_moves() {
         .await
         .unwrap();
     assert_eq!(r.status().as_u16(), 400);
-    let (code, v) = post(&k, "/api/missions", &json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 0, "y": 0, "z": 300, "speed": 1}}]})).await;
+    let (code, v) = k.post("/api/missions", &json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 0, "y": 0, "z": 300, "speed": 1}}]})).await;
     assert_eq!(code, 422);
     assert_eq!(v["error"]["details"][0]["pointer"], "/plan/0/args/z");
-    let (code, v) = post(
-        &k,
-        "/api/mission_update",
-        &json!({"drone_id": "drone_0", "action": 42}),
-    )
-    .await;
+    let (code, v) = k
+        .post(
+            "/api/mission_update",
+            &json!({"drone_id": "drone_0", "action": 42}),
+        )
+        .await;
     assert_eq!((code, v["accepted"].clone()), (422, json!(false)), "{v}");
-    let (code, _) = post(
-        &k,
-        "/api/mission_update",
-        &json!({"drone_id": "drone_9", "action": 2}),
-    )
-    .await;
+    let (code, _) = k
+        .post(
+            "/api/mission_update",
+            &json!({"drone_id": "drone_9", "action": 2}),
+        )
+        .await;
     assert_eq!(code, 404);
-    let (code, v) = post(
-        &k,
-        "/api/frames",
-        &json!({"frame_id": "a b", "parent": "earth"}),
-    )
-    .await;
+    let (code, v) = k
+        .post(
+            "/api/frames",
+            &json!({"frame_id": "a b", "parent": "earth"}),
+        )
+        .await;
     assert_eq!(
         (code, v["error"]["code"].clone()),
         (422, json!("invalid_frame"))
     );
-    let (code, _) = post(
-        &k,
-        "/api/frames",
-        &json!({"frame_id": "x", "parent": "nowhere"}),
-    )
-    .await;
+    let (code, _) = k
+        .post(
+            "/api/frames",
+            &json!({"frame_id": "x", "parent": "nowhere"}),
+        )
+        .await;
     assert_eq!(code, 422);
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let (code, s) = get(&k, "/api/status").await;
+    let (code, s) = k.get("/api/status").await;
     assert_eq!(code, 200, "process alive");
     assert_eq!(s["drones"][0]["armed"], false);
     assert!(s["drones"][0]["position_enu_m"][2].as_f64().unwrap() < 0.05);
@@ -480,20 +412,20 @@ async fn a_restart_keeps_loaded_missions_and_does_not_resume_them() {
     let dir = tempfile::tempdir().unwrap();
     {
         let k = start(dir.path(), &[]).await;
-        post(&k, "/api/missions", &takeoff_go_land()).await;
+        k.post("/api/missions", &takeoff_go_land()).await;
         update(&k, json!({"drone_id": "drone_0", "mission_id": 5, "action": 0, "mission": takeoff_go_land()})).await;
         wait_status(&k, 0, 30.0, |d| d["mission"]["item_index"] == 1).await;
-        let (code, _) = post(
-            &k,
-            "/api/frames",
-            &json!({"frame_id": "panel_x", "translation_m": [5, 5, 0]}),
-        )
-        .await;
+        let (code, _) = k
+            .post(
+                "/api/frames",
+                &json!({"frame_id": "panel_x", "translation_m": [5, 5, 0]}),
+            )
+            .await;
         assert_eq!(code, 200);
         tokio::time::sleep(Duration::from_millis(300)).await;
     } // killed here (SIGKILL): only what was already saved survives
     let k = start(dir.path(), &[]).await;
-    let (_, missions) = get(&k, "/api/missions").await;
+    let (_, missions) = k.get("/api/missions").await;
     let ids: Vec<u64> = missions
         .as_array()
         .unwrap()
@@ -501,17 +433,17 @@ async fn a_restart_keeps_loaded_missions_and_does_not_resume_them() {
         .map(|m| m["mission_id"].as_u64().unwrap())
         .collect();
     assert_eq!(ids, [1, 5]);
-    let (_, status) = get(&k, "/api/status").await;
+    let (_, status) = k.get("/api/status").await;
     let m = &status["drones"][0]["mission"];
     assert_eq!(m["state"], 0);
     assert!(
         m["last_error"].as_str().unwrap().contains("not resumed"),
         "{m}"
     );
-    let (_, frames) = get(&k, "/api/frames").await;
+    let (_, frames) = k.get("/api/frames").await;
     assert_eq!(frames[0]["frame_id"], "panel_x");
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let (_, status) = get(&k, "/api/status").await;
+    let (_, status) = k.get("/api/status").await;
     assert_eq!(status["drones"][0]["armed"], false);
 }
 
@@ -521,14 +453,14 @@ async fn several_drones_share_one_api_and_a_lost_link_shows() {
     let k = start(dir.path(), &["--drones", "2"]).await;
     let mut mission = takeoff_go_land();
     mission["target"] = json!("drone_1");
-    let (code, up) = post(&k, "/api/missions", &mission).await;
+    let (code, up) = k.post("/api/missions", &mission).await;
     assert_eq!((code, up["drone"].clone()), (201, json!("drone_1")));
-    let (code, v) = post(
-        &k,
-        "/api/mission_update",
-        &json!({"mission_id": 1, "action": 2}),
-    )
-    .await;
+    let (code, v) = k
+        .post(
+            "/api/mission_update",
+            &json!({"mission_id": 1, "action": 2}),
+        )
+        .await;
     assert_eq!((code, v["code"].clone()), (400, json!("drone_id_required")));
     update(
         &k,
@@ -537,17 +469,17 @@ async fn several_drones_share_one_api_and_a_lost_link_shows() {
     .await;
     let d = wait_status(&k, 1, 30.0, |d| d["flight"] == "flying").await;
     assert_eq!(d["drone"], "drone_1");
-    let (_, s) = get(&k, "/api/status").await;
+    let (_, s) = k.get("/api/status").await;
     assert_eq!(
         s["drones"][0]["armed"], false,
         "drone_0 stays on the ground"
     );
-    let (code, _) = post(
-        &k,
-        "/api/sim/fault",
-        &json!({"drone_id": "drone_1", "fault": "link_lost"}),
-    )
-    .await;
+    let (code, _) = k
+        .post(
+            "/api/sim/fault",
+            &json!({"drone_id": "drone_1", "fault": "link_lost"}),
+        )
+        .await;
     assert_eq!(code, 200);
     // The mission waits for the link (README: "When the link to the autopilot drops").
     let d = wait_status(&k, 1, 10.0, |d| {
@@ -558,8 +490,7 @@ async fn several_drones_share_one_api_and_a_lost_link_shows() {
     })
     .await;
     assert_eq!(d["mission"]["state"], 1, "still running, waiting: {d}");
-    post(
-        &k,
+    k.post(
         "/api/sim/fault",
         &json!({"drone_id": "drone_1", "fault": "link_restored"}),
     )
@@ -589,9 +520,11 @@ fn listening_beyond_loopback_without_a_token_is_refused_at_start() {
 async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
     let dir = tempfile::tempdir().unwrap();
     let k = start(dir.path(), &[]).await;
-    let (code, up) = post(&k, "/api/missions?mission_id=42", &takeoff_go_land()).await;
+    let (code, up) = k
+        .post("/api/missions?mission_id=42", &takeoff_go_land())
+        .await;
     assert_eq!((code, up["mission_id"].clone()), (201, json!(42)));
-    let (code, m) = get(&k, "/api/missions/42").await;
+    let (code, m) = k.get("/api/missions/42").await;
     assert_eq!(code, 200);
     assert_eq!(
         m["plan"]["plan"],
@@ -607,7 +540,7 @@ async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
             .unwrap()
     );
     assert_eq!(m["progress"]["cursor"], 0);
-    let (code, _) = get(&k, "/api/missions/7").await;
+    let (code, _) = k.get("/api/missions/7").await;
     assert_eq!(code, 404);
     update(
         &k,
@@ -633,9 +566,9 @@ async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
         .await
         .unwrap();
     assert_eq!(r.status().as_u16(), 204);
-    let (_, list) = get(&k, "/api/missions").await;
+    let (_, list) = k.get("/api/missions").await;
     assert_eq!(list, json!([]));
-    let (_, behaviors) = get(&k, "/api/behaviors").await;
+    let (_, behaviors) = k.get("/api/behaviors").await;
     let go_to = behaviors
         .as_array()
         .unwrap()

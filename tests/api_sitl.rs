@@ -5,6 +5,8 @@
 //!
 //! Needs `sitl/.venv` (`bash sitl/setup.sh`, done by `.ci/run`).
 
+mod support;
+
 use futures::StreamExt;
 use kestrel::api::{self, ApiState};
 use kestrel::config::Config;
@@ -17,31 +19,15 @@ use kestrel::platform::Platform;
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+use support::{free_tcp_port, free_udp_port, wait_healthy, Process};
 use tokio_tungstenite::tungstenite::Message;
 
 const TOKEN: &str = "sitl-secret";
 
-struct Fake(Child);
-
-impl Drop for Fake {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// Starts the fake PX4 and waits for its ready line; Kestrel listens on `kestrel_port`.
-fn fake_px4(kestrel_port: u16) -> Fake {
+fn fake_px4(kestrel_port: u16) -> Process {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let python = root.join("sitl/.venv/bin/python");
     assert!(
@@ -72,7 +58,7 @@ fn fake_px4(kestrel_port: u16) -> Fake {
         line.contains("\"ready\": true") || line.contains("\"ready\":true"),
         "{line}"
     );
-    Fake(child)
+    Process(child)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -115,15 +101,7 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
     // Wait until the autopilot is connected, ready and the position is estimated.
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
-        let s: Value = http
-            .get(format!("{base}/api/status"))
-            .bearer_auth(TOKEN)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
+        let s = status(&http, &base).await;
         let d = &s["drones"][0];
         if d["link"] == "ok" && d["ready_to_fly"] == true {
             break;
@@ -177,26 +155,9 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
         [(1, Some(0)), (1, Some(1)), (1, Some(2)), (0, None)]
     );
     assert_eq!(started, ["takeoff", "go_to", "land"]);
-    let s: Value = http
-        .get(format!("{base}/api/status"))
-        .bearer_auth(TOKEN)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let s = status(&http, &base).await;
     let p = &s["drones"][0]["position_enu_m"];
     assert!((p[1].as_f64().unwrap() - 5.0).abs() < 0.5, "landed at {p}");
-}
-
-struct Process(Child);
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 async fn status(http: &reqwest::Client, base: &str) -> Value {
@@ -216,11 +177,7 @@ async fn status(http: &reqwest::Client, base: &str) -> Value {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     let kestrel_port = free_udp_port();
-    let api_port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let api_port = free_tcp_port();
     let state = tempfile::tempdir().unwrap();
     let _kestrel = Process(
         Command::new(env!("CARGO_BIN_EXE_kestrel"))
@@ -239,14 +196,7 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     );
     let base = format!("http://127.0.0.1:{api_port}");
     let http = reqwest::Client::new();
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while http.get(format!("{base}/api/health")).send().await.is_err() {
-        assert!(
-            Instant::now() < deadline,
-            "kestrel run never served the API"
-        );
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    wait_healthy(&base).await;
     let id = upload_and_start(&http, &base).await;
     // The autopilot starts only now: the takeoff has to wait for it to become ready.
     let _fake = fake_px4(kestrel_port);

@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod mavlink_support;
+mod support;
 
 use mavlink_support::{
     closest_approaches, demo_mission, demo_targets, free_tcp_port, serial, Api, Fake, Kestrel,

@@ -3,93 +3,20 @@
 //! updates over the WebSocket, scans sent over the API, coverage for two drones, a mission with
 //! `navigate_to`, `kestrel map export`, and a second Kestrel starting from the exported map.
 
+mod support;
+
 use futures::{SinkExt, StreamExt};
 use serde_json::{json, Value};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
+use support::Kestrel;
 use tokio_tungstenite::tungstenite::Message;
 
 const TOKEN: &str = "nav-secret";
 
-struct Kestrel {
-    child: Child,
-    base: String,
-    port: u16,
-}
-
-impl Drop for Kestrel {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 async fn start(dir: &Path, args: &[&str]) -> Kestrel {
-    let port = free_port();
-    let child = Command::new(env!("CARGO_BIN_EXE_kestrel"))
-        .args(["sim", "--no-demo", "--speedup", "20", "--listen"])
-        .arg(format!("127.0.0.1:{port}"))
-        .arg("--log")
-        .arg(dir.join(format!("flight-{port}.jsonl")))
-        .args(args)
-        .env("KESTREL_API_TOKEN", TOKEN)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let k = Kestrel {
-        child,
-        base: format!("http://127.0.0.1:{port}"),
-        port,
-    };
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while Instant::now() < deadline {
-        if let Ok(r) = reqwest::get(format!("{}/api/health", k.base)).await {
-            if r.status().is_success() {
-                return k;
-            }
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    panic!("kestrel did not come up");
-}
-
-async fn call(k: &Kestrel, method: &str, path: &str, body: Option<&Value>) -> (u16, Value) {
-    let client = reqwest::Client::new();
-    let url = format!("{}{path}", k.base);
-    let mut req = match method {
-        "POST" => client.post(url),
-        _ => client.get(url),
-    }
-    .bearer_auth(TOKEN);
-    if let Some(b) = body {
-        req = req.json(b);
-    }
-    let r = req.send().await.unwrap();
-    let status = r.status().as_u16();
-    (status, r.json().await.unwrap_or(Value::Null))
-}
-
-/// Polls `path` until `done` holds.
-async fn wait_for(k: &Kestrel, path: &str, max_s: f64, done: impl Fn(&Value) -> bool) -> Value {
-    let deadline = Instant::now() + Duration::from_secs_f64(max_s);
-    loop {
-        let (_, v) = call(k, "GET", path, None).await;
-        if done(&v) {
-            return v;
-        }
-        assert!(Instant::now() < deadline, "timed out on {path}: {v}");
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    Kestrel::sim(dir, TOKEN, args).await
 }
 
 /// A 20 m x 20 m world with three poles, drones starting near the origin.
@@ -146,7 +73,7 @@ async fn next_map_update(k: &Kestrel) -> Value {
             .await
             .unwrap();
     // A scan now, so the map changes while this client listens.
-    let (code, v) = call(k, "POST", "/api/scans", Some(&point_cloud_scan())).await;
+    let (code, v) = k.post("/api/scans", &point_cloud_scan()).await;
     assert_eq!(code, 200, "{v}");
     let deadline = Instant::now() + Duration::from_secs(10);
     loop {
@@ -192,12 +119,13 @@ async fn maps_scans_coverage_and_navigation_through_the_api() {
     .await;
 
     // The lidar maps the poles while the drones wait on the ground.
-    let info = wait_for(&k, "/api/map/info", 20.0, |v| {
-        v["cells_occupied"].as_u64().unwrap_or(0) > 5
-    })
-    .await;
+    let info = k
+        .wait_for("/api/map/info", 20.0, |v| {
+            v["cells_occupied"].as_u64().unwrap_or(0) > 5
+        })
+        .await;
     assert_eq!(info["layers"], json!(["drone_0", "drone_1"]), "{info}");
-    let (code, merged) = call(&k, "GET", "/api/map", None).await;
+    let (code, merged) = k.get("/api/map").await;
     assert_eq!(code, 200);
     let spec = &merged["spec"];
     let n_cells = spec["width_cells"].as_u64().unwrap() * spec["height_cells"].as_u64().unwrap();
@@ -208,9 +136,9 @@ async fn maps_scans_coverage_and_navigation_through_the_api() {
         before.iter().all(|&v| v == 0),
         "free in front of it: {before:?}"
     );
-    let (code, own) = call(&k, "GET", "/api/map?drone=drone_1", None).await;
+    let (code, own) = k.get("/api/map?drone=drone_1").await;
     assert_eq!((code, own["drone"].clone()), (200, json!("drone_1")));
-    let (code, e) = call(&k, "GET", "/api/map?drone=drone_7", None).await;
+    let (code, e) = k.get("/api/map?drone=drone_7").await;
     assert_eq!(
         (code, e["error"]["code"].clone()),
         (404, json!("unknown_drone"))
@@ -233,41 +161,37 @@ async fn maps_scans_coverage_and_navigation_through_the_api() {
     let bbox: Vec<f64> = serde_json::from_value(update["bbox"].clone()).unwrap();
     assert!(bbox[0] < bbox[2] && bbox[1] < bbox[3], "{bbox:?}");
     let hit = |m: &Value| cells(m, [-10.96, -10.94], [-11.46, -11.44]);
-    let own = wait_for(&k, "/api/map?drone=drone_0", 5.0, |m| hit(m) == [40]).await;
+    let own = k
+        .wait_for("/api/map?drone=drone_0", 5.0, |m| hit(m) == [40])
+        .await;
     assert_eq!(
         cells(&own, [-11.26, -11.24], [-11.46, -11.44]),
         [0],
         "cleared on the way"
     );
-    let (_, merged) = call(&k, "GET", "/api/map", None).await;
+    let (_, merged) = k.get("/api/map").await;
     assert_eq!(hit(&merged), [40]);
-    let (code, bad) = call(
-        &k,
-        "POST",
-        "/api/scans",
-        Some(
+    let (code, bad) = k
+        .post(
+            "/api/scans",
             &json!({ "drone": "drone_0", "scans": [{ "kind": "multiranger",
             "origin_enu_m": [0, 0, 0], "yaw_rad": 0, "front_left_back_right_m": [1, 1, 1, 1],
             "range_min_m": 2, "range_max_m": 1 }] }),
-        ),
-    )
-    .await;
+        )
+        .await;
     assert_eq!(
         (code, bad["error"]["details"][0]["pointer"].clone()),
         (422, json!("/scans/0"))
     );
 
     // Coverage of a square by both drones, and a request that points at its mistakes.
-    let (code, cov) = call(
-        &k,
-        "POST",
-        "/api/coverage",
-        Some(
+    let (code, cov) = k
+        .post(
+            "/api/coverage",
             &json!({ "polygon_enu_m": [[-6, 6], [6, 6], [6, 14], [-6, 14]], "street_spacing_m": 4,
                       "angle_deg": null, "drones": ["drone_0", "drone_1"], "height_m": 4 }),
-        ),
-    )
-    .await;
+        )
+        .await;
     assert_eq!(code, 200, "{cov}");
     for d in ["drone_0", "drone_1"] {
         let points = cov["per_drone"][d].as_array().unwrap();
@@ -275,19 +199,16 @@ async fn maps_scans_coverage_and_navigation_through_the_api() {
         assert_eq!(points[0][2], 4.0);
         assert!(cov["lengths_m"][d].as_f64().unwrap() > 0.0);
     }
-    let (code, bad) = call(
-        &k,
-        "POST",
-        "/api/coverage",
-        Some(
+    let (code, bad) = k
+        .post(
+            "/api/coverage",
             &json!({ "polygon_enu_m": [[0, 0], [4, 0], [4, 4]], "street_spacing_m": 2,
                       "angle_deg": null, "drones": ["drone_9"], "height_m": 3 }),
-        ),
-    )
-    .await;
+        )
+        .await;
     assert_eq!(code, 422);
     assert_eq!(bad["error"]["details"][0]["pointer"], "/drones/0", "{bad}");
-    let (_, fence) = call(&k, "GET", "/api/geofence", None).await;
+    let (_, fence) = k.get("/api/geofence").await;
     assert_eq!(fence["max_altitude_m"], 120.0);
 
     // A mission flies navigate_to around the pole east of drone_0.
@@ -296,24 +217,22 @@ async fn maps_scans_coverage_and_navigation_through_the_api() {
         { "behavior": "navigate_to", "args": { "x": 6.0, "y": 0.0, "z": 1.0, "speed": 1.0,
                                                "safety_distance": 0.4 } },
         { "behavior": "land", "args": { "speed": 0.5 } } ] });
-    let (code, up) = call(&k, "POST", "/api/missions", Some(&mission)).await;
+    let (code, up) = k.post("/api/missions", &mission).await;
     assert_eq!(code, 201, "{up}");
     let id = up["mission_id"].as_u64().unwrap();
-    let (code, v) = call(
-        &k,
-        "POST",
-        "/api/mission_update",
-        Some(
+    let (code, v) = k
+        .post(
+            "/api/mission_update",
             &json!({ "drone_id": "drone_0", "mission_id": id, "item_id": 0, "action": 2,
                       "mission": "" }),
-        ),
-    )
-    .await;
+        )
+        .await;
     assert_eq!(code, 200, "{v}");
-    let status = wait_for(&k, "/api/status", 60.0, |s| {
-        s["drones"][0]["mission"]["done_items"] == 3
-    })
-    .await;
+    let status = k
+        .wait_for("/api/status", 60.0, |s| {
+            s["drones"][0]["mission"]["done_items"] == 3
+        })
+        .await;
     let d = &status["drones"][0];
     assert_eq!(d["mission"]["last_error"], Value::Null, "{d}");
     let [x, y] = [
@@ -350,14 +269,16 @@ async fn maps_scans_coverage_and_navigation_through_the_api() {
         ),
     )
     .unwrap();
+    let second = dir.path().join("second");
+    std::fs::create_dir_all(&second).unwrap();
     let k2 = start(
-        dir.path(),
+        &second,
         &["--config", config.to_str().unwrap(), "--sensor", "none"],
     )
     .await;
-    let (_, known) = call(&k2, "GET", "/api/map/info", None).await;
+    let (_, known) = k2.get("/api/map/info").await;
     assert_eq!(known["layers"], json!(["known"]), "{known}");
     assert!(known["cells_occupied"].as_u64().unwrap() > 5, "{known}");
-    let (_, own) = call(&k2, "GET", "/api/map?drone=drone_0", None).await;
+    let (_, own) = k2.get("/api/map?drone=drone_0").await;
     assert!(pole_face(&own) > 30, "the drone starts from the known map");
 }
