@@ -5,14 +5,13 @@
 //! null angle = across the polygon's narrowest direction). The drones' current positions decide
 //! who flies which piece. Out: `{"angle_deg", "per_drone": {drone: [[x, y, z], ..]},
 //! "lengths_m": {drone: m}, "transit_m": {drone: m}, "street_spacing_m"}`; problems as 422
-//! with JSON pointers. Piece ends that meet are pulled [`PIECE_END_SEPARATION_M`] apart.
+//! with JSON pointers. Piece ends that meet are pulled apart (`host::coverage`).
 
 use super::body::JsonBody;
 use super::error::{ApiError, ErrorBody};
 use super::ApiState;
+use crate::host::coverage::{self, CoverageError};
 use crate::mission::ValidationError;
-use crate::planning::coverage_ends::{length_m, separate_piece_ends};
-use crate::planning::{plan_coverage, CoverageError};
 use axum::extract::State;
 use axum::Json;
 use nalgebra::Vector2;
@@ -47,10 +46,6 @@ pub struct CoverageAnswer {
     /// Spacing actually used (streets spread evenly over the polygon), m.
     pub street_spacing_m: f64,
 }
-
-/// Pieces of one sweep meet at their cuts; their ends are kept this far apart (m) so that two
-/// drones do not finish (or start) at the same spot.
-pub const PIECE_END_SEPARATION_M: f64 = 2.0;
 
 fn error(pointer: &str, message: impl Into<String>) -> ValidationError {
     ValidationError {
@@ -118,13 +113,11 @@ pub async fn plan(
     let (spacing, height) = (req.street_spacing_m, req.height_m);
     // Large polygons with fine spacing take a while: keep the API's threads free.
     let plan = tokio::task::spawn_blocking(move || {
-        plan_coverage(&polygon, spacing, angle, &starts, height)
+        coverage::plan(&polygon, spacing, angle, &starts, height)
     })
     .await
     .map_err(|e| ApiError::BadRequest(format!("coverage planner stopped: {e}")))?
     .map_err(|e| ApiError::Invalid(vec![error(pointer_of(&e), e.to_string())]))?;
-    let mut per_drone = plan.per_drone;
-    separate_piece_ends(&mut per_drone, PIECE_END_SEPARATION_M);
     let mut answer = CoverageAnswer {
         angle_deg: plan.angle_rad.to_degrees(),
         per_drone: BTreeMap::new(),
@@ -133,13 +126,13 @@ pub async fn plan(
         street_spacing_m: plan.street_spacing_m,
     };
     for (i, drone) in req.drones.iter().enumerate() {
-        let path = per_drone.get(i).map(Vec::as_slice).unwrap_or_default();
+        let path = plan.pieces.get(i).map(Vec::as_slice).unwrap_or_default();
         let points = path.iter().map(|v| [v.x, v.y, v.z]).collect();
         answer.per_drone.insert(drone.clone(), points);
-        answer.lengths_m.insert(drone.clone(), length_m(path));
-        answer
-            .transit_m
-            .insert(drone.clone(), plan.transit_m.get(i).copied().unwrap_or(0.0));
+        let length = plan.lengths_m.get(i).copied().unwrap_or(0.0);
+        answer.lengths_m.insert(drone.clone(), length);
+        let transit = plan.transit_m.get(i).copied().unwrap_or(0.0);
+        answer.transit_m.insert(drone.clone(), transit);
     }
     Ok(Json(answer))
 }

@@ -98,7 +98,7 @@ pub async fn info(
     let spec = *view.grid.spec();
     let threshold = view
         .occupied_threshold
-        .unwrap_or(crate::planning::DEFAULT_OCCUPIED_THRESHOLD);
+        .unwrap_or(crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD);
     let (mut unknown, mut free, mut occupied) = (0, 0, 0);
     for &v in view.grid.data() {
         match v {

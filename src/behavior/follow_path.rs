@@ -8,7 +8,7 @@ use super::server::seconds_since;
 use super::{heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
 use crate::control::MotionReference;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

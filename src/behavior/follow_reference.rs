@@ -6,7 +6,7 @@ use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{yaw_target, BehaviorContext, Failure, Step};
 use crate::control::MotionReference;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

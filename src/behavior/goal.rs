@@ -3,7 +3,7 @@
 use super::registry::ParsedGoal;
 use super::{Behavior, BehaviorContext, Failure, Step};
 use crate::estimator::frames::EARTH;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize};

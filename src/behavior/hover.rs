@@ -4,7 +4,7 @@ use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{Behavior, BehaviorContext, Failure, Step};
 use crate::control::MotionReference;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;

@@ -39,7 +39,7 @@ use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::mapping::server::MapServer;
-use crate::platform::{Capabilities, PlatformRequest};
+use crate::types::{Capabilities, PlatformRequest};
 use crate::types::{EstimatedState, PlatformStatus, Vec3};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
@@ -98,7 +98,7 @@ pub struct BehaviorContext<'a> {
     pub map: Option<&'a MapServer>,
     /// Outcomes (the autopilot's acks) of platform requests completed since the last tick,
     /// for behaviors that wait for them (gimbal, camera).
-    pub request_results: &'a [crate::platform::RequestResult],
+    pub request_results: &'a [crate::types::RequestResult],
     /// Slow work (plans) asked on one tick, answered on a later one.
     pub services: &'a services::ServiceDesk,
     /// Every drone's latest state (this one included), as the host saw it before this tick.

@@ -28,7 +28,7 @@ use crate::mapping::server::MapServer;
 use crate::planning::{
     PlanError, PlanRequest, PlannedPath, PlannerKind, UnknownPolicy, MAX_UNKNOWN_EXTRA_COST,
 };
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

@@ -5,7 +5,7 @@ use super::goal::{frame_or_earth, InFlight};
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::{BehaviorContext, Failure, Step};
 use crate::control::{MotionReference, YawTarget};
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::{wrap_angle_rad, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

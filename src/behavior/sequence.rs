@@ -7,7 +7,7 @@ use super::land::{Land, LandGoal};
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::estimator::frames::EARTH;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;

@@ -8,7 +8,7 @@ use super::registry::{ParsedGoal, Registry, Resource};
 use super::{Behavior, BehaviorContext, Step};
 use super::{Failure, FailureCode};
 use crate::control::MotionReference;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 

@@ -4,7 +4,7 @@ use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::MotionReference;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::{FlightStatus, LinkHealth, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

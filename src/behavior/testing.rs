@@ -6,7 +6,7 @@ use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::platform::{Capabilities, RequestResult};
+use crate::types::{Capabilities, RequestResult};
 use crate::types::{
     EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
 };

@@ -1,17 +1,8 @@
-//! What behaviors ask of the controller, and what the controller asks of the platform.
+//! What behaviors ask of the controller (the setpoint vocabulary it answers with is in `types`).
 
 use crate::types::Vec3;
+pub use crate::types::{AcceptedSetpoints, Setpoint, YawTarget};
 use serde::{Deserialize, Serialize};
-
-/// Heading part of a reference or setpoint.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum YawTarget {
-    /// Hold this heading (ENU, rad, 0 = east, CCW positive).
-    Angle(f64),
-    /// Turn at this rate (rad/s, CCW positive).
-    Rate(f64),
-}
 
 /// A motion reference in the `earth` frame, produced by a behavior each tick.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -39,21 +30,6 @@ pub enum MotionReference {
     },
 }
 
-/// The command sent to the platform each tick (ENU; the MAVLink layer converts to NED).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "kind")]
-pub enum Setpoint {
-    Velocity {
-        velocity_enu_mps: Vec3,
-        yaw: YawTarget,
-    },
-    Position {
-        position_enu_m: Vec3,
-        velocity_ff_enu_mps: Vec3,
-        yaw: YawTarget,
-    },
-}
-
 impl MotionReference {
     /// Hold `position_enu_m` with heading `yaw_rad`.
     pub fn hold(position_enu_m: Vec3, yaw_rad: f64, max_speed_mps: f64) -> Self {
@@ -64,11 +40,4 @@ impl MotionReference {
             max_speed_mps,
         }
     }
-}
-
-/// The setpoint kinds a platform accepts; the controller picks its output from these.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct AcceptedSetpoints {
-    pub velocity: bool,
-    pub position: bool,
 }

@@ -10,30 +10,11 @@
 pub mod frames;
 pub mod geodetic;
 
-use crate::types::{EstimatedState, Pose, Validity, Vec3};
+use crate::types::{EstimatedState, Pose, Validity};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 
-/// One measurement the estimator may use, as the platform delivers it (already ENU/FLU).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Measurement {
-    /// Exact state from the simulator.
-    GroundTruth {
-        pose: Pose,
-        velocity_enu_mps: Vec3,
-        angular_velocity_flu_radps: Vec3,
-    },
-    /// The autopilot's own estimate (LOCAL_POSITION_NED / ODOMETRY / ATTITUDE, converted).
-    AutopilotOdometry {
-        pose: Pose,
-        velocity_enu_mps: Vec3,
-        angular_velocity_flu_radps: Vec3,
-        valid: Validity,
-        reset_counter: u32,
-    },
-    /// A pose from outside (motion capture), with the time it was taken.
-    ExternalPose { pose: Pose, stamp: Duration },
-}
+pub use crate::types::Measurement;
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -170,6 +151,7 @@ impl Estimator for ExternalPoseEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::types::Vec3;
 
     #[test]
     fn external_pose_gives_velocity_and_times_out() {

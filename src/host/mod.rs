@@ -6,6 +6,7 @@
 //! slow reader can only lag on), the flight log, the persisted missions, and systemd
 //! READY/WATCHDOG notifications from the control loop.
 
+pub mod coverage;
 pub mod demo;
 pub mod engine;
 pub mod fleet;
@@ -13,6 +14,7 @@ pub mod logwriter;
 pub mod map_view;
 pub mod payload;
 pub mod runtime;
+pub mod scans;
 pub mod scenario;
 pub mod sim;
 pub mod status;

@@ -8,7 +8,7 @@ use crate::behavior::{
     Behavior, BehaviorContext, BehaviorSpec, Failure, FailureCode, FramedPoint, Goal, Registry,
     Resource, Step,
 };
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use crate::types::{wrap_angle_rad, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -289,7 +289,7 @@ impl Behavior for TakePhoto {
 mod tests {
     use super::*;
     use crate::behavior::testing::Scene;
-    use crate::platform::RequestResult;
+    use crate::types::RequestResult;
 
     fn ack(request: PlatformRequest, outcome: Result<(), String>) -> Vec<RequestResult> {
         vec![RequestResult { request, outcome }]

@@ -13,10 +13,10 @@ use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 
 use super::graph::TopoGraph;
+use super::grid::DEFAULT_OCCUPIED_THRESHOLD;
 use super::grid::{GridSpec, InsertParams, OccupancyGrid};
 use super::layers::FuseRule;
 use super::MapError;
-use crate::planning::DEFAULT_OCCUPIED_THRESHOLD;
 
 /// Which mapping plugin builds the grid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

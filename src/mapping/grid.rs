@@ -44,6 +44,9 @@ pub struct Cell {
     pub y: u32,
 }
 
+/// Cells at or above this occupancy are obstacles (Aerostack2 treats `> 30` as occupied).
+pub const DEFAULT_OCCUPIED_THRESHOLD: i8 = 31;
+
 /// An inclusive rectangle of cells.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CellBox {

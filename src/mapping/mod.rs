@@ -31,6 +31,12 @@ pub use grid::{Cell, CellBox, GridPatch, GridSpec, InsertParams, OccupancyGrid, 
 pub use layers::{FuseRule, LayeredMap};
 pub use scan::{Beam, RangeScan};
 
+impl From<crate::types::scan::ScanError> for MapError {
+    fn from(e: crate::types::scan::ScanError) -> Self {
+        MapError::InvalidScan(e.0)
+    }
+}
+
 /// Errors from building, updating, importing or exporting maps.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MapError {

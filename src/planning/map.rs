@@ -10,8 +10,7 @@ use crate::mapping::grid::OccupancyGrid;
 
 use super::distance::DistanceField;
 
-/// Cells at or above this occupancy are obstacles (Aerostack2 treats `> 30` as occupied).
-pub const DEFAULT_OCCUPIED_THRESHOLD: i8 = 31;
+pub use crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD;
 
 /// A grid prepared for planning.
 #[derive(Debug, Clone)]

@@ -6,62 +6,9 @@
 
 pub mod mavlink;
 
-use crate::control::{AcceptedSetpoints, Setpoint};
-use crate::estimator::Measurement;
-use crate::mapping::scan::RangeScan;
-use crate::types::PlatformStatus;
-use serde::{Deserialize, Serialize};
+use crate::types::Setpoint;
+pub use crate::types::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
 use std::time::Duration;
-
-/// A one-off request to the platform; the outcome shows up in [`PlatformStatus`]
-/// (`armed`, `offboard`, `flight`, `last_error`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "request")]
-pub enum PlatformRequest {
-    Arm,
-    Disarm,
-    /// Follow Kestrel's setpoints (PX4 OFFBOARD, ArduPilot GUIDED).
-    StartOffboard,
-    /// The autopilot's own takeoff, for platforms that need it (ArduPilot NAV_TAKEOFF).
-    Takeoff {
-        height_m: f64,
-    },
-    /// The autopilot's own landing (PX4 AUTO.LAND, ArduPilot LAND).
-    Land,
-    /// Point the gimbal (FLU body angles).
-    PointGimbal {
-        pitch_rad: f64,
-        yaw_rad: f64,
-    },
-    TakePhoto,
-}
-
-/// What a platform can do; the controller and behaviors adapt to it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Capabilities {
-    pub setpoints: AcceptedSetpoints,
-    /// Takeoff must go through [`PlatformRequest::Takeoff`] instead of climbing on setpoints.
-    pub native_takeoff: bool,
-    /// Landing goes through [`PlatformRequest::Land`] (the autopilot's land detector disarms).
-    pub native_land: bool,
-}
-
-/// Everything the platform reports for one tick.
-#[derive(Debug, Clone, Default)]
-pub struct PlatformFeedback {
-    pub status: PlatformStatus,
-    pub measurements: Vec<Measurement>,
-    pub scans: Vec<RangeScan>,
-    /// Outcomes of requests that completed since the last tick (payload acks, refusals).
-    pub request_results: Vec<RequestResult>,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RequestResult {
-    pub request: PlatformRequest,
-    /// `Err` carries the autopilot's own reason.
-    pub outcome: Result<(), String>,
-}
 
 /// A vehicle the core can fly, driven synchronously by a driver loop.
 pub trait Platform: Send {

@@ -153,7 +153,7 @@ mod tests {
     }
 
     /// Scans delivered to drone 0 over one simulated second at 100 Hz.
-    fn scans_in_one_second(sensor: SensorConfig) -> Vec<crate::mapping::scan::RangeScan> {
+    fn scans_in_one_second(sensor: SensorConfig) -> Vec<crate::types::RangeScan> {
         let mut sim = SimWorld::new(world_with(sensor), 1, 1, Environment::default());
         let mut scans = Vec::new();
         for k in 0..100u32 {

@@ -5,7 +5,7 @@
 //! 4 beams front/left/back/right; lidar: N beams over 360 deg).
 
 use super::spatial::ShapeIndex;
-use crate::mapping::scan::{Beam, RangeScan};
+use crate::types::{Beam, RangeScan};
 use crate::types::{Vec2, Vec3};
 use rand::Rng;
 use rand_distr::{Distribution, Normal};

@@ -4,13 +4,14 @@
 //! odometry and an external (motion-capture) pose, so every estimator plugin can fly it.
 
 use super::dynamics::{self, Drive, MultirotorParams, RigidState};
-use crate::control::{AcceptedSetpoints, Setpoint, YawTarget};
-use crate::estimator::Measurement;
-use crate::mapping::scan::RangeScan;
-use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest, RequestResult};
+use crate::platform::Platform;
+use crate::types::Measurement;
+use crate::types::RangeScan;
 use crate::types::{
     wrap_angle_rad, Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
 };
+use crate::types::{AcceptedSetpoints, Setpoint, YawTarget};
+use crate::types::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
 use std::time::Duration;
 
 /// Offboard ends (and the vehicle holds) when no setpoint came for this long, as on PX4.

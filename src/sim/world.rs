@@ -7,7 +7,7 @@
 
 pub use super::sensors::SensorConfig;
 pub use super::shape::Shape;
-use crate::estimator::geodetic::GeoPoint;
+use crate::types::GeoPoint;
 use crate::types::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

@@ -11,7 +11,7 @@ use super::profile::{
     AutopilotKind, GimbalProtocol, LandMethod, Mode, Profile, TakeoffAltitude, TakeoffMethod,
 };
 use super::setpoint::SetpointStreamer;
-use crate::platform::PlatformRequest;
+use crate::types::PlatformRequest;
 use mavlink::dialects::ardupilotmega::{MavCmd, MavResult};
 use std::collections::VecDeque;
 use std::time::Duration;

@@ -4,7 +4,7 @@
 //! strings, and the [`SessionConfig`] (our ids, link policy, EKF origin).
 
 use super::session::SessionConfig;
-use crate::estimator::geodetic::GeoPoint;
+use crate::types::GeoPoint;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -11,8 +11,8 @@ use super::link::{
 use super::profile::Profile;
 use super::router::{self, ROUTER_QUEUE};
 use super::session::{Session, SessionConfig};
-use crate::control::Setpoint;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
+use crate::types::Setpoint;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;

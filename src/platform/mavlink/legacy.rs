@@ -6,7 +6,7 @@
 //! warnings are allowed here and nowhere else.
 #![allow(deprecated)]
 
-use crate::estimator::geodetic::GeoPoint;
+use crate::types::GeoPoint;
 use mavlink::dialects::ardupilotmega::{
     MavDataStream, MavMessage, REQUEST_DATA_STREAM_DATA, SET_GPS_GLOBAL_ORIGIN_DATA,
 };

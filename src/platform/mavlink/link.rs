@@ -10,11 +10,11 @@
 //! - the router (optional, `router.rs`) copies frames between the autopilot and ground stations.
 
 use super::session::Session;
-use crate::control::Setpoint;
-use crate::estimator::Measurement;
-use crate::mapping::scan::RangeScan;
 use crate::platform::{PlatformRequest, RequestResult};
+use crate::types::Measurement;
 use crate::types::PlatformStatus;
+use crate::types::RangeScan;
+use crate::types::Setpoint;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::{AsyncMavConnection, MAVLinkMessageRaw, MavHeader, MavlinkVersion, Message};
 use std::sync::Arc;

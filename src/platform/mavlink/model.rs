@@ -10,8 +10,8 @@ use super::boot_clock::BootClock;
 use super::events::{self, AutopilotText};
 use super::frames;
 use super::profile::Profile;
-use crate::estimator::Measurement;
-use crate::mapping::scan::{self, ObstacleSectors, RangeScan, SectorFrame};
+use crate::types::scan::{self, ObstacleSectors, RangeScan, SectorFrame};
+use crate::types::Measurement;
 use crate::types::{Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3};
 use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavFrame, MavLandedState, MavMessage, MavModeFlag,

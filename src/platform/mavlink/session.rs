@@ -12,10 +12,10 @@ use super::legacy;
 use super::model::{ModelEvent, VehicleModel};
 use super::profile::{IntervalFallback, Profile, TakeoffMethod};
 use super::setpoint::{self, SetpointStreamer};
-use crate::control::{AcceptedSetpoints, Setpoint};
-use crate::estimator::geodetic::GeoPoint;
 use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
+use crate::types::GeoPoint;
 use crate::types::LinkHealth;
+use crate::types::{AcceptedSetpoints, Setpoint};
 use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, HEARTBEAT_DATA,
 };
@@ -485,9 +485,9 @@ fn our_heartbeat() -> MavMessage {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::YawTarget;
     use crate::platform::mavlink::testutil::{autopilot_header, hb, px4_profile};
     use crate::types::Vec3;
+    use crate::types::YawTarget;
     use mavlink::dialects::ardupilotmega::COMMAND_ACK_DATA;
     use mavlink::Message;
 

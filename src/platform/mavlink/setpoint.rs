@@ -6,8 +6,8 @@
 //! autopilot's own offboard-loss failsafe acts instead of flying a stale command.
 
 use super::frames;
-use crate::control::{Setpoint, YawTarget};
 use crate::types::Vec3;
+use crate::types::{Setpoint, YawTarget};
 use mavlink::dialects::ardupilotmega::{
     MavFrame, PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };

@@ -1,0 +1,59 @@
+//! What the core and a platform exchange each tick, besides the setpoint: one-off requests and
+//! their outcomes, the platform's capabilities, and everything it reports (status,
+//! measurements, scans).
+
+use super::measurement::Measurement;
+use super::scan::RangeScan;
+use super::setpoint::AcceptedSetpoints;
+use super::PlatformStatus;
+use serde::{Deserialize, Serialize};
+
+/// A one-off request to the platform; the outcome shows up in [`PlatformStatus`]
+/// (`armed`, `offboard`, `flight`, `last_error`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "request")]
+pub enum PlatformRequest {
+    Arm,
+    Disarm,
+    /// Follow Kestrel's setpoints (PX4 OFFBOARD, ArduPilot GUIDED).
+    StartOffboard,
+    /// The autopilot's own takeoff, for platforms that need it (ArduPilot NAV_TAKEOFF).
+    Takeoff {
+        height_m: f64,
+    },
+    /// The autopilot's own landing (PX4 AUTO.LAND, ArduPilot LAND).
+    Land,
+    /// Point the gimbal (FLU body angles).
+    PointGimbal {
+        pitch_rad: f64,
+        yaw_rad: f64,
+    },
+    TakePhoto,
+}
+
+/// What a platform can do; the controller and behaviors adapt to it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Capabilities {
+    pub setpoints: AcceptedSetpoints,
+    /// Takeoff must go through [`PlatformRequest::Takeoff`] instead of climbing on setpoints.
+    pub native_takeoff: bool,
+    /// Landing goes through [`PlatformRequest::Land`] (the autopilot's land detector disarms).
+    pub native_land: bool,
+}
+
+/// Everything the platform reports for one tick.
+#[derive(Debug, Clone, Default)]
+pub struct PlatformFeedback {
+    pub status: PlatformStatus,
+    pub measurements: Vec<Measurement>,
+    pub scans: Vec<RangeScan>,
+    /// Outcomes of requests that completed since the last tick (payload acks, refusals).
+    pub request_results: Vec<RequestResult>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RequestResult {
+    pub request: PlatformRequest,
+    /// `Err` carries the autopilot's own reason.
+    pub outcome: Result<(), String>,
+}
