@@ -30,6 +30,27 @@ fn missions() -> Vec<PathBuf> {
     out
 }
 
+/// `missions/demo.json` is the demo flight `kestrel sim` flies with one drone (from the origin,
+/// facing east); the simulator places the same plan per drone from each start pose.
+#[test]
+fn the_demo_mission_file_is_the_demo_the_simulator_flies() {
+    let config = kestrel::config::Config::default();
+    let host = kestrel::host::simulated_host(kestrel::sim::world::World::empty(), 1, 0, &config);
+    let flown = kestrel::host::demo::demo_missions(host.sim_world().unwrap());
+    let on_disk = read(&dir().join("demo.json"));
+    if std::env::var_os("KESTREL_WRITE_DEMO").is_some() {
+        std::fs::write(
+            dir().join("demo.json"),
+            serde_json::to_string_pretty(&flown[0]).unwrap() + "\n",
+        )
+        .unwrap();
+    }
+    assert_eq!(
+        flown[0], on_disk,
+        "missions/demo.json is stale: rerun this test with KESTREL_WRITE_DEMO=1"
+    );
+}
+
 #[test]
 fn the_schema_file_is_generated_from_this_build() {
     let generated = mission_schema(&kestrel::host::payload::registry());
@@ -44,7 +65,7 @@ fn the_schema_file_is_generated_from_this_build() {
 fn every_shipped_mission_matches_the_schema_and_a_broken_one_does_not() {
     let schema = read(&dir().join("schema.json"));
     let validator = jsonschema::validator_for(&schema).unwrap();
-    assert_eq!(missions().len(), 4);
+    assert_eq!(missions().len(), 5);
     for m in missions() {
         let errors: Vec<String> = validator
             .iter_errors(&read(&m))

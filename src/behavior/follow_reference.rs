@@ -1,9 +1,10 @@
 //! `follow_reference`: track a point in a (possibly moving) frame with per-axis speed limits.
 //! Never finishes by itself; stop it or start another motion behavior.
 
-use super::goal::{check_finite, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs};
+use super::goal::{
+    check_finite, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw, YawArgs,
+};
 use super::registry::{BehaviorSpec, Goal, Resource};
-use super::server::seconds_since;
 use super::{yaw_target, BehaviorContext, Failure, Step};
 use crate::control::MotionReference;
 use crate::types::PlatformRequest;
@@ -11,7 +12,6 @@ use crate::types::Vec3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
-use std::time::Duration;
 
 #[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -65,7 +65,7 @@ pub fn spec() -> BehaviorSpec {
 pub struct FollowReference {
     goal: FollowReferenceGoal,
     yaw: ResolvedYaw,
-    last_target: Option<(Vec3, Duration)>,
+    last_target: MovingTarget,
 }
 
 impl FollowReference {
@@ -73,7 +73,7 @@ impl FollowReference {
         Self {
             goal,
             yaw: ResolvedYaw::Fixed(0.0),
-            last_target: None,
+            last_target: MovingTarget::default(),
         }
     }
     fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, Failure> {
@@ -106,11 +106,7 @@ impl InFlight for FollowReference {
             Ok(t) => t,
             Err(e) => return Step::Failed(e),
         };
-        let target_velocity = match self.last_target {
-            Some((prev, t)) if ctx.now > t => (target - prev) / seconds_since(ctx.now, t),
-            _ => Vec3::zeros(),
-        };
-        self.last_target = Some((target, ctx.now));
+        let target_velocity = self.last_target.update(target, ctx.now);
         let max_speed = [self.goal.speed_x, self.goal.speed_y, self.goal.speed_z]
             .into_iter()
             .fold(0.0, f64::max);

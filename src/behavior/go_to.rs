@@ -1,7 +1,8 @@
 //! `go_to`: fly to a point in any frame (a moving frame is tracked), and `go_to_gps`.
 
 use super::goal::{
-    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
+    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw,
+    YawArgs,
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
@@ -115,7 +116,7 @@ pub fn gps_spec() -> BehaviorSpec {
 pub struct GoTo {
     goal: GoToGoal,
     yaw: ResolvedYaw,
-    last_target: Option<(Vec3, Duration)>,
+    last_target: MovingTarget,
     best_distance_m: f64,
     best_at: Duration,
 }
@@ -125,7 +126,7 @@ impl GoTo {
         Self {
             goal,
             yaw: ResolvedYaw::Fixed(0.0),
-            last_target: None,
+            last_target: MovingTarget::default(),
             best_distance_m: f64::INFINITY,
             best_at: Duration::ZERO,
         }
@@ -156,7 +157,7 @@ impl InFlight for GoTo {
     type Goal = GoToGoal;
 
     fn goal_enu_m(&self) -> Option<Vec3> {
-        self.last_target.map(|(p, _)| p)
+        self.last_target.position()
     }
 
     fn goal_mut(&mut self) -> &mut GoToGoal {
@@ -175,13 +176,13 @@ impl InFlight for GoTo {
         let target = self.target(ctx)?;
         self.best_distance_m = (target - ctx.position()).norm();
         self.best_at = ctx.now;
-        self.last_target = None;
+        self.last_target.reset();
         Ok(())
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
         self.best_at = ctx.now;
-        self.last_target = None;
+        self.last_target.reset();
     }
 
     fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
@@ -190,11 +191,7 @@ impl InFlight for GoTo {
             Err(e) => return Step::Failed(e),
         };
         // Velocity of the target itself (non-zero in a moving frame), used as feed-forward.
-        let target_velocity = match self.last_target {
-            Some((prev, t)) if ctx.now > t => (target - prev) / seconds_since(ctx.now, t),
-            _ => Vec3::zeros(),
-        };
-        self.last_target = Some((target, ctx.now));
+        let target_velocity = self.last_target.update(target, ctx.now);
         let distance = (target - ctx.position()).norm();
         if distance < ctx.config.goal_threshold_m && heading_reached(&self.yaw, ctx) {
             return Step::Succeeded;

@@ -151,6 +151,34 @@ impl<B: InFlight> Behavior for B {
     }
 }
 
+/// A goal point that may move (a point in a moving frame): its last position in `earth` and the
+/// velocity it showed since, fed forward so the vehicle keeps up instead of lagging.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct MovingTarget {
+    last: Option<(Vec3, std::time::Duration)>,
+}
+
+impl MovingTarget {
+    /// Records where the target is now; returns its velocity (zero on the first sample).
+    pub fn update(&mut self, target: Vec3, now: std::time::Duration) -> Vec3 {
+        let velocity = match self.last {
+            Some((prev, t)) if now > t => (target - prev) / (now - t).as_secs_f64(),
+            _ => Vec3::zeros(),
+        };
+        self.last = Some((target, now));
+        velocity
+    }
+
+    /// The last position seen.
+    pub fn position(&self) -> Option<Vec3> {
+        self.last.map(|(p, _)| p)
+    }
+
+    pub fn reset(&mut self) {
+        self.last = None;
+    }
+}
+
 /// Pseudo-frame of geographic goals: x = latitude (deg), y = longitude (deg), z = altitude AMSL (m).
 pub const WGS84: &str = "wgs84";
 
