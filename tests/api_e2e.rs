@@ -205,6 +205,45 @@ async fn requests_without_the_token_are_refused() {
     assert_eq!(missions, json!([]), "nothing was loaded");
 }
 
+/// The README's token recipe (`head -c 16 /dev/urandom | base64`) gives `+ / =`: the page puts
+/// it in the WebSocket URL form-encoded, and any case of `Bearer` works; REST routes do not take
+/// the token from the query.
+#[tokio::test]
+async fn a_base64_token_works_in_the_websocket_url_and_bearer_in_any_case() {
+    let dir = tempfile::tempdir().unwrap();
+    let token = "q+v/Zz3k9Q1w==";
+    let k = Kestrel::sim(dir.path(), token, &[]).await;
+    let encoded = "q%2Bv%2FZz3k9Q1w%3D%3D";
+    let url = format!("ws://127.0.0.1:{}/api/ws?token={encoded}", k.port);
+    let (mut socket, _) = tokio_tungstenite::connect_async(url).await.unwrap();
+    assert!(next_json(&mut socket).await.is_object());
+    let c = client();
+    for scheme in ["Bearer", "bearer", "BEARER"] {
+        let r = c
+            .get(format!("{}/api/status", k.base))
+            .header("Authorization", format!("{scheme} {token}"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status().as_u16(), 200, "{scheme}");
+    }
+    let r = c
+        .get(format!("{}/api/status?token={encoded}", k.base))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        r.status().as_u16(),
+        401,
+        "the query token is for the WebSocket only"
+    );
+    let (code, body) = k.get("/api/log?drone=drone_9").await;
+    assert_eq!(
+        (code, body["error"]["code"].clone()),
+        (404, json!("unknown_drone"))
+    );
+}
+
 #[tokio::test]
 async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
     let dir = tempfile::tempdir().unwrap();

@@ -56,11 +56,27 @@ fn same(a: &[u8], b: &[u8]) -> bool {
     a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
-fn query_token(query: Option<&str>) -> Option<&str> {
-    query?
+/// The `token=` query parameter, decoded as browsers encode it (form encoding: `+` is a space,
+/// `%2B` a plus), so a base64 token with `+ / =` arrives intact.
+fn query_token(query: Option<&str>) -> Option<String> {
+    let raw = query?
         .split('&')
-        .find_map(|pair| pair.strip_prefix("token="))
+        .find_map(|pair| pair.strip_prefix("token="))?;
+    let spaced = raw.replace('+', " ");
+    percent_encoding::percent_decode_str(&spaced)
+        .decode_utf8()
+        .ok()
+        .map(|t| t.into_owned())
 }
+
+/// The token of an `Authorization` header; the scheme is case-insensitive (RFC 7235).
+fn bearer_token(header: &str) -> Option<&str> {
+    let (scheme, token) = header.trim().split_once(' ')?;
+    scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
+}
+
+/// Browsers cannot set headers on a WebSocket: only that route takes the token in its query.
+const QUERY_TOKEN_ROUTE: &str = "/api/ws";
 
 /// Middleware: every protected route needs the bearer token (when one is configured).
 pub async fn require_token(
@@ -75,8 +91,13 @@ pub async fn require_token(
         .headers()
         .get(AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "));
-    let given = header.or_else(|| query_token(request.uri().query()));
+        .and_then(bearer_token)
+        .map(str::to_string);
+    let given = header.or_else(|| {
+        (request.uri().path() == QUERY_TOKEN_ROUTE)
+            .then(|| query_token(request.uri().query()))
+            .flatten()
+    });
     match given {
         Some(t) if same(t.as_bytes(), expected.as_bytes()) => Ok(next.run(request).await),
         _ => Err(ApiError::Unauthorized),
@@ -114,7 +135,15 @@ mod tests {
 
     #[test]
     fn token_from_query_and_constant_time_compare() {
-        assert_eq!(query_token(Some("a=1&token=xyz")), Some("xyz"));
+        assert_eq!(query_token(Some("a=1&token=xyz")).as_deref(), Some("xyz"));
+        // What URLSearchParams makes of a base64 token.
+        assert_eq!(
+            query_token(Some("token=ab%2Bc%2Fd%3D%3D")).as_deref(),
+            Some("ab+c/d==")
+        );
+        assert_eq!(bearer_token("bearer abc"), Some("abc"));
+        assert_eq!(bearer_token("BEARER  abc "), Some("abc"));
+        assert_eq!(bearer_token("Basic abc"), None);
         assert!(same(b"abc", b"abc"));
         assert!(!same(b"abc", b"abd"));
         assert!(!same(b"abc", b"ab"));

@@ -9,6 +9,7 @@ use super::error::{ApiError, ErrorBody};
 use super::ApiState;
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
 use crate::host::runtime::BehaviorInfo;
+use crate::host::HostError;
 use crate::host::{Command, DroneStatus};
 use crate::mission::{Mission, MissionUpdate};
 use axum::extract::{Path, Query, State};
@@ -213,6 +214,16 @@ pub async fn log(
         .log
         .clone()
         .ok_or_else(|| ApiError::NotFound("no flight log is being written".into()))?;
+    if let Some(d) = q
+        .drone
+        .as_deref()
+        .filter(|d| !s.host.info.drones.iter().any(|x| x == d))
+    {
+        return Err(ApiError::Host(HostError::UnknownDrone(
+            d.to_string(),
+            s.host.info.drones.join(", "),
+        )));
+    }
     s.host.call(|reply| Command::FlushLog { reply }).await?;
     // The writer thread flushes when idle, at most 100 ms after the hand-over.
     tokio::time::sleep(std::time::Duration::from_millis(150)).await;
