@@ -244,6 +244,63 @@ async fn a_base64_token_works_in_the_websocket_url_and_bearer_in_any_case() {
     );
 }
 
+/// A web page on another site cannot drive a tokenless Kestrel: its "simple" text/plain POST is
+/// refused for its content type, and anything it sends carries a foreign Origin.
+#[tokio::test]
+async fn a_foreign_web_page_cannot_upload_or_start_a_mission_without_a_token() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = Kestrel::sim(dir.path(), "", &[]).await;
+    let c = client();
+    let plain = c
+        .post(format!("{}/api/missions", k.base))
+        .header("Content-Type", "text/plain")
+        .body(takeoff_go_land().to_string())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(plain.status().as_u16(), 415);
+    let body: Value = plain.json().await.unwrap();
+    assert_eq!(body["error"]["code"], "unsupported_media_type");
+    let foreign = c
+        .post(format!("{}/api/missions", k.base))
+        .header("Origin", "http://evil.example")
+        .json(&takeoff_go_land())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(foreign.status().as_u16(), 403);
+    let start = c
+        .post(format!("{}/api/mission_update", k.base))
+        .header("Origin", "http://evil.example")
+        .json(&json!({"drone_id": "drone_0", "action": 0, "mission": takeoff_go_land()}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(start.status().as_u16(), 403);
+    let ws = tokio_tungstenite::tungstenite::client::IntoClientRequest::into_client_request(
+        format!("ws://127.0.0.1:{}/api/ws", k.port),
+    )
+    .map(|mut r| {
+        r.headers_mut()
+            .insert("Origin", "http://evil.example".parse().unwrap());
+        r
+    })
+    .unwrap();
+    assert!(tokio_tungstenite::connect_async(ws).await.is_err());
+    let (_, missions) = k.get("/api/missions").await;
+    assert_eq!(missions, json!([]), "nothing was loaded");
+    let (_, status) = k.get("/api/status").await;
+    assert_eq!(status["drones"][0]["armed"], false);
+    let own = c
+        .post(format!("{}/api/missions", k.base))
+        .header("Origin", k.base.as_str())
+        .json(&takeoff_go_land())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(own.status().as_u16(), 201, "the server's own page may");
+}
+
 #[tokio::test]
 async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
     let dir = tempfile::tempdir().unwrap();
@@ -400,6 +457,7 @@ async fn bad_requests_are_rejected_precisely_and_nothing_moves() {
     let r = c
         .post(format!("{}/api/missions", k.base))
         .bearer_auth(TOKEN)
+        .header("Content-Type", "application/json")
         .body("{\"target\": ")
         .send()
         .await

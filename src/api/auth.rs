@@ -8,7 +8,7 @@ use super::error::ApiError;
 use super::ApiState;
 use crate::config::ApiSection;
 use axum::extract::{Request, State};
-use axum::http::header::AUTHORIZATION;
+use axum::http::header::{AUTHORIZATION, HOST, ORIGIN};
 use axum::middleware::Next;
 use axum::response::Response;
 use std::net::SocketAddr;
@@ -104,6 +104,37 @@ pub async fn require_token(
     }
 }
 
+/// Middleware, when no token is configured: a request a browser made from another site's page
+/// (its `Origin` is neither this server nor one of `[api] cors_origins`) is refused, so a web
+/// page cannot fly the drone through a tokenless loopback API. Requests without `Origin`
+/// (curl, scripts, the CLI) pass.
+pub async fn same_origin_without_token(
+    State(state): State<ApiState>,
+    request: Request,
+    next: Next,
+) -> Result<Response, ApiError> {
+    if state.token.is_some() {
+        return Ok(next.run(request).await);
+    }
+    let headers = request.headers();
+    let Some(origin) = headers.get(ORIGIN).and_then(|v| v.to_str().ok()) else {
+        return Ok(next.run(request).await);
+    };
+    let host = headers.get(HOST).and_then(|v| v.to_str().ok());
+    if same_site(origin, host) || state.cors_origins.iter().any(|o| o == origin) {
+        return Ok(next.run(request).await);
+    }
+    Err(ApiError::ForeignOrigin(origin.to_string()))
+}
+
+/// Whether `origin` (`http://host:port`) is the server the request was sent to (`Host`).
+fn same_site(origin: &str, host: Option<&str>) -> bool {
+    let authority = origin
+        .strip_prefix("http://")
+        .or_else(|| origin.strip_prefix("https://"));
+    matches!((authority, host), (Some(a), Some(h)) if a.eq_ignore_ascii_case(h))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -144,6 +175,9 @@ mod tests {
         assert_eq!(bearer_token("bearer abc"), Some("abc"));
         assert_eq!(bearer_token("BEARER  abc "), Some("abc"));
         assert_eq!(bearer_token("Basic abc"), None);
+        assert!(same_site("http://127.0.0.1:8080", Some("127.0.0.1:8080")));
+        assert!(!same_site("http://evil.example", Some("127.0.0.1:8080")));
+        assert!(!same_site("null", Some("127.0.0.1:8080")));
         assert!(same(b"abc", b"abc"));
         assert!(!same(b"abc", b"abd"));
         assert!(!same(b"abc", b"ab"));

@@ -1,7 +1,9 @@
 //! Request bodies: size-limited JSON with errors that say where the JSON broke.
 //!
-//! In: a request. Out: the parsed body, or `413 payload_too_large`, `400 bad_json`
-//! (with line and column) or `422 invalid_request` (with serde's message).
+//! In: a request. Out: the parsed body, or `415 unsupported_media_type` (a JSON body must say
+//! `Content-Type: application/json`, so a web page cannot send one as a "simple" form post),
+//! `413 payload_too_large`, `400 bad_json` (with line and column) or `422 invalid_request` (with
+//! serde's message).
 
 use super::error::ApiError;
 use super::ApiState;
@@ -16,7 +18,7 @@ impl<T: DeserializeOwned> FromRequest<ApiState> for JsonBody<T> {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &ApiState) -> Result<Self, ApiError> {
-        // Any content type is read as JSON (curl -d sends a form type); the body must parse.
+        require_json(req.headers())?;
         let bytes = Bytes::from_request(req, state).await.map_err(|r| {
             if r.status() == StatusCode::PAYLOAD_TOO_LARGE {
                 ApiError::TooLarge(state.max_body_bytes)
@@ -25,6 +27,21 @@ impl<T: DeserializeOwned> FromRequest<ApiState> for JsonBody<T> {
             }
         })?;
         parse(&bytes).map(JsonBody)
+    }
+}
+
+/// Refuses a body whose `Content-Type` is not `application/json` (parameters such as
+/// `charset` allowed).
+pub fn require_json(headers: &axum::http::HeaderMap) -> Result<(), ApiError> {
+    let given = headers
+        .get(axum::http::header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("no Content-Type");
+    let mime = given.split(';').next().unwrap_or_default().trim();
+    if mime.eq_ignore_ascii_case("application/json") {
+        Ok(())
+    } else {
+        Err(ApiError::UnsupportedMediaType(given.to_string()))
     }
 }
 

@@ -31,6 +31,10 @@ pub enum ApiError {
     /// A request body that parsed but does not make sense, field by field (JSON pointers).
     #[error("request is invalid")]
     Invalid(Vec<ValidationError>),
+    #[error("send the body as JSON with Content-Type: application/json (got {0})")]
+    UnsupportedMediaType(String),
+    #[error("requests from the web page at {0} are refused: this Kestrel has no API token, so only its own pages and [api] cors_origins may call it")]
+    ForeignOrigin(String),
 }
 
 /// The JSON error body, for the OpenAPI spec.
@@ -77,6 +81,10 @@ impl ApiError {
             ApiError::NotFound(_) => (StatusCode::NOT_FOUND, "not_found"),
             ApiError::TooManyClients(_) => (StatusCode::SERVICE_UNAVAILABLE, "too_many_clients"),
             ApiError::Invalid(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_request"),
+            ApiError::UnsupportedMediaType(_) => {
+                (StatusCode::UNSUPPORTED_MEDIA_TYPE, "unsupported_media_type")
+            }
+            ApiError::ForeignOrigin(_) => (StatusCode::FORBIDDEN, "foreign_origin"),
         }
     }
 

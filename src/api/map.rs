@@ -141,6 +141,9 @@ pub async fn post_scans(
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|t| t.starts_with("application/octet-stream"));
+    if !binary {
+        super::body::require_json(&headers)?;
+    }
     let (drone, scans) = body_scans(&body, binary, q.drone)?;
     let queued = s
         .host

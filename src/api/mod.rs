@@ -38,6 +38,8 @@ pub struct ApiState {
     pub max_ws_clients: usize,
     pub ws_clients: Arc<AtomicUsize>,
     pub log: Option<LogFile>,
+    /// Browser origins allowed besides the server's own (`[api] cors_origins`).
+    pub cors_origins: Arc<[String]>,
 }
 
 impl ApiState {
@@ -55,6 +57,7 @@ impl ApiState {
             max_ws_clients: api.max_ws_clients,
             ws_clients: Arc::new(AtomicUsize::new(0)),
             log,
+            cors_origins: api.cors_origins.clone().into(),
         }
     }
 }
@@ -100,6 +103,10 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         .layer(middleware::from_fn_with_state(
             state.clone(),
             body::refuse_large,
+        ))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            auth::same_origin_without_token,
         ))
         .layer(tower_http::timeout::TimeoutLayer::with_status_code(
             axum::http::StatusCode::REQUEST_TIMEOUT,

@@ -56,11 +56,17 @@ pub struct Kestrel {
 }
 
 impl Kestrel {
-    /// Starts it with `token`, its flight log in `dir` (one file per port), its state in
+    /// Starts it with `token` (empty: none), its flight log in `dir` (one file per port), its state in
     /// `dir/state`, and `extra` arguments.
     pub async fn sim(dir: &Path, token: &str, extra: &[&str]) -> Self {
         let port = free_tcp_port();
-        let child = Command::new(env!("CARGO_BIN_EXE_kestrel"))
+        let mut command = Command::new(env!("CARGO_BIN_EXE_kestrel"));
+        if token.is_empty() {
+            command.env_remove("KESTREL_API_TOKEN");
+        } else {
+            command.env("KESTREL_API_TOKEN", token);
+        }
+        let child = command
             .args(["sim", "--no-demo", "--speedup", "20", "--listen"])
             .arg(format!("127.0.0.1:{port}"))
             .arg("--state-dir")
@@ -68,7 +74,6 @@ impl Kestrel {
             .arg("--log")
             .arg(dir.join(format!("flight-{port}.jsonl")))
             .args(extra)
-            .env("KESTREL_API_TOKEN", token)
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -91,8 +96,10 @@ impl Kestrel {
             "POST" => client.post(url),
             "DELETE" => client.delete(url),
             _ => client.get(url),
+        };
+        if !self.token.is_empty() {
+            req = req.bearer_auth(&self.token);
         }
-        .bearer_auth(&self.token);
         if let Some(b) = body {
             req = req.json(b);
         }
