@@ -301,6 +301,58 @@ async fn a_foreign_web_page_cannot_upload_or_start_a_mission_without_a_token() {
     assert_eq!(own.status().as_u16(), 201, "the server's own page may");
 }
 
+/// `kestrel sim --speedup max` without `--exit-when-done`: the demo flies as fast as the CPU
+/// allows, then simulated time follows the wall clock (it used to run on at thousands of seconds
+/// a second, filling the disk with flight log).
+#[tokio::test]
+async fn speedup_max_falls_back_to_real_time_once_the_flights_are_over() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = support::free_tcp_port();
+    let base = format!("http://127.0.0.1:{port}");
+    let _kestrel = support::Process(
+        Command::new(env!("CARGO_BIN_EXE_kestrel"))
+            .args(["sim", "--speedup", "max", "--listen"])
+            .arg(format!("127.0.0.1:{port}"))
+            .arg("--log")
+            .arg(dir.path().join("flight.jsonl"))
+            .env("KESTREL_API_TOKEN", TOKEN)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    support::wait_healthy(&base).await;
+    let status = || async {
+        client()
+            .get(format!("{base}/api/status"))
+            .bearer_auth(TOKEN)
+            .send()
+            .await
+            .unwrap()
+            .json::<Value>()
+            .await
+            .unwrap()
+    };
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let s = status().await;
+        let d = &s["drones"][0];
+        if d["armed"] == false && d["mission"]["state"] == 0 && d["mission"]["done_items"] == 4 {
+            break;
+        }
+        assert!(Instant::now() < deadline, "the demo did not end: {d}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let t0 = status().await["t"].as_f64().unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let t1 = status().await["t"].as_f64().unwrap();
+    assert!(
+        (1.0..4.0).contains(&(t1 - t0)),
+        "{:.1} simulated s in 2 wall-clock s after the flight",
+        t1 - t0
+    );
+}
+
 #[tokio::test]
 async fn mid_flight_insert_modify_and_an_on_demand_plan_switch() {
     let dir = tempfile::tempdir().unwrap();

@@ -198,6 +198,11 @@ impl BehaviorServer {
         std::mem::take(&mut self.events)
     }
 
+    /// No behavior is running or paused.
+    pub fn is_idle(&self) -> bool {
+        self.active.is_empty()
+    }
+
     pub fn active(&self) -> Vec<ActiveInfo> {
         self.active.iter().map(|a| a.info.clone()).collect()
     }

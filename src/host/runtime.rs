@@ -343,8 +343,11 @@ async fn control_loop(
     let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
     let mut wall_start = Instant::now();
     let mut sim_start = host.now();
-    let fast = options.pace == Pace::Max;
     loop {
+        // As fast as possible only while something flies: once every flight is over, simulated
+        // time goes on at the wall clock's pace (an idle `--speedup max` would fill the disk
+        // with flight log at thousands of seconds a second).
+        let fast = options.pace == Pace::Max && !host.is_idle();
         tokio::select! {
             biased;
             changed = shutdown.changed() => {
@@ -387,7 +390,8 @@ async fn control_loop(
             }
             Pace::Max => {
                 let mut stop = false;
-                for _ in 0..MAX_BATCH {
+                let batch = if fast { MAX_BATCH } else { 1 };
+                for _ in 0..batch {
                     host.step();
                     stop = check_stop(&mut options, &host);
                     if stop {

@@ -152,6 +152,15 @@ impl Host {
         self.fleet.is_simulated()
     }
 
+    /// Nothing is flying or about to: no mission runs, no behavior is active, no drone is armed.
+    pub fn is_idle(&self) -> bool {
+        self.executors.iter().all(|e| e.running_id().is_none())
+            && self
+                .cores
+                .iter()
+                .all(|c| c.server().is_idle() && !c.platform_status().armed)
+    }
+
     /// Every drone's state as the cores saw it at the last tick.
     pub fn fleet_view(&self) -> &FleetView {
         &self.fleet_view
