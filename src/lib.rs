@@ -19,6 +19,7 @@ pub mod config;
 pub mod control;
 pub mod core;
 pub mod estimator;
+pub mod exploration;
 pub mod flightlog;
 pub mod host;
 pub mod mapping;

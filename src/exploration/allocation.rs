@@ -1,0 +1,257 @@
+//! Which frontier a drone explores next: the thesis's heuristic, its two ablations and
+//! Kestrel's default.
+//!
+//! In: the requesting drone, the frontiers it can reach (with their path distances) and the
+//! goals the other drones hold. Out: the index of the chosen frontier (`None`: no candidate).
+//!
+//! Every allocator first leaves out frontiers another drone already holds (centroid within
+//! [`CLAIM_RADIUS_M`] of its goal) unless nothing else is left, so two drones never fly to the
+//! same place.
+//! - `thesis` (Eq. 4.3 as the thesis's code computes it): the largest mean straight-line distance
+//!   from the frontier to the goals already allocated (the drone's previous goal included) minus
+//!   twice the straight-line distance from the drone.
+//! - `nearest`: the nearest frontier in a straight line (Figure 6.1's "closer").
+//! - `farthest`: the frontier farthest on average from the allocated goals (Figure 6.1's "max
+//!   distance").
+//! - `kestrel` (the default): the shortest *flown* distance (path length through known free
+//!   space, not a straight line through poles and unknown space), less a bonus for long frontiers
+//!   (more to see), plus a penalty for frontiers within two beam ranges of another drone's goal
+//!   (that drone will see them), with a hysteresis that keeps the current goal unless another is
+//!   clearly better (no dithering between two equal frontiers).
+
+use nalgebra::Vector2;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Frontiers this close to another drone's goal are that drone's (m).
+pub const CLAIM_RADIUS_M: f64 = 0.5;
+
+/// The allocator, selectable per run (`--allocator`, the `explore` behavior's `allocator`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AllocatorKind {
+    #[default]
+    Kestrel,
+    Thesis,
+    Nearest,
+    Farthest,
+}
+
+impl std::str::FromStr for AllocatorKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "kestrel" => Ok(Self::Kestrel),
+            "thesis" => Ok(Self::Thesis),
+            "nearest" => Ok(Self::Nearest),
+            "farthest" => Ok(Self::Farthest),
+            other => Err(format!(
+                "unknown allocator `{other}`: use kestrel, thesis, nearest or farthest"
+            )),
+        }
+    }
+}
+
+/// A frontier the drone can reach.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate {
+    pub centroid_enu_m: Vector2<f64>,
+    pub goal_enu_m: Vector2<f64>,
+    /// Frontier length (m).
+    pub size_m: f64,
+    /// Flown distance from the drone to the goal (m).
+    pub path_m: f64,
+}
+
+/// The drone asking.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Requester {
+    pub position_enu_m: Vector2<f64>,
+    /// The goal it flies to now, if any.
+    pub current_goal_enu_m: Option<Vector2<f64>>,
+}
+
+/// Kestrel's weights (m of flown distance each).
+const SIZE_BONUS_PER_M: f64 = 1.0;
+const SIZE_BONUS_CAP_M: f64 = 3.5;
+const OTHERS_PENALTY_M: f64 = 12.0;
+const OTHERS_RADIUS_M: f64 = 8.0;
+const KEEP_BONUS_M: f64 = 2.0;
+const KEEP_RADIUS_M: f64 = 1.0;
+
+/// Picks a frontier for `me` among `candidates`, given the goals `others` hold.
+pub fn choose(
+    kind: AllocatorKind,
+    me: &Requester,
+    candidates: &[Candidate],
+    others: &[Vector2<f64>],
+) -> Option<usize> {
+    let unclaimed: Vec<usize> = (0..candidates.len())
+        .filter(|&i| {
+            others
+                .iter()
+                .all(|g| (candidates[i].centroid_enu_m - g).norm() > CLAIM_RADIUS_M)
+        })
+        .collect();
+    let pool = if unclaimed.is_empty() {
+        (0..candidates.len()).collect()
+    } else {
+        unclaimed
+    };
+    let straight = |c: &Candidate| (c.centroid_enu_m - me.position_enu_m).norm();
+    let allocated: Vec<Vector2<f64>> = others
+        .iter()
+        .copied()
+        .chain(me.current_goal_enu_m)
+        .collect();
+    let mean_to_allocated = |c: &Candidate, divisor: usize| {
+        allocated
+            .iter()
+            .map(|g| (c.centroid_enu_m - g).norm())
+            .sum::<f64>()
+            / divisor.max(1) as f64
+    };
+    // Higher is better.
+    let score = |c: &Candidate| -> f64 {
+        match kind {
+            AllocatorKind::Nearest => -straight(c),
+            AllocatorKind::Thesis if allocated.is_empty() => -straight(c),
+            AllocatorKind::Thesis => {
+                // The code divides by |allocated| - 1 once more than one goal is allocated.
+                let divisor = if allocated.len() > 1 {
+                    allocated.len() - 1
+                } else {
+                    allocated.len()
+                };
+                mean_to_allocated(c, divisor) - 2.0 * straight(c)
+            }
+            AllocatorKind::Farthest if allocated.is_empty() => -straight(c),
+            AllocatorKind::Farthest => mean_to_allocated(c, allocated.len()),
+            AllocatorKind::Kestrel => {
+                let bonus = SIZE_BONUS_PER_M * c.size_m.min(SIZE_BONUS_CAP_M);
+                let crowd: f64 = others
+                    .iter()
+                    .map(|g| {
+                        OTHERS_PENALTY_M
+                            * (1.0 - (c.centroid_enu_m - g).norm() / OTHERS_RADIUS_M).max(0.0)
+                    })
+                    .sum();
+                let keep = me
+                    .current_goal_enu_m
+                    .filter(|g| (c.goal_enu_m - g).norm() < KEEP_RADIUS_M)
+                    .map_or(0.0, |_| KEEP_BONUS_M);
+                -(c.path_m - bonus + crowd - keep)
+            }
+        }
+    };
+    pool.into_iter().max_by(|&a, &b| {
+        score(&candidates[a])
+            .total_cmp(&score(&candidates[b]))
+            // Ties: the earlier candidate (raster order), deterministically.
+            .then(b.cmp(&a))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(x: f64, y: f64, path_m: f64, size_m: f64) -> Candidate {
+        Candidate {
+            centroid_enu_m: Vector2::new(x, y),
+            goal_enu_m: Vector2::new(x, y),
+            size_m,
+            path_m,
+        }
+    }
+
+    fn me(x: f64, y: f64) -> Requester {
+        Requester {
+            position_enu_m: Vector2::new(x, y),
+            current_goal_enu_m: None,
+        }
+    }
+
+    #[test]
+    fn nearest_takes_the_straight_line_nearest() {
+        let c = [at(5.0, 0.0, 5.0, 2.0), at(0.0, 3.0, 30.0, 2.0)];
+        assert_eq!(
+            choose(AllocatorKind::Nearest, &me(0.0, 0.0), &c, &[]),
+            Some(1)
+        );
+    }
+
+    #[test]
+    fn kestrel_takes_the_shortest_flight_not_the_shortest_line() {
+        // The frontier 3 m away lies behind a wall (30 m to fly); the one 5 m away is open.
+        let c = [at(5.0, 0.0, 5.0, 2.0), at(0.0, 3.0, 30.0, 2.0)];
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[]),
+            Some(0)
+        );
+    }
+
+    #[test]
+    fn kestrel_leaves_frontiers_near_another_drones_goal_to_it() {
+        let c = [at(5.0, 0.0, 5.0, 2.0), at(-7.0, 0.0, 7.0, 2.0)];
+        let other_goal = [Vector2::new(6.0, 1.0)];
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &other_goal),
+            Some(1)
+        );
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[]),
+            Some(0)
+        );
+    }
+
+    #[test]
+    fn kestrel_keeps_its_goal_against_a_marginally_better_one() {
+        let c = [at(5.0, 0.0, 5.0, 2.0), at(-4.5, 0.0, 4.5, 2.0)];
+        let mut r = me(0.0, 0.0);
+        r.current_goal_enu_m = Some(Vector2::new(5.0, 0.2));
+        assert_eq!(choose(AllocatorKind::Kestrel, &r, &c, &[]), Some(0));
+        r.current_goal_enu_m = None;
+        assert_eq!(choose(AllocatorKind::Kestrel, &r, &c, &[]), Some(1));
+    }
+
+    #[test]
+    fn a_frontier_another_drone_holds_is_taken_only_when_nothing_else_is_left() {
+        let c = [at(1.0, 0.0, 1.0, 2.0), at(20.0, 0.0, 20.0, 2.0)];
+        let held = [Vector2::new(1.2, 0.0)];
+        for kind in [
+            AllocatorKind::Kestrel,
+            AllocatorKind::Thesis,
+            AllocatorKind::Nearest,
+            AllocatorKind::Farthest,
+        ] {
+            assert_eq!(choose(kind, &me(0.0, 0.0), &c, &held), Some(1), "{kind:?}");
+            assert_eq!(
+                choose(kind, &me(0.0, 0.0), &c[..1], &held),
+                Some(0),
+                "{kind:?}"
+            );
+        }
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &[], &held),
+            None
+        );
+    }
+
+    #[test]
+    fn thesis_trades_spread_from_the_others_against_twice_the_distance() {
+        // Others' goals at (10, 0) and (0, 10); previous goal (0, 0). Candidate A (-4, -4) is far
+        // from them and near the drone; B (8, 8) is between the others' goals.
+        let c = [at(-4.0, -4.0, 6.0, 2.0), at(8.0, 8.0, 12.0, 2.0)];
+        let mut r = me(0.0, 0.0);
+        r.current_goal_enu_m = Some(Vector2::new(0.0, 0.0));
+        let others = [Vector2::new(10.0, 0.0), Vector2::new(0.0, 10.0)];
+        assert_eq!(choose(AllocatorKind::Thesis, &r, &c, &others), Some(0));
+        assert_eq!(choose(AllocatorKind::Farthest, &r, &c, &others), Some(0));
+        // Alone, with no goal allocated yet, the thesis takes the nearest.
+        assert_eq!(
+            choose(AllocatorKind::Thesis, &me(7.0, 7.0), &c, &[]),
+            Some(1)
+        );
+    }
+}

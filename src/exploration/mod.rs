@@ -1,0 +1,18 @@
+//! Cooperative frontier exploration with minimal sensing (the thesis's contribution C.3).
+//!
+//! In: the fleet's merged occupancy grid and each drone's requests. Out: frontiers, the
+//! navigable space around them, allocations (a goal and the path to it) and the watcher's
+//! decisions; the `explore` behavior (`behavior::explore`) flies them, the host runs the
+//! allocator as a fleet-level service ([`service::FrontierService`]).
+//!
+//! - [`space`]: navigable cells and frontiers of a grid (thesis Algorithm 1).
+//! - [`reach`]: path distances and paths from one drone through navigable space.
+//! - [`allocation`]: which frontier a drone takes (`kestrel`, `thesis`, `nearest`, `farthest`).
+//! - [`service`]: the allocator service: claims, given-up goals, answers.
+//! - [`watcher`]: the intra-swarm avoidance decision.
+
+pub mod allocation;
+pub mod reach;
+pub mod service;
+pub mod space;
+pub mod watcher;

@@ -1,0 +1,269 @@
+//! Where one drone can fly from where it is: path distances over the navigable cells of a
+//! [`Space`], and the path to any reached cell.
+//!
+//! In: a [`Space`] and the drone's position. Out: a [`Reach`]: for every cell the length of the
+//! shortest 8-connected path through navigable cells (m; `None` when unreachable) and that
+//! path, shortened to the corners a straight line cannot cut. One search serves the allocator
+//! (path distance to every frontier at once) and the flight (the path to the chosen one).
+//!
+//! The drone's own neighbourhood (the safety distance around it, obstacles excepted) counts as
+//! navigable, so a drone that hovers where it has not mapped yet (just after takeoff) can
+//! leave it. Costs are 10 per straight step and 14 per diagonal, searched with a bucket queue
+//! (O(cells)).
+
+use nalgebra::Vector2;
+
+use super::space::Space;
+
+const STRAIGHT: u32 = 10;
+const DIAGONAL: u32 = 14;
+const UNREACHED: u32 = u32::MAX;
+
+/// Path distances from one start.
+#[derive(Debug, Clone)]
+pub struct Reach {
+    width: usize,
+    start: usize,
+    cost: Vec<u32>,
+    parent: Vec<u32>,
+    resolution_m: f64,
+}
+
+impl Reach {
+    /// Searches from `from_enu_m`; `None` when it lies outside the grid.
+    pub fn new(space: &Space, from_enu_m: Vector2<f64>) -> Option<Self> {
+        let spec = *space.spec();
+        let (w, h) = (spec.width_cells as usize, spec.height_cells as usize);
+        let start = space.index_at(from_enu_m)?;
+        let s = space.safety_cells() as i64;
+        let (sx, sy) = ((start % w) as i64, (start / w) as i64);
+        let passable = |i: usize| {
+            if space.is_navigable(i) {
+                return true;
+            }
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            (x - sx).abs() <= s && (y - sy).abs() <= s && space.is_clear(i)
+        };
+        let mut cost = vec![UNREACHED; w * h];
+        let mut parent = vec![u32::MAX; w * h];
+        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); (DIAGONAL + 1) as usize];
+        cost[start] = 0;
+        buckets[0].push(start as u32);
+        let mut pending = 1usize;
+        let mut current: u32 = 0;
+        while pending > 0 {
+            let slot = (current % (DIAGONAL + 1)) as usize;
+            let Some(i) = buckets[slot].pop() else {
+                current += 1;
+                continue;
+            };
+            pending -= 1;
+            let i = i as usize;
+            if cost[i] != current {
+                continue;
+            }
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            for (dx, dy) in NEIGHBOURS {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                    continue;
+                }
+                let j = ny as usize * w + nx as usize;
+                if !passable(j) {
+                    continue;
+                }
+                // No corner cutting between two blocked cells.
+                if dx != 0 && dy != 0 {
+                    let a = y as usize * w + nx as usize;
+                    let b = ny as usize * w + x as usize;
+                    if !passable(a) || !passable(b) {
+                        continue;
+                    }
+                }
+                let step = if dx != 0 && dy != 0 {
+                    DIAGONAL
+                } else {
+                    STRAIGHT
+                };
+                let c = current + step;
+                if c < cost[j] {
+                    cost[j] = c;
+                    parent[j] = i as u32;
+                    buckets[(c % (DIAGONAL + 1)) as usize].push(j as u32);
+                    pending += 1;
+                }
+            }
+        }
+        Some(Reach {
+            width: w,
+            start,
+            cost,
+            parent,
+            resolution_m: spec.resolution_m,
+        })
+    }
+
+    /// Path length (m) to cell `index`, if reached.
+    pub fn distance_m(&self, index: usize) -> Option<f64> {
+        let c = *self.cost.get(index)?;
+        (c != UNREACHED).then(|| f64::from(c) / f64::from(STRAIGHT) * self.resolution_m)
+    }
+
+    /// The cells from the start to `index` (both included), if reached.
+    fn cells_to(&self, index: usize) -> Option<Vec<usize>> {
+        self.distance_m(index)?;
+        let mut cells = vec![index];
+        let mut at = index;
+        while at != self.start {
+            at = *self.parent.get(at)? as usize;
+            cells.push(at);
+            if cells.len() > self.cost.len() {
+                return None;
+            }
+        }
+        cells.reverse();
+        Some(cells)
+    }
+
+    /// The path to `index` as cell centres (ENU m), keeping only the corners a straight segment
+    /// through navigable cells cannot cut; the start cell is left out.
+    pub fn path_to(&self, space: &Space, index: usize) -> Option<Vec<Vector2<f64>>> {
+        let cells = self.cells_to(index)?;
+        let mut corners = Vec::new();
+        let mut from = 0usize;
+        while from + 1 < cells.len() {
+            // The farthest cell along the path still in straight sight of `from`.
+            let mut next = from + 1;
+            for (k, &c) in cells.iter().enumerate().skip(from + 2) {
+                if self.line_clear(space, cells[from], c) {
+                    next = k;
+                }
+            }
+            corners.push(cells[next]);
+            from = next;
+        }
+        corners
+            .into_iter()
+            .map(|i| space.center_of(i))
+            .collect::<Option<Vec<_>>>()
+    }
+
+    /// Whether every cell on the segment between two cells is navigable (or the start's own
+    /// neighbourhood).
+    fn line_clear(&self, space: &Space, a: usize, b: usize) -> bool {
+        let w = self.width as i64;
+        let (mut x, mut y) = ((a as i64) % w, (a as i64) / w);
+        let (x1, y1) = ((b as i64) % w, (b as i64) / w);
+        let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
+        let (step_x, step_y) = ((x1 - x).signum(), (y1 - y).signum());
+        let mut err = dx + dy;
+        loop {
+            let i = (y * w + x) as usize;
+            if !space.is_navigable(i) && !self.near_start(i, space) {
+                return false;
+            }
+            if x == x1 && y == y1 {
+                return true;
+            }
+            let e2 = 2 * err;
+            if e2 >= dy {
+                err += dy;
+                x += step_x;
+            }
+            if e2 <= dx {
+                err += dx;
+                y += step_y;
+            }
+        }
+    }
+
+    fn near_start(&self, i: usize, space: &Space) -> bool {
+        let w = self.width as i64;
+        let s = space.safety_cells() as i64;
+        let (x, y) = ((i as i64) % w, (i as i64) / w);
+        let (sx, sy) = ((self.start as i64) % w, (self.start as i64) / w);
+        (x - sx).abs() <= s && (y - sy).abs() <= s && space.is_clear(i)
+    }
+}
+
+const NEIGHBOURS: [(i64, i64); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::super::space::{Space, SpaceParams};
+    use super::*;
+    use crate::mapping::grid::{GridSpec, OccupancyGrid};
+
+    fn grid(w: u32, h: u32, f: impl Fn(u32, u32) -> i8) -> OccupancyGrid {
+        let spec = GridSpec {
+            resolution_m: 0.1,
+            width_cells: w,
+            height_cells: h,
+            origin_enu_m: Vector2::zeros(),
+        };
+        let data = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| f(x, y));
+        OccupancyGrid::from_data(spec, data.collect()).unwrap()
+    }
+
+    #[test]
+    fn distances_go_around_a_wall_and_the_path_keeps_clear_of_it() {
+        // 100 x 100 free, a wall at x = 50 from y = 0 to 70: from (2, 2) to (8, 2) the path
+        // goes over the wall's end.
+        let g = grid(100, 100, |x, y| if x == 50 && y < 70 { 100 } else { 0 });
+        let space = Space::new(&g, &SpaceParams::default());
+        let reach = Reach::new(&space, Vector2::new(2.0, 2.0)).unwrap();
+        let goal = space.index_at(Vector2::new(8.0, 2.0)).unwrap();
+        let d = reach.distance_m(goal).unwrap();
+        assert!(
+            d > 2.0 * (5.5f64.powi(2) + 3.0f64.powi(2)).sqrt() - 0.5,
+            "{d}"
+        );
+        let path = reach.path_to(&space, goal).unwrap();
+        assert!(path.len() >= 2 && path.len() < 8, "{path:?}");
+        assert!((path.last().unwrap() - Vector2::new(8.05, 2.05)).norm() < 0.1);
+        // Every segment stays 0.4 m clear of the wall.
+        let mut prev = Vector2::new(2.05, 2.05);
+        for p in &path {
+            for k in 0..=100 {
+                let q = prev + (p - prev) * (k as f64 / 100.0);
+                if q.y < 7.0 {
+                    assert!((q.x - 5.05).abs() > 0.4, "{q:?} on {path:?}");
+                }
+            }
+            prev = *p;
+        }
+    }
+
+    #[test]
+    fn unknown_space_is_not_reached_but_the_drones_own_spot_is_left() {
+        // All unknown but a known corridor; the drone sits in unknown at its end.
+        let g = grid(100, 40, |x, y| {
+            if (10..=30).contains(&y) && x >= 20 {
+                0
+            } else {
+                crate::mapping::grid::UNKNOWN
+            }
+        });
+        let space = Space::new(&g, &SpaceParams::default());
+        let reach = Reach::new(&space, Vector2::new(2.25, 2.05)).unwrap();
+        let inside = space.index_at(Vector2::new(6.0, 2.05)).unwrap();
+        assert!(
+            reach.distance_m(inside).is_some(),
+            "the corridor is reached from the spot"
+        );
+        let unknown = space.index_at(Vector2::new(1.0, 0.5)).unwrap();
+        assert!(reach.distance_m(unknown).is_none());
+    }
+}

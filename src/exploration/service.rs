@@ -1,0 +1,293 @@
+//! The frontier allocator as a fleet-level service: drones ask, on one tick, where to explore
+//! next; the host answers before their next tick, from the fleet's merged map.
+//!
+//! In: [`ExploreRequest`]s (who asks, where it is, which allocator, what it gives up) and the
+//! merged grid. Out: an [`Allocation`]: a goal with the path to it through navigable space, or
+//! `Done` when this drone can reach no frontier. The service keeps the goals each drone holds
+//! (a claim lapses when its drone stops asking, so a drone that fails leaves its frontiers to the
+//! others) and the goals given up (seen from up close and still unknown: occluded pockets).
+//! The navigable space is read once per `SPACE_MAX_AGE` at most, whoever asks.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Duration;
+
+use nalgebra::Vector2;
+use serde::Serialize;
+
+use super::allocation::{choose, AllocatorKind, Candidate, Requester};
+use super::reach::Reach;
+use super::space::{Space, SpaceParams};
+use crate::mapping::grid::OccupancyGrid;
+use crate::types::Vec3;
+
+/// The navigable space is read again when older than this.
+const SPACE_MAX_AGE: Duration = Duration::from_millis(250);
+/// A claim lapses when its drone has not asked for this long.
+const CLAIM_TTL: Duration = Duration::from_secs(6);
+/// Frontiers whose goal lies this close to a given-up goal are left out (m).
+const GIVEN_UP_RADIUS_M: f64 = 0.8;
+/// Most given-up goals kept.
+const MAX_GIVEN_UP: usize = 4096;
+
+/// One drone's question.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExploreRequest {
+    pub drone: Arc<str>,
+    pub position_enu_m: Vec3,
+    /// Height of the path's waypoints (ENU z, m).
+    pub flight_height_m: f64,
+    pub allocator: AllocatorKind,
+    pub space: SpaceParams,
+    /// The goal it flies to now, if any (for hysteresis).
+    pub current_goal_enu_m: Option<Vector2<f64>>,
+    /// A goal it reached and watched without the frontier going away: never offered again.
+    pub give_up: Option<Vector2<f64>>,
+}
+
+/// What a drone is told.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Allocation {
+    Goal {
+        goal_enu_m: Vec3,
+        /// Waypoints from the drone to the goal, through navigable space.
+        path_enu_m: Vec<Vec3>,
+        /// Frontiers left in the map (all drones').
+        frontiers: usize,
+    },
+    /// No frontier this drone can reach (`frontiers`: those left that it cannot).
+    Done { frontiers: usize },
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ExploreError {
+    #[error("no map to explore: mapping is off")]
+    NoMap,
+    #[error("the drone is outside the map")]
+    OutsideMap,
+}
+
+/// A frontier as shown to operators.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrontierView {
+    pub centroid_enu_m: [f64; 2],
+    pub goal_enu_m: [f64; 2],
+    pub size_m: f64,
+    pub orientation_rad: f64,
+}
+
+struct Claim {
+    goal: Vector2<f64>,
+    stamp: Duration,
+}
+
+/// The allocator's memory between requests.
+#[derive(Default)]
+pub struct FrontierService {
+    space: Option<(Duration, SpaceParams, Arc<Space>)>,
+    claims: BTreeMap<Arc<str>, Claim>,
+    given_up: Vec<Vector2<f64>>,
+}
+
+impl FrontierService {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The navigable space of `grid` at `now`, read again only when stale.
+    fn space(&mut self, now: Duration, grid: &OccupancyGrid, params: SpaceParams) -> Arc<Space> {
+        if let Some((at, p, space)) = &self.space {
+            if *p == params && now.saturating_sub(*at) < SPACE_MAX_AGE && now >= *at {
+                return space.clone();
+            }
+        }
+        let space = Arc::new(Space::new(grid, &params));
+        self.space = Some((now, params, space.clone()));
+        space
+    }
+
+    /// Answers one request.
+    pub fn answer(
+        &mut self,
+        now: Duration,
+        grid: &OccupancyGrid,
+        request: &ExploreRequest,
+    ) -> Result<Allocation, ExploreError> {
+        if let Some(goal) = request.give_up {
+            if self.given_up.len() < MAX_GIVEN_UP {
+                self.given_up.push(goal);
+            }
+        }
+        self.claims
+            .retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
+        let space = self.space(now, grid, request.space);
+        let here = request.position_enu_m.xy();
+        let reach = Reach::new(&space, here).ok_or(ExploreError::OutsideMap)?;
+        let open: Vec<_> = space
+            .frontiers
+            .iter()
+            .filter(|f| {
+                self.given_up
+                    .iter()
+                    .all(|g| (f.goal_enu_m - g).norm() > GIVEN_UP_RADIUS_M)
+            })
+            .collect();
+        let candidates: Vec<(Candidate, usize)> = open
+            .iter()
+            .filter_map(|f| {
+                let path_m = reach.distance_m(f.goal_index)?;
+                Some((
+                    Candidate {
+                        centroid_enu_m: f.centroid_enu_m,
+                        goal_enu_m: f.goal_enu_m,
+                        size_m: f.size_m,
+                        path_m,
+                    },
+                    f.goal_index,
+                ))
+            })
+            .collect();
+        let others: Vec<Vector2<f64>> = self
+            .claims
+            .iter()
+            .filter(|(id, _)| **id != request.drone)
+            .map(|(_, c)| c.goal)
+            .collect();
+        let me = Requester {
+            position_enu_m: here,
+            current_goal_enu_m: request.current_goal_enu_m,
+        };
+        let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
+        let Some(chosen) = choose(request.allocator, &me, &just, &others) else {
+            self.claims.remove(&request.drone);
+            return Ok(Allocation::Done {
+                frontiers: open.len(),
+            });
+        };
+        let Some(&(candidate, goal_index)) = candidates.get(chosen) else {
+            return Ok(Allocation::Done {
+                frontiers: open.len(),
+            });
+        };
+        let z = request.flight_height_m;
+        let path: Vec<Vec3> = reach
+            .path_to(&space, goal_index)
+            .unwrap_or_default()
+            .into_iter()
+            .map(|p| Vec3::new(p.x, p.y, z))
+            .collect();
+        self.claims.insert(
+            request.drone.clone(),
+            Claim {
+                goal: candidate.goal_enu_m,
+                stamp: now,
+            },
+        );
+        let goal = Vec3::new(candidate.goal_enu_m.x, candidate.goal_enu_m.y, z);
+        Ok(Allocation::Goal {
+            goal_enu_m: goal,
+            path_enu_m: if path.is_empty() { vec![goal] } else { path },
+            frontiers: open.len(),
+        })
+    }
+
+    /// The frontiers as last read, for operators.
+    pub fn frontiers(&self) -> Vec<FrontierView> {
+        let Some((_, _, space)) = &self.space else {
+            return Vec::new();
+        };
+        space
+            .frontiers
+            .iter()
+            .map(|f| FrontierView {
+                centroid_enu_m: [f.centroid_enu_m.x, f.centroid_enu_m.y],
+                goal_enu_m: [f.goal_enu_m.x, f.goal_enu_m.y],
+                size_m: f.size_m,
+                orientation_rad: f.orientation_rad,
+            })
+            .collect()
+    }
+
+    /// The goal each drone holds now.
+    pub fn claims(&self) -> Vec<(Arc<str>, [f64; 2])> {
+        self.claims
+            .iter()
+            .map(|(d, c)| (d.clone(), [c.goal.x, c.goal.y]))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::mapping::grid::{GridSpec, UNKNOWN};
+
+    fn half_known() -> OccupancyGrid {
+        // 20 x 10 m at 0.1 m: x < 10 m known free, the rest unknown.
+        let spec = GridSpec {
+            resolution_m: 0.1,
+            width_cells: 200,
+            height_cells: 100,
+            origin_enu_m: Vector2::zeros(),
+        };
+        let data = (0..100)
+            .flat_map(|_| (0..200).map(|x| if x < 100 { 0 } else { UNKNOWN }))
+            .collect();
+        OccupancyGrid::from_data(spec, data).unwrap()
+    }
+
+    fn ask(drone: &str, x: f64, y: f64) -> ExploreRequest {
+        ExploreRequest {
+            drone: drone.into(),
+            position_enu_m: Vec3::new(x, y, 1.0),
+            flight_height_m: 1.0,
+            allocator: AllocatorKind::Kestrel,
+            space: SpaceParams::default(),
+            current_goal_enu_m: None,
+            give_up: None,
+        }
+    }
+
+    fn goal_of(a: &Allocation) -> Vec3 {
+        match a {
+            Allocation::Goal { goal_enu_m, .. } => *goal_enu_m,
+            Allocation::Done { .. } => panic!("done: {a:?}"),
+        }
+    }
+
+    #[test]
+    fn two_drones_get_different_frontiers_and_paths_that_end_at_them() {
+        let grid = half_known();
+        let mut s = FrontierService::new();
+        let t = Duration::from_secs(1);
+        let a = s.answer(t, &grid, &ask("a", 2.0, 2.0)).unwrap();
+        let b = s.answer(t, &grid, &ask("b", 2.0, 2.5)).unwrap();
+        let (ga, gb) = (goal_of(&a), goal_of(&b));
+        assert!((ga - gb).norm() > 2.0, "{ga:?} {gb:?}");
+        if let Allocation::Goal { path_enu_m, .. } = &a {
+            assert_eq!(path_enu_m.last(), Some(&ga));
+            assert!(path_enu_m.iter().all(|p| p.z == 1.0));
+        }
+        assert_eq!(s.claims().len(), 2);
+        // Claims lapse when their drone stops asking: `b` alone later gets `a`'s old goal back.
+        let later = t + CLAIM_TTL + Duration::from_secs(1);
+        let b2 = s.answer(later, &grid, &ask("b", 2.0, 2.0)).unwrap();
+        assert!((goal_of(&b2) - ga).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_drone_that_can_reach_nothing_is_done_and_given_up_goals_are_not_offered_again() {
+        let grid = half_known();
+        let mut s = FrontierService::new();
+        let t = Duration::from_secs(1);
+        // A drone deep in the unknown half reaches no frontier.
+        let lost = s.answer(t, &grid, &ask("a", 15.0, 5.0)).unwrap();
+        assert!(matches!(lost, Allocation::Done { frontiers } if frontiers > 0));
+        let first = goal_of(&s.answer(t, &grid, &ask("a", 2.0, 5.0)).unwrap());
+        let mut r = ask("a", 2.0, 5.0);
+        r.give_up = Some(first.xy());
+        let second = goal_of(&s.answer(t, &grid, &r).unwrap());
+        assert!((second - first).norm() > GIVEN_UP_RADIUS_M);
+    }
+}

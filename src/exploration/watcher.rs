@@ -1,0 +1,102 @@
+//! The drone watcher: the thesis's intra-swarm avoidance, decided from the fleet view.
+//!
+//! In: this drone and the other flying drones (position, how far each still has to go, whether
+//! it is already out of the way above). Out: whether this drone must give way now, and whether
+//! it may come back. Two drones closer than `trigger_m` horizontally at the same height: the one
+//! nearer its goal (an idle one counts as at its goal; ties go to the larger id) gives way,
+//! climbing `climb_m` and holding there until every other drone is farther than `release_m`
+//! (the thesis: 2.0 m, 1.0 m, 2.4 m). Both sides decide from the same view, so exactly one of
+//! them yields.
+
+/// One drone as the watcher sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Watched<'a> {
+    pub id: &'a str,
+    pub position_enu_m: [f64; 3],
+    /// Distance left to its goal (m); 0 when it has none.
+    pub remaining_m: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WatchParams {
+    pub trigger_m: f64,
+    pub release_m: f64,
+    pub climb_m: f64,
+}
+
+impl WatchParams {
+    /// The thesis's distances for a trigger distance (release 1.2 times it, climb 1 m).
+    pub fn thesis(trigger_m: f64) -> Self {
+        WatchParams {
+            trigger_m,
+            release_m: 1.2 * trigger_m,
+            climb_m: 1.0,
+        }
+    }
+}
+
+fn horizontal(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// Whether `me`, flying at `my_height_m`, must give way to one of `others` now.
+pub fn must_yield(me: &Watched, my_height_m: f64, others: &[Watched], p: &WatchParams) -> bool {
+    others.iter().any(|o| {
+        let level = (o.position_enu_m[2] - my_height_m).abs() < 0.5 * p.climb_m;
+        level
+            && horizontal(&me.position_enu_m, &o.position_enu_m) < p.trigger_m
+            && (me.remaining_m < o.remaining_m || (me.remaining_m == o.remaining_m && me.id > o.id))
+    })
+}
+
+/// Whether a drone that gave way may come back down.
+pub fn may_return(me: &Watched, others: &[Watched], p: &WatchParams) -> bool {
+    others
+        .iter()
+        .all(|o| horizontal(&me.position_enu_m, &o.position_enu_m) > p.release_m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn w(id: &str, x: f64, z: f64, remaining_m: f64) -> Watched<'_> {
+        Watched {
+            id,
+            position_enu_m: [x, 0.0, z],
+            remaining_m,
+        }
+    }
+
+    #[test]
+    fn of_two_close_drones_exactly_the_one_nearer_its_goal_gives_way() {
+        let p = WatchParams::thesis(2.0);
+        let a = w("a", 0.0, 1.0, 3.0);
+        let b = w("b", 1.5, 1.0, 8.0);
+        assert!(must_yield(&a, 1.0, &[b], &p));
+        assert!(!must_yield(&b, 1.0, &[a], &p));
+        // Equal: the larger id yields.
+        let b_eq = w("b", 1.5, 1.0, 3.0);
+        assert!(!must_yield(&a, 1.0, &[b_eq], &p));
+        assert!(must_yield(&b_eq, 1.0, &[a], &p));
+    }
+
+    #[test]
+    fn far_or_already_climbed_drones_are_no_reason_to_yield() {
+        let p = WatchParams::thesis(2.0);
+        let a = w("a", 0.0, 1.0, 0.0);
+        assert!(!must_yield(&a, 1.0, &[w("b", 2.5, 1.0, 9.0)], &p));
+        assert!(
+            !must_yield(&a, 1.0, &[w("b", 1.0, 2.0, 9.0)], &p),
+            "b is above"
+        );
+    }
+
+    #[test]
+    fn a_drone_comes_back_only_beyond_the_release_distance() {
+        let p = WatchParams::thesis(2.0);
+        let a = w("a", 0.0, 2.0, 0.0);
+        assert!(!may_return(&a, &[w("b", 2.2, 1.0, 5.0)], &p));
+        assert!(may_return(&a, &[w("b", 2.5, 1.0, 5.0)], &p));
+    }
+}
