@@ -210,6 +210,7 @@ impl DroneCore {
     /// Applies a command to the behavior server with the state of the last tick.
     pub fn command(&mut self, cmd: BehaviorCommand) -> Result<Option<BehaviorId>, ServerError> {
         let ctx = BehaviorContext {
+            drone_id: self.config.drone_id.as_str(),
             now: self.now,
             dt_s: 0.0,
             state: &self.state,
@@ -265,6 +266,7 @@ impl DroneCore {
             self.home_enu_m = Some(self.state.pose.position_m);
         }
         let ctx = BehaviorContext {
+            drone_id: self.config.drone_id.as_str(),
             now,
             dt_s,
             state: &self.state,

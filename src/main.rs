@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_explore;
 mod cli_flights;
 mod cli_map;
 mod cli_mission;
@@ -27,6 +28,8 @@ struct Cli {
 enum Command {
     /// Fly in the built-in simulator (no hardware needed). Without options: the demo flight.
     Sim(cli_sim::SimArgs),
+    /// Explore a world with N simulated drones until no frontier is left; report the metrics.
+    Explore(cli_explore::ExploreArgs),
     /// Fly a PX4 or ArduPilot autopilot over MAVLink (`--platform`, `--connection`).
     Run(cli_run::RunArgs),
     /// Missions: validate a file, fly it in the simulator, print the schema.
@@ -54,6 +57,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Sim(args) => cli_sim::run(args),
         Command::Run(args) => cli_run::run(args),
+        Command::Explore(args) => cli_explore::run(args),
         Command::Mission(command) => cli_mission::run(command),
         Command::Map(command) => cli_map::run(command),
         Command::CheckConfig { config } => {

@@ -97,7 +97,12 @@ impl FollowPath {
             ..TrajectoryLimits::default()
         };
         let remaining = self.waypoints.get(self.next..).unwrap_or(&[]);
-        let trajectory = PathTrajectory::new(ctx.position(), remaining, limits);
+        let trajectory = PathTrajectory::moving(
+            ctx.position(),
+            ctx.state.velocity_enu_mps,
+            remaining,
+            limits,
+        );
         self.best_remaining_m = trajectory.remaining_m();
         self.best_at = ctx.now;
         self.trajectory = Some(trajectory);

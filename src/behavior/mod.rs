@@ -9,6 +9,7 @@
 //! vehicle where it is); `resume` → running again from where it is; `modify(goal)` changes the
 //! goal in flight; `stop` → aborted. Results: succeeded, failed(reason), aborted(reason).
 
+mod explore;
 mod failure;
 pub mod fleet;
 mod follow_path;
@@ -84,6 +85,8 @@ impl Default for BehaviorConfig {
 
 /// What a behavior sees each tick.
 pub struct BehaviorContext<'a> {
+    /// This drone's id (as in the fleet view).
+    pub drone_id: &'a str,
     pub now: Duration,
     pub dt_s: f64,
     pub state: &'a EstimatedState,

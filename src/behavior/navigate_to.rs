@@ -437,7 +437,7 @@ impl InFlight for NavigateTo {
 }
 
 /// The same reference with another heading target.
-fn with_yaw(reference: MotionReference, yaw: YawTarget) -> MotionReference {
+pub(crate) fn with_yaw(reference: MotionReference, yaw: YawTarget) -> MotionReference {
     match reference {
         MotionReference::Position {
             position_enu_m,

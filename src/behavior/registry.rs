@@ -167,6 +167,7 @@ impl Registry {
         r.register(super::rotate::spec());
         r.register(super::sequence::rtl_spec());
         r.register(super::navigate_to::spec());
+        r.register(super::explore::spec());
         r
     }
 

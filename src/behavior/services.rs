@@ -1,5 +1,5 @@
 //! Services a behavior asks for on one tick and reads the answer of on a later tick, so that
-//! slow work (path planning; the frontier allocator next) never runs on the control tick.
+//! slow work (path planning, the fleet's frontier allocator) never runs on the control tick.
 //!
 //! In: calls filed by behaviors through the [`ServiceDesk`] in their context, and answers the
 //! host delivers before a tick. Out: the calls of this tick (the core hands them to the host,
@@ -12,6 +12,7 @@ use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use crate::exploration::service::{Allocation, ExploreError, ExploreRequest};
 use crate::mapping::server::MapSnapshot;
 use crate::planning::worker::{PlanJob, PlanWorker};
 use crate::planning::{PlanError, PlanRequest, PlannedPath};
@@ -23,13 +24,27 @@ const MAX_WAITING_ANSWERS: usize = 64;
 #[derive(Debug)]
 pub enum ServiceCall {
     Plan(PlanJob),
+    /// A question for the fleet's frontier allocator (answered by the host).
+    Explore(ExploreJob),
+}
+
+/// One drone's question to the frontier allocator.
+#[derive(Debug)]
+pub struct ExploreJob {
+    pub ticket: u64,
+    pub request: ExploreRequest,
+    pub cancel: Arc<AtomicBool>,
 }
 
 impl ServiceCall {
-    /// Hands the call to the worker that runs it.
-    pub fn submit(self, drone: usize, planner: &mut PlanWorker) {
+    /// Hands a plan to the worker that runs it; other calls come back for the host to answer.
+    pub fn submit(self, drone: usize, planner: &mut PlanWorker) -> Option<ExploreJob> {
         match self {
-            ServiceCall::Plan(job) => planner.submit(drone, job),
+            ServiceCall::Plan(job) => {
+                planner.submit(drone, job);
+                None
+            }
+            ServiceCall::Explore(job) => Some(job),
         }
     }
 }
@@ -38,6 +53,7 @@ impl ServiceCall {
 #[derive(Debug, Clone, PartialEq)]
 pub enum ServiceAnswer {
     Plan(Result<PlannedPath, PlanError>),
+    Explore(Result<Allocation, ExploreError>),
 }
 
 /// A behavior's claim on one answer; dropping it cancels the call.
@@ -90,12 +106,38 @@ impl ServiceDesk {
         ticket
     }
 
-    /// The plan answering `ticket`, once it has arrived.
-    pub fn take_plan(&self, ticket: &Ticket) -> Option<Result<PlannedPath, PlanError>> {
+    /// Asks the fleet's frontier allocator; the answer comes on a later tick.
+    pub fn explore(&self, request: ExploreRequest) -> Ticket {
+        let ticket = self.ticket();
+        self.calls
+            .borrow_mut()
+            .push(ServiceCall::Explore(ExploreJob {
+                ticket: ticket.id,
+                request,
+                cancel: ticket.cancel.clone(),
+            }));
+        ticket
+    }
+
+    fn take(&self, ticket: &Ticket) -> Option<ServiceAnswer> {
         let mut answers = self.answers.borrow_mut();
         let at = answers.iter().position(|w| w.ticket == ticket.id)?;
-        match answers.remove(at).answer {
+        Some(answers.remove(at).answer)
+    }
+
+    /// The plan answering `ticket`, once it has arrived.
+    pub fn take_plan(&self, ticket: &Ticket) -> Option<Result<PlannedPath, PlanError>> {
+        match self.take(ticket)? {
             ServiceAnswer::Plan(result) => Some(result),
+            ServiceAnswer::Explore(_) => None,
+        }
+    }
+
+    /// The allocation answering `ticket`, once it has arrived.
+    pub fn take_allocation(&self, ticket: &Ticket) -> Option<Result<Allocation, ExploreError>> {
+        match self.take(ticket)? {
+            ServiceAnswer::Explore(result) => Some(result),
+            ServiceAnswer::Plan(_) => None,
         }
     }
 
@@ -145,7 +187,9 @@ mod tests {
     }
 
     fn answer_to(desk: &ServiceDesk, call: ServiceCall) {
-        let ServiceCall::Plan(job) = call;
+        let ServiceCall::Plan(job) = call else {
+            panic!("not a plan");
+        };
         desk.deliver(
             job.ticket,
             ServiceAnswer::Plan(Err(PlanError::NoPath)),
@@ -176,7 +220,9 @@ mod tests {
         let map = MapServer::new(&MapConfig::open_field().unwrap()).snapshot();
         let ticket = desk.plan(request(), map);
         drop(ticket);
-        let ServiceCall::Plan(job) = desk.drain_calls().pop().unwrap();
+        let Some(ServiceCall::Plan(job)) = desk.drain_calls().pop() else {
+            panic!("not a plan");
+        };
         assert!(job.cancel.load(Ordering::Relaxed));
         desk.deliver(
             job.ticket,

@@ -73,7 +73,7 @@ pub struct Takeoff {
 const REQUEST_PERIOD: Duration = Duration::from_secs(1);
 
 impl Takeoff {
-    fn new(goal: TakeoffGoal) -> Self {
+    pub(crate) fn new(goal: TakeoffGoal) -> Self {
         Self {
             goal,
             phase: Phase::WaitReady { since: None },

@@ -71,6 +71,7 @@ impl Scene {
 
     pub fn ctx_at(&self, now: Duration) -> BehaviorContext<'_> {
         BehaviorContext {
+            drone_id: "drone_0",
             now,
             dt_s: self.dt_s,
             state: &self.state,

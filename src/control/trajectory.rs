@@ -58,6 +58,18 @@ impl PathTrajectory {
     /// `start` is where the vehicle is now; the path runs start -> waypoints[0] -> ... .
     /// Consecutive duplicate points are dropped.
     pub fn new(start: Vec3, waypoints: &[Vec3], limits: TrajectoryLimits) -> Self {
+        Self::moving(start, Vec3::zeros(), waypoints, limits)
+    }
+
+    /// The same from a vehicle already moving at `velocity_enu_mps`: the reference starts at the
+    /// part of that velocity along the first segment (at most the cruise speed, and no more than
+    /// allows stopping at the end), so a new path taken in flight does not brake first.
+    pub fn moving(
+        start: Vec3,
+        velocity_enu_mps: Vec3,
+        waypoints: &[Vec3],
+        limits: TrajectoryLimits,
+    ) -> Self {
         let mut points = vec![start];
         for w in waypoints {
             if points.last().is_none_or(|p| (p - w).norm() > 1e-6) {
@@ -69,14 +81,22 @@ impl PathTrajectory {
             let last = s_at.last().copied().unwrap_or(0.0);
             s_at.push(last + (pair[1] - pair[0]).norm());
         }
-        let v_at = plan_speeds(&points, &s_at, &limits);
+        let initial = match (points.first(), points.get(1)) {
+            (Some(a), Some(b)) => (b - a)
+                .try_normalize(1e-9)
+                .map_or(0.0, |d| velocity_enu_mps.dot(&d))
+                .clamp(0.0, limits.cruise_speed_mps),
+            _ => 0.0,
+        };
+        let v_at = plan_speeds(&points, &s_at, &limits, initial);
+        let v = v_at.first().copied().unwrap_or(0.0);
         Self {
             points,
             s_at,
             v_at,
             limits,
             s: 0.0,
-            v: 0.0,
+            v,
             a: 0.0,
         }
     }
@@ -186,12 +206,12 @@ impl PathTrajectory {
 }
 
 /// Corner speeds from the turn angle, then forward/backward passes for the acceleration limit.
-fn plan_speeds(points: &[Vec3], s_at: &[f64], limits: &TrajectoryLimits) -> Vec<f64> {
+fn plan_speeds(points: &[Vec3], s_at: &[f64], limits: &TrajectoryLimits, initial: f64) -> Vec<f64> {
     let n = points.len();
     let cruise = limits.cruise_speed_mps;
     let mut v = vec![cruise; n];
     if let Some(first) = v.first_mut() {
-        *first = 0.0;
+        *first = initial;
     }
     if let Some(last) = v.last_mut() {
         *last = 0.0;

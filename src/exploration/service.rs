@@ -6,7 +6,7 @@
 //! `Done` when this drone can reach no frontier. The service keeps the goals each drone holds
 //! (a claim lapses when its drone stops asking, so a drone that fails leaves its frontiers to the
 //! others) and the goals given up (seen from up close and still unknown: occluded pockets).
-//! The navigable space is read once per `SPACE_MAX_AGE` at most, whoever asks.
+//! The navigable space is kept between requests and re-read only around the cells that changed.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -21,8 +21,6 @@ use super::space::{Space, SpaceParams};
 use crate::mapping::grid::OccupancyGrid;
 use crate::types::Vec3;
 
-/// The navigable space is read again when older than this.
-const SPACE_MAX_AGE: Duration = Duration::from_millis(250);
 /// A claim lapses when its drone has not asked for this long.
 const CLAIM_TTL: Duration = Duration::from_secs(6);
 /// Frontiers whose goal lies this close to a given-up goal are left out (m).
@@ -76,6 +74,13 @@ pub struct FrontierView {
     pub orientation_rad: f64,
 }
 
+/// The goal a drone holds, as shown to operators.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClaimView {
+    pub drone: String,
+    pub goal_enu_m: [f64; 2],
+}
+
 struct Claim {
     goal: Vector2<f64>,
     stamp: Duration,
@@ -84,7 +89,7 @@ struct Claim {
 /// The allocator's memory between requests.
 #[derive(Default)]
 pub struct FrontierService {
-    space: Option<(Duration, SpaceParams, Arc<Space>)>,
+    space: Option<Space>,
     claims: BTreeMap<Arc<str>, Claim>,
     given_up: Vec<Vector2<f64>>,
 }
@@ -94,16 +99,15 @@ impl FrontierService {
         Self::default()
     }
 
-    /// The navigable space of `grid` at `now`, read again only when stale.
-    fn space(&mut self, now: Duration, grid: &OccupancyGrid, params: SpaceParams) -> Arc<Space> {
-        if let Some((at, p, space)) = &self.space {
-            if *p == params && now.saturating_sub(*at) < SPACE_MAX_AGE && now >= *at {
-                return space.clone();
+    /// The navigable space of `grid`, brought up to date around what changed since last time.
+    fn take_space(&mut self, grid: &OccupancyGrid, params: SpaceParams) -> Space {
+        match self.space.take() {
+            Some(mut space) => {
+                space.update(grid, &params);
+                space
             }
+            None => Space::new(grid, &params),
         }
-        let space = Arc::new(Space::new(grid, &params));
-        self.space = Some((now, params, space.clone()));
-        space
     }
 
     /// Answers one request.
@@ -113,6 +117,18 @@ impl FrontierService {
         grid: &OccupancyGrid,
         request: &ExploreRequest,
     ) -> Result<Allocation, ExploreError> {
+        let space = self.take_space(grid, request.space);
+        let answer = self.allocate(now, &space, request);
+        self.space = Some(space);
+        answer
+    }
+
+    fn allocate(
+        &mut self,
+        now: Duration,
+        space: &Space,
+        request: &ExploreRequest,
+    ) -> Result<Allocation, ExploreError> {
         if let Some(goal) = request.give_up {
             if self.given_up.len() < MAX_GIVEN_UP {
                 self.given_up.push(goal);
@@ -120,9 +136,8 @@ impl FrontierService {
         }
         self.claims
             .retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
-        let space = self.space(now, grid, request.space);
         let here = request.position_enu_m.xy();
-        let reach = Reach::new(&space, here).ok_or(ExploreError::OutsideMap)?;
+        let reach = Reach::new(space, here).ok_or(ExploreError::OutsideMap)?;
         let open: Vec<_> = space
             .frontiers
             .iter()
@@ -171,7 +186,7 @@ impl FrontierService {
         };
         let z = request.flight_height_m;
         let path: Vec<Vec3> = reach
-            .path_to(&space, goal_index)
+            .path_to(space, goal_index)
             .unwrap_or_default()
             .into_iter()
             .map(|p| Vec3::new(p.x, p.y, z))
@@ -193,7 +208,7 @@ impl FrontierService {
 
     /// The frontiers as last read, for operators.
     pub fn frontiers(&self) -> Vec<FrontierView> {
-        let Some((_, _, space)) = &self.space else {
+        let Some(space) = &self.space else {
             return Vec::new();
         };
         space
@@ -209,10 +224,13 @@ impl FrontierService {
     }
 
     /// The goal each drone holds now.
-    pub fn claims(&self) -> Vec<(Arc<str>, [f64; 2])> {
+    pub fn claims(&self) -> Vec<ClaimView> {
         self.claims
             .iter()
-            .map(|(d, c)| (d.clone(), [c.goal.x, c.goal.y]))
+            .map(|(d, c)| ClaimView {
+                drone: d.to_string(),
+                goal_enu_m: [c.goal.x, c.goal.y],
+            })
             .collect()
     }
 }

@@ -72,11 +72,22 @@ pub struct Frontier {
 #[derive(Debug, Clone)]
 pub struct Space {
     spec: GridSpec,
+    params: SpaceParams,
+    /// The grid this was read from, to find what changed.
+    data: Vec<i8>,
     navigable: Vec<bool>,
-    /// Cells that are not obstacles (free or unknown), to start a drone's search from where it is.
-    clear: Vec<bool>,
+    frontier: Vec<bool>,
     safety_cells: usize,
     pub frontiers: Vec<Frontier>,
+}
+
+/// A rectangle of cells, `x0..x1` by `y0..y1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Rect {
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
 }
 
 impl Space {
@@ -84,44 +95,124 @@ impl Space {
     pub fn new(grid: &OccupancyGrid, params: &SpaceParams) -> Self {
         let spec = *grid.spec();
         let (w, h) = (spec.width_cells as usize, spec.height_cells as usize);
-        let data = grid.data();
-        let occupied: Vec<bool> = data
-            .iter()
-            .map(|&v| v >= params.occupied_threshold)
-            .collect();
-        let free: Vec<bool> = data
-            .iter()
-            .map(|&v| v != UNKNOWN && v < params.occupied_threshold)
-            .collect();
-        let closed_free = close3(&free, &occupied, w, h);
-        let unknown: Vec<bool> = data
-            .iter()
-            .zip(&closed_free)
-            .map(|(&v, &c)| v == UNKNOWN && !c)
-            .collect();
-        let s = params.safety_cells(spec.resolution_m);
-        let occ_s = dilate(&occupied, w, h, s, true);
-        let occ_s1 = dilate(&occupied, w, h, s + 1, true);
-        let unk_s = dilate(&unknown, w, h, s, false);
-        let unk_s1 = dilate(&unknown, w, h, s + 1, false);
-        let navigable: Vec<bool> = (0..w * h)
-            .map(|i| closed_free[i] && !occ_s[i] && !unk_s[i])
-            .collect();
-        let frontier: Vec<bool> = (0..w * h)
-            .map(|i| navigable[i] && unk_s1[i] && !occ_s1[i])
-            .collect();
-        let frontiers = components(&frontier, w, h)
-            .into_iter()
-            .filter(|c| c.len() >= params.min_cells)
-            .flat_map(|c| split(c, &spec, params.split_cells))
-            .collect();
-        Space {
+        let mut space = Space {
             spec,
-            navigable,
-            clear: occupied.iter().map(|o| !o).collect(),
-            safety_cells: s,
-            frontiers,
+            params: *params,
+            data: grid.data().to_vec(),
+            navigable: vec![false; w * h],
+            frontier: vec![false; w * h],
+            safety_cells: params.safety_cells(spec.resolution_m),
+            frontiers: Vec::new(),
+        };
+        space.derive(Rect {
+            x0: 0,
+            y0: 0,
+            x1: w,
+            y1: h,
+        });
+        space.find_frontiers();
+        space
+    }
+
+    /// Brings the space up to date with `grid`, re-reading only around the cells that changed
+    /// (everything read here depends on cells at most `safety + 3` away); a grid of another
+    /// shape or other parameters are read whole. Returns whether anything changed.
+    pub fn update(&mut self, grid: &OccupancyGrid, params: &SpaceParams) -> bool {
+        if *grid.spec() != self.spec || *params != self.params {
+            *self = Space::new(grid, params);
+            return true;
         }
+        let w = self.spec.width_cells as usize;
+        let new = grid.data();
+        let mut dirty: Option<Rect> = None;
+        for (y, (old_row, new_row)) in self.data.chunks(w).zip(new.chunks(w)).enumerate() {
+            if old_row == new_row {
+                continue;
+            }
+            let first = old_row.iter().zip(new_row).position(|(a, b)| a != b);
+            let last = old_row.iter().zip(new_row).rposition(|(a, b)| a != b);
+            if let (Some(a), Some(b)) = (first, last) {
+                let r = dirty.get_or_insert(Rect {
+                    x0: a,
+                    y0: y,
+                    x1: b + 1,
+                    y1: y + 1,
+                });
+                r.x0 = r.x0.min(a);
+                r.x1 = r.x1.max(b + 1);
+                r.y1 = y + 1;
+            }
+        }
+        let Some(d) = dirty else {
+            return false;
+        };
+        self.data.copy_from_slice(new);
+        let h = self.spec.height_cells as usize;
+        let m = self.safety_cells + 3;
+        self.derive(Rect {
+            x0: d.x0.saturating_sub(m),
+            y0: d.y0.saturating_sub(m),
+            x1: (d.x1 + m).min(w),
+            y1: (d.y1 + m).min(h),
+        });
+        self.find_frontiers();
+        true
+    }
+
+    /// Recomputes the navigable and frontier cells inside `rect`, from the grid around it.
+    fn derive(&mut self, rect: Rect) {
+        let (w, h) = (
+            self.spec.width_cells as usize,
+            self.spec.height_cells as usize,
+        );
+        let s = self.safety_cells;
+        let m = s + 3;
+        // The rectangle with the context its cells depend on.
+        let c = Rect {
+            x0: rect.x0.saturating_sub(m),
+            y0: rect.y0.saturating_sub(m),
+            x1: (rect.x1 + m).min(w),
+            y1: (rect.y1 + m).min(h),
+        };
+        let (cw, ch) = (c.x1 - c.x0, c.y1 - c.y0);
+        let cells = || (c.y0..c.y1).flat_map(move |y| (c.x0..c.x1).map(move |x| y * w + x));
+        let threshold = self.params.occupied_threshold;
+        let occupied: Vec<bool> = cells().map(|i| self.data[i] >= threshold).collect();
+        let free: Vec<bool> = cells()
+            .map(|i| self.data[i] != UNKNOWN && self.data[i] < threshold)
+            .collect();
+        let closed_free = close3(&free, &occupied, cw, ch);
+        let unknown: Vec<bool> = cells()
+            .zip(&closed_free)
+            .map(|(i, &cf)| self.data[i] == UNKNOWN && !cf)
+            .collect();
+        let occ_s = dilate(&occupied, cw, ch, s);
+        let occ_s1 = dilate(&occupied, cw, ch, s + 1);
+        let unk_s = dilate(&unknown, cw, ch, s);
+        let unk_s1 = dilate(&unknown, cw, ch, s + 1);
+        // The map's edge counts as an obstacle.
+        let edge_within = |x: usize, y: usize, r: usize| x < r || y < r || x + r >= w || y + r >= h;
+        for y in rect.y0..rect.y1 {
+            for x in rect.x0..rect.x1 {
+                let j = (y - c.y0) * cw + (x - c.x0);
+                let navigable = closed_free[j] && !occ_s[j] && !unk_s[j] && !edge_within(x, y, s);
+                self.navigable[y * w + x] = navigable;
+                self.frontier[y * w + x] =
+                    navigable && unk_s1[j] && !occ_s1[j] && !edge_within(x, y, s + 1);
+            }
+        }
+    }
+
+    fn find_frontiers(&mut self) {
+        let (w, h) = (
+            self.spec.width_cells as usize,
+            self.spec.height_cells as usize,
+        );
+        self.frontiers = components(&self.frontier, w, h)
+            .into_iter()
+            .filter(|c| c.len() >= self.params.min_cells)
+            .flat_map(|c| split(c, &self.spec, self.params.split_cells))
+            .collect();
     }
 
     pub fn spec(&self) -> &GridSpec {
@@ -134,7 +225,9 @@ impl Space {
 
     /// Not an obstacle (free or unknown).
     pub fn is_clear(&self, index: usize) -> bool {
-        self.clear.get(index).copied().unwrap_or(false)
+        self.data
+            .get(index)
+            .is_some_and(|&v| v < self.params.occupied_threshold)
     }
 
     pub fn safety_cells(&self) -> usize {
@@ -159,11 +252,10 @@ impl Space {
 }
 
 /// `mask` grown by `r` cells in every direction (a (2r+1)^2 square), by two sliding-window
-/// passes over prefix counts. With `edge_set`, cells within `r` of the grid's edge are set too
-/// (the outside counts as set).
-pub(crate) fn dilate(mask: &[bool], w: usize, h: usize, r: usize, edge_set: bool) -> Vec<bool> {
+/// passes over running counts.
+pub(crate) fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
     let mut rows = vec![false; w * h];
-    let mut prefix = vec![0u32; w.max(h) + 1];
+    let mut prefix = vec![0u32; w + 1];
     for y in 0..h {
         let row = &mask[y * w..(y + 1) * w];
         for (x, &m) in row.iter().enumerate() {
@@ -172,20 +264,32 @@ pub(crate) fn dilate(mask: &[bool], w: usize, h: usize, r: usize, edge_set: bool
         for x in 0..w {
             let lo = x.saturating_sub(r);
             let hi = (x + r + 1).min(w);
-            let out_of_grid = x < r || x + r >= w;
-            rows[y * w + x] = prefix[hi] > prefix[lo] || (edge_set && out_of_grid);
+            rows[y * w + x] = prefix[hi] > prefix[lo];
         }
     }
-    let mut out = vec![false; w * h];
-    for x in 0..w {
-        for y in 0..h {
-            prefix[y + 1] = prefix[y] + u32::from(rows[y * w + x]);
+    // Columns: a running count per column over the window of rows y - r ..= y + r, walked row
+    // by row (cache-friendly).
+    let mut counts = vec![0u32; w];
+    let add = |counts: &mut [u32], y: usize, sign: i64| {
+        for (c, &m) in counts.iter_mut().zip(&rows[y * w..(y + 1) * w]) {
+            if m {
+                *c = (i64::from(*c) + sign) as u32;
+            }
         }
-        for y in 0..h {
-            let lo = y.saturating_sub(r);
-            let hi = (y + r + 1).min(h);
-            let out_of_grid = y < r || y + r >= h;
-            out[y * w + x] = prefix[hi] > prefix[lo] || (edge_set && out_of_grid);
+    };
+    for y in 0..r.min(h) {
+        add(&mut counts, y, 1);
+    }
+    let mut out = vec![false; w * h];
+    for y in 0..h {
+        if y + r < h {
+            add(&mut counts, y + r, 1);
+        }
+        if y > r {
+            add(&mut counts, y - r - 1, -1);
+        }
+        for (o, &c) in out[y * w..(y + 1) * w].iter_mut().zip(&counts) {
+            *o = c > 0;
         }
     }
     out
@@ -194,9 +298,9 @@ pub(crate) fn dilate(mask: &[bool], w: usize, h: usize, r: usize, edge_set: bool
 /// 3 x 3 closing of the free cells (dilate, then erode), never across an obstacle: one-cell
 /// gaps between observed rays become free.
 fn close3(free: &[bool], occupied: &[bool], w: usize, h: usize) -> Vec<bool> {
-    let grown = dilate(free, w, h, 1, false);
+    let grown = dilate(free, w, h, 1);
     let not_grown: Vec<bool> = grown.iter().map(|g| !g).collect();
-    let shrunk = dilate(&not_grown, w, h, 1, false);
+    let shrunk = dilate(&not_grown, w, h, 1);
     (0..w * h)
         .map(|i| free[i] || (!shrunk[i] && !occupied[i]))
         .collect()
@@ -247,11 +351,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
         };
         spec.cell_center_enu_m(c)
     };
-    let parts = if split_cells == 0 {
-        1
-    } else {
-        (cells.len() / split_cells).max(1)
-    };
+    let parts = cells.len().checked_div(split_cells).unwrap_or(1).max(1);
     let (_, axis) = principal_axis(&cells.iter().map(|&i| center(i)).collect::<Vec<_>>());
     let mut ordered: Vec<(f64, usize)> = cells.iter().map(|&i| (center(i).dot(&axis), i)).collect();
     ordered.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -420,6 +520,32 @@ mod tests {
             let pole = Vector2::new(4.15, 3.95);
             assert!((c - pole).abs().max() > 0.45, "goal {c:?} near the pole");
             assert!(c.x < 4.56, "goal {c:?} within 0.4 m of the unknown");
+        }
+    }
+
+    #[test]
+    fn an_update_reads_only_what_changed_and_matches_a_fresh_read() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut g = grid(120, 90, |x, y| if x + y < 80 { 0 } else { UNKNOWN });
+        let params = SpaceParams::default();
+        let mut space = Space::new(&g, &params);
+        assert!(!space.update(&g, &params), "nothing changed");
+        for round in 0..30 {
+            // A patch of new observations: free cells, some obstacles, somewhere.
+            let (cx, cy) = (rng.gen_range(0..120u32), rng.gen_range(0..90u32));
+            for _ in 0..200 {
+                let x = (cx + rng.gen_range(0..15)).min(119);
+                let y = (cy + rng.gen_range(0..15)).min(89);
+                let v = if rng.gen_bool(0.05) { 100 } else { 0 };
+                let cell = crate::mapping::grid::Cell { x, y };
+                g.set(cell, v).unwrap();
+            }
+            assert!(space.update(&g, &params), "round {round}");
+            let fresh = Space::new(&g, &params);
+            assert_eq!(space.navigable, fresh.navigable, "round {round}");
+            assert_eq!(space.frontier, fresh.frontier, "round {round}");
+            assert_eq!(space.frontiers, fresh.frontiers, "round {round}");
         }
     }
 }

@@ -14,10 +14,12 @@ pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uplo
 use super::fleet::Fleet;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use crate::behavior::fleet::{FleetInput, FleetView};
+use crate::behavior::services::{ExploreJob, ServiceAnswer};
 use crate::behavior::RunState;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
+use crate::exploration::service::{ClaimView, ExploreError, FrontierService, FrontierView};
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
@@ -97,6 +99,9 @@ pub struct Host {
     planner: PlanWorker,
     /// The fleet view the cores saw this tick.
     fleet_view: Arc<FleetView>,
+    /// The fleet's frontier allocator (exploration), answered after every core ticked.
+    frontiers: FrontierService,
+    explore_jobs: Vec<(usize, ExploreJob)>,
 }
 
 impl Host {
@@ -125,6 +130,8 @@ impl Host {
             api_scans: vec![Vec::new(); n],
             planner: PlanWorker::new(Delivery::Lockstep),
             fleet_view: Arc::default(),
+            frontiers: FrontierService::new(),
+            explore_jobs: Vec::new(),
         }
     }
 
@@ -315,7 +322,9 @@ impl Host {
             let out = core.tick(now, &feedback, fleet);
             self.fleet.command(i, now, out.setpoint, &out.requests);
             for call in out.service_calls {
-                call.submit(i, &mut self.planner);
+                if let Some(job) = call.submit(i, &mut self.planner) {
+                    self.explore_jobs.push((i, job));
+                }
             }
             if let Some(map) = self.map.as_mut() {
                 merge_into(map, core, &feedback.scans);
@@ -396,6 +405,7 @@ impl Host {
                 }
             }
         }
+        self.answer_explore_jobs(now);
         self.fleet.advance(now, self.tick);
         for (i, message) in self.fleet.take_alerts() {
             if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
@@ -403,6 +413,28 @@ impl Host {
             }
             self.event(i, EventBody::Alert { message });
         }
+    }
+
+    /// Answers this tick's questions to the frontier allocator, on the fleet's merged map; the
+    /// drones read the answers on their next tick.
+    fn answer_explore_jobs(&mut self, now: Duration) {
+        for (i, job) in std::mem::take(&mut self.explore_jobs) {
+            if job.cancel.load(std::sync::atomic::Ordering::Relaxed) {
+                continue;
+            }
+            let answer = match self.map.as_ref() {
+                Some(map) => self.frontiers.answer(now, map.merged(), &job.request),
+                None => Err(ExploreError::NoMap),
+            };
+            if let Some(core) = self.cores.get(i) {
+                core.deliver(job.ticket, ServiceAnswer::Explore(answer), job.cancel);
+            }
+        }
+    }
+
+    /// The frontiers and the goals the drones hold, as the allocator last saw them.
+    pub fn exploration_view(&self) -> (Vec<FrontierView>, Vec<ClaimView>) {
+        (self.frontiers.frontiers(), self.frontiers.claims())
     }
 
     pub fn flush_log(&mut self) {

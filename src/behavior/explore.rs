@@ -1,0 +1,505 @@
+//! `explore`: one drone's part of a cooperative frontier exploration (the thesis's explorer:
+//! init, sense, navigate to a frontier, drone avoidance, end), composed from the primitives:
+//! `takeoff` when on the ground, `follow_path` to each frontier, `land` at the end.
+//!
+//! In: the goal (height, speed, spin rate, safety distances, allocator) and each tick the
+//! context: the fleet view (for the drone watcher) and the allocator's answers. Out: the
+//! children's references with the heading replaced by a steady turn (the four beams sweep all
+//! around while the drone flies, so there is no stop to sense), feedback `phase`, `goal`,
+//! `frontiers`, `allocations`, `given_up`.
+//!
+//! The drone asks the fleet's frontier allocator (a service: asked on one tick, answered on a
+//! later one) for a goal and the path to it through space observed free with the safety
+//! distance all around, so it never flies where it has not seen; it asks again every
+//! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
+//! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
+//! The exploration ends when the allocator has had no reachable frontier for this drone for a
+//! quarter turn of sensing; the drone then lands (`land_when_done`) and the behavior succeeds.
+//! When another flying drone comes closer than `drone_safety_distance` at the same height, the
+//! one nearer its goal climbs 1 m and holds until they are 1.2 times that apart, then returns.
+
+use super::follow_path::{FollowPath, FollowPathGoal};
+use super::goal::{check_positive, YawArgs};
+use super::land::{Land, LandGoal};
+use super::navigate_to::with_yaw;
+use super::registry::{BehaviorSpec, Goal, Resource};
+use super::services::Ticket;
+use super::takeoff::{Takeoff, TakeoffGoal};
+use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
+use crate::control::{MotionReference, YawTarget};
+use crate::estimator::frames::EARTH;
+use crate::exploration::allocation::AllocatorKind;
+use crate::exploration::service::{Allocation, ExploreRequest};
+use crate::exploration::space::SpaceParams;
+use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
+use crate::types::{PlatformRequest, Vec3};
+use nalgebra::Vector2;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::time::Duration;
+
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ExploreGoal {
+    /// Flight height above the takeoff point (m).
+    #[serde(default = "default_height")]
+    pub height: f64,
+    /// Cruise speed (m/s).
+    #[serde(default = "default_speed")]
+    pub speed: f64,
+    /// Steady turn while exploring (rad/s, 0..=2), so the beams sweep all around; 0 keeps the
+    /// heading (then only a 360-beam sensor sees sideways).
+    #[serde(default = "default_spin_rate")]
+    pub spin_rate: f64,
+    /// Least distance from obstacles and from unobserved space (m).
+    #[serde(default = "default_safety_distance")]
+    pub safety_distance: f64,
+    /// Closer than this to another drone at the same height, one of the two gives way (m).
+    #[serde(default = "default_drone_safety_distance")]
+    pub drone_safety_distance: f64,
+    /// Which frontier to take next.
+    #[serde(default)]
+    pub allocator: AllocatorKind,
+    /// Ask the allocator again this often while flying to a frontier (s).
+    #[serde(default = "default_retarget_period")]
+    pub retarget_period: f64,
+    /// Land when no frontier is left.
+    #[serde(default = "default_true")]
+    pub land_when_done: bool,
+}
+
+fn default_height() -> f64 {
+    1.0
+}
+fn default_speed() -> f64 {
+    0.75
+}
+fn default_spin_rate() -> f64 {
+    0.15
+}
+fn default_safety_distance() -> f64 {
+    0.4
+}
+fn default_drone_safety_distance() -> f64 {
+    2.0
+}
+fn default_retarget_period() -> f64 {
+    2.0
+}
+fn default_true() -> bool {
+    true
+}
+
+fn within(name: &str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<(), String> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{name} must be within {lo}..={hi} {unit}, got {value}"
+        ))
+    }
+}
+
+impl Goal for ExploreGoal {
+    fn check(&self) -> Result<(), String> {
+        within("height", self.height, 0.2, 100.0, "m")?;
+        check_positive("speed", self.speed, "m/s")?;
+        within("spin_rate", self.spin_rate, 0.0, 2.0, "rad/s")?;
+        within("safety_distance", self.safety_distance, 0.1, 5.0, "m")?;
+        within(
+            "drone_safety_distance",
+            self.drone_safety_distance,
+            0.5,
+            50.0,
+            "m",
+        )?;
+        within("retarget_period", self.retarget_period, 0.2, 60.0, "s")
+    }
+    fn speeds_mps(&self) -> Vec<f64> {
+        vec![self.speed]
+    }
+}
+
+pub fn spec() -> BehaviorSpec {
+    BehaviorSpec::new(
+        "explore",
+        "Explore the unknown area with the fleet until no frontier is left: fly to the frontier \
+         the fleet's allocator gives, through observed free space only, sweeping the sensors, \
+         then land",
+        Resource::Motion,
+        Explore::new,
+    )
+}
+
+/// Shortest time between two questions to the allocator.
+const MIN_ASK_INTERVAL: Duration = Duration::from_millis(500);
+/// Closer than this to its goal, a drone asks for the next one (m).
+const NEAR_GOAL_M: f64 = 1.5;
+/// A drone that moved less than this ...
+const STUCK_RADIUS_M: f64 = 1.0;
+/// ... for a quarter turn plus this long gives its goal up.
+const STUCK_EXTRA_S: f64 = 2.0;
+
+enum Phase {
+    TakingOff(Box<dyn Behavior>),
+    Exploring,
+    /// Out of another drone's way above `hold`, then back down to it.
+    GivingWay {
+        hold: Vec3,
+        returning: bool,
+    },
+    Landing(Box<dyn Behavior>),
+}
+
+pub struct Explore {
+    goal: ExploreGoal,
+    phase: Phase,
+    /// Exploration height (ENU z, m).
+    base_z: f64,
+    /// Flying to this goal through `child`.
+    target: Option<Vec3>,
+    child: Option<Box<dyn Behavior>>,
+    pending: Option<Ticket>,
+    asked_at: Option<Duration>,
+    /// Since when the allocator has had nothing for this drone.
+    done_since: Option<Duration>,
+    /// Where and since when the drone has stayed within `STUCK_RADIUS_M`.
+    anchor: (Vec3, Duration),
+    give_up: Option<Vector2<f64>>,
+    frontiers: usize,
+    allocations: u32,
+    given_up: u32,
+}
+
+impl Explore {
+    fn new(goal: ExploreGoal) -> Self {
+        Self {
+            goal,
+            phase: Phase::Exploring,
+            base_z: 0.0,
+            target: None,
+            child: None,
+            pending: None,
+            asked_at: None,
+            done_since: None,
+            anchor: (Vec3::zeros(), Duration::ZERO),
+            give_up: None,
+            frontiers: 0,
+            allocations: 0,
+            given_up: 0,
+        }
+    }
+
+    /// Time for the beams to sweep all around once (four beams: a quarter turn).
+    fn sense_s(&self) -> f64 {
+        if self.goal.spin_rate > 0.0 {
+            std::f64::consts::FRAC_PI_2 / self.goal.spin_rate
+        } else {
+            3.0
+        }
+    }
+
+    fn spin(&self, reference: MotionReference) -> MotionReference {
+        if self.goal.spin_rate > 0.0 {
+            with_yaw(reference, YawTarget::Rate(self.goal.spin_rate))
+        } else {
+            reference
+        }
+    }
+
+    fn start_exploring(&mut self, ctx: &BehaviorContext) {
+        self.base_z = ctx
+            .home_enu_m
+            .map_or(ctx.position().z, |h| h.z + self.goal.height);
+        self.phase = Phase::Exploring;
+        self.anchor = (ctx.position(), ctx.now);
+    }
+
+    fn ask(&mut self, ctx: &BehaviorContext) {
+        let space = SpaceParams {
+            safety_distance_m: self.goal.safety_distance,
+            occupied_threshold: ctx
+                .map
+                .map_or(SpaceParams::default().occupied_threshold, |m| {
+                    m.occupied_threshold()
+                }),
+            ..SpaceParams::default()
+        };
+        self.pending = Some(ctx.services.explore(ExploreRequest {
+            drone: ctx.drone_id.into(),
+            position_enu_m: ctx.position(),
+            flight_height_m: self.base_z,
+            allocator: self.goal.allocator,
+            space,
+            current_goal_enu_m: self.target.map(|t| t.xy()),
+            give_up: self.give_up.take(),
+        }));
+        self.asked_at = Some(ctx.now);
+    }
+
+    /// Whether to ask the allocator now: with no goal, every `retarget_period`, and when the
+    /// goal is near (so the next one is known before the drone stops).
+    fn due_to_ask(&self, ctx: &BehaviorContext) -> bool {
+        let since_asked = self.asked_at.map_or(f64::INFINITY, |t| seconds(ctx.now, t));
+        let near_goal = self
+            .target
+            .is_some_and(|t| (t - ctx.position()).xy().norm() < NEAR_GOAL_M);
+        self.pending.is_none()
+            && since_asked >= MIN_ASK_INTERVAL.as_secs_f64()
+            && (self.child.is_none() || near_goal || since_asked >= self.goal.retarget_period)
+    }
+
+    /// Takes the allocator's answer; `Ok(true)` when the exploration is over for this drone.
+    fn read_answer(&mut self, ctx: &BehaviorContext) -> Result<bool, Failure> {
+        let Some(ticket) = self.pending.as_ref() else {
+            return Ok(false);
+        };
+        let Some(answer) = ctx.services.take_allocation(ticket) else {
+            return Ok(false);
+        };
+        self.pending = None;
+        match answer {
+            Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
+            Ok(Allocation::Done { frontiers }) => {
+                self.frontiers = frontiers;
+                self.target = None;
+                self.child = None;
+                let since = *self.done_since.get_or_insert(ctx.now);
+                Ok(seconds(ctx.now, since) >= self.sense_s())
+            }
+            Ok(Allocation::Goal {
+                goal_enu_m,
+                path_enu_m,
+                frontiers,
+            }) => {
+                self.frontiers = frontiers;
+                self.done_since = None;
+                let same = self
+                    .target
+                    .is_some_and(|t| (t - goal_enu_m).norm() < 0.3 && self.child.is_some());
+                if !same {
+                    self.fly(ctx, goal_enu_m, &path_enu_m)?;
+                }
+                Ok(false)
+            }
+        }
+    }
+
+    fn fly(&mut self, ctx: &BehaviorContext, goal: Vec3, path: &[Vec3]) -> Result<(), Failure> {
+        let follow = FollowPathGoal {
+            path: path.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            speed: self.goal.speed,
+            yaw: YawArgs::default(),
+            frame_id: Some(EARTH.to_string()),
+        };
+        follow.check().map_err(Failure::invalid)?;
+        let mut child = FollowPath::new(follow);
+        child.activate(ctx).map_err(|e| e.within("follow_path"))?;
+        self.child = Some(Box::new(child));
+        self.target = Some(goal);
+        self.allocations += 1;
+        Ok(())
+    }
+
+    /// Gives the goal up when the drone has stayed in one place for a full sweep with it.
+    fn check_stuck(&mut self, ctx: &BehaviorContext) {
+        let here = ctx.position();
+        if (here - self.anchor.0).norm() > STUCK_RADIUS_M {
+            self.anchor = (here, ctx.now);
+            return;
+        }
+        if seconds(ctx.now, self.anchor.1) > self.sense_s() + STUCK_EXTRA_S {
+            if let Some(t) = self.target.take() {
+                self.give_up = Some(t.xy());
+                self.given_up += 1;
+                self.child = None;
+            }
+            self.anchor = (here, ctx.now);
+        }
+    }
+
+    /// The watcher's view of this drone and of the other flying drones.
+    fn must_give_way(&self, ctx: &BehaviorContext) -> bool {
+        let params = WatchParams::thesis(self.goal.drone_safety_distance);
+        let here = ctx.position();
+        let me = Watched {
+            id: ctx.drone_id,
+            position_enu_m: [here.x, here.y, here.z],
+            remaining_m: self.target.map_or(0.0, |t| (t - here).xy().norm()),
+        };
+        let others: Vec<Watched> = ctx
+            .fleet
+            .others(ctx.drone_id)
+            .filter(|d| d.flying)
+            .map(|d| Watched {
+                id: &d.id,
+                position_enu_m: [d.position_enu_m.x, d.position_enu_m.y, d.position_enu_m.z],
+                remaining_m: d
+                    .goal_enu_m
+                    .map_or(0.0, |g| (g - d.position_enu_m).xy().norm()),
+            })
+            .collect();
+        must_yield(&me, self.base_z, &others, &params)
+    }
+
+    fn clear_to_return(&self, ctx: &BehaviorContext) -> bool {
+        let params = WatchParams::thesis(self.goal.drone_safety_distance);
+        let here = ctx.position();
+        let me = Watched {
+            id: ctx.drone_id,
+            position_enu_m: [here.x, here.y, here.z],
+            remaining_m: 0.0,
+        };
+        let others: Vec<Watched> = ctx
+            .fleet
+            .others(ctx.drone_id)
+            .filter(|d| d.flying)
+            .map(|d| Watched {
+                id: &d.id,
+                position_enu_m: [d.position_enu_m.x, d.position_enu_m.y, d.position_enu_m.z],
+                remaining_m: 0.0,
+            })
+            .collect();
+        may_return(&me, &others, &params)
+    }
+
+    fn explore_tick(
+        &mut self,
+        ctx: &BehaviorContext,
+        requests: &mut Vec<PlatformRequest>,
+    ) -> Result<Option<MotionReference>, Failure> {
+        if self.must_give_way(ctx) {
+            self.phase = Phase::GivingWay {
+                hold: Vec3::new(ctx.position().x, ctx.position().y, self.base_z),
+                returning: false,
+            };
+            return Ok(Some(ctx.hold_here()));
+        }
+        if self.read_answer(ctx)? {
+            if self.goal.land_when_done {
+                let mut land = Land::new(LandGoal { speed: 0.5 });
+                land.activate(ctx).map_err(|e| e.within("land"))?;
+                self.phase = Phase::Landing(Box::new(land));
+                return Ok(Some(ctx.hold_here()));
+            }
+            return Ok(None);
+        }
+        self.check_stuck(ctx);
+        if self.due_to_ask(ctx) {
+            self.ask(ctx);
+        }
+        let Some(child) = self.child.as_mut() else {
+            return Ok(Some(ctx.hold_here()));
+        };
+        match child.run(ctx, requests) {
+            Step::Running { reference, .. } => Ok(Some(reference.unwrap_or(ctx.hold_here()))),
+            Step::Succeeded => {
+                self.child = None;
+                Ok(Some(ctx.hold_here()))
+            }
+            Step::Failed(reason) => {
+                tracing::debug!("{}: frontier path failed: {reason}", ctx.drone_id);
+                self.give_up = self.target.take().map(|t| t.xy());
+                self.child = None;
+                Ok(Some(ctx.hold_here()))
+            }
+        }
+    }
+
+    fn feedback(&self) -> serde_json::Value {
+        let phase = match self.phase {
+            Phase::TakingOff(_) => "takeoff",
+            Phase::Exploring if self.done_since.is_some() => "sensing",
+            Phase::Exploring => "navigating",
+            Phase::GivingWay { .. } => "drone_avoidance",
+            Phase::Landing(_) => "end",
+        };
+        json!({
+            "phase": phase,
+            "goal": self.target.map(|t| [t.x, t.y, t.z]),
+            "frontiers": self.frontiers,
+            "allocations": self.allocations,
+            "given_up": self.given_up,
+        })
+    }
+}
+
+fn seconds(now: Duration, since: Duration) -> f64 {
+    now.saturating_sub(since).as_secs_f64()
+}
+
+impl Behavior for Explore {
+    fn activate(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        if ctx.is_flying() {
+            self.start_exploring(ctx);
+            return Ok(());
+        }
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: self.goal.height,
+            speed: 0.5,
+        });
+        takeoff.activate(ctx).map_err(|e| e.within("takeoff"))?;
+        self.phase = Phase::TakingOff(Box::new(takeoff));
+        Ok(())
+    }
+
+    fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        let reference = match &mut self.phase {
+            Phase::TakingOff(takeoff) => match takeoff.run(ctx, requests) {
+                Step::Running { reference, .. } => reference,
+                Step::Succeeded => {
+                    self.start_exploring(ctx);
+                    Some(self.spin(ctx.hold_here()))
+                }
+                Step::Failed(reason) => return Step::Failed(reason.within("takeoff")),
+            },
+            Phase::Landing(land) => match land.run(ctx, requests) {
+                Step::Running { reference, .. } => reference,
+                Step::Succeeded => return Step::Succeeded,
+                Step::Failed(reason) => return Step::Failed(reason.within("land")),
+            },
+            Phase::GivingWay { hold, returning } => {
+                let (hold, was_returning) = (*hold, *returning);
+                let up = Vec3::new(hold.x, hold.y, hold.z + 1.0);
+                let here = ctx.position();
+                let returning =
+                    was_returning || ((here.z - up.z).abs() < 0.15 && self.clear_to_return(ctx));
+                self.phase = Phase::GivingWay { hold, returning };
+                let target = if returning { hold } else { up };
+                if returning && (here - hold).norm() < 0.15 {
+                    self.phase = Phase::Exploring;
+                    if let Some(c) = self.child.as_mut() {
+                        c.resume(ctx);
+                    }
+                    self.anchor = (here, ctx.now);
+                }
+                Some(self.spin(MotionReference::hold(
+                    target,
+                    ctx.yaw(),
+                    ctx.config.hold_speed_mps.min(0.5),
+                )))
+            }
+            Phase::Exploring => match self.explore_tick(ctx, requests) {
+                Err(reason) => return Step::Failed(reason),
+                Ok(None) => return Step::Succeeded,
+                Ok(Some(reference)) => Some(self.spin(reference)),
+            },
+        };
+        Step::Running {
+            reference,
+            feedback: self.feedback(),
+        }
+    }
+
+    fn resume(&mut self, ctx: &BehaviorContext) {
+        if let Some(c) = self.child.as_mut() {
+            c.resume(ctx);
+        }
+        self.anchor = (ctx.position(), ctx.now);
+    }
+
+    fn goal_enu_m(&self) -> Option<Vec3> {
+        self.target
+    }
+}

@@ -1,0 +1,208 @@
+//! `kestrel explore`: N simulated drones explore a world together with the `explore` behavior
+//! until no frontier is left, land, and the run is reported.
+//!
+//! In: a world file (its `starts_xy_yaw[N]` place the drones), the thesis's simulation
+//! parameters as defaults (0.1 m map, four 4 m beams at 20 Hz, 1.0 m height, 0.75 m/s, turns at
+//! 0.15 rad/s, 0.4 m from obstacles, 2.0 m between drones), a seed and an allocator.
+//! Out: the flight log (poses at 20 Hz), a JSON report with the exploration's metrics, progress
+//! lines while it runs, and the exit status: 0 when every drone explored and landed, non-zero
+//! with the reason otherwise (a failed drone, a collision, or the simulated timeout).
+
+use crate::cli_sim::{execute, load_config, parse_speedup};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use kestrel::exploration::allocation::AllocatorKind;
+use kestrel::flightlog::FlightLog;
+use kestrel::host::runtime::Pace;
+use kestrel::host::sim::{sim_world, simulated_host_in};
+use kestrel::host::Host;
+use kestrel::mapping::grid::UNKNOWN;
+use kestrel::sim::world::World;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(Args, Debug)]
+pub struct ExploreArgs {
+    /// World file (JSON, the thesis layout: bounds, poles, starts per drone count).
+    #[arg(long)]
+    world: PathBuf,
+    /// Number of drones (drone_0 ... drone_{N-1}), placed at the world's starts for N.
+    #[arg(long, default_value_t = 1)]
+    drones: usize,
+    /// Simulated seconds per wall-clock second, or `max` for as fast as the CPU allows.
+    #[arg(long, default_value = "max")]
+    speedup: String,
+    /// Seed for sensor noise; the same seed gives the same run.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Flight log (JSON lines). Default: kestrel-explore-<world>-<N>-<seed>.jsonl.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Report (JSON) with every metric. Default: the log's name with `.report.json`.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Config file (TOML): controller, simulator, map and safety settings.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Frontier allocator: kestrel (default), thesis, nearest or farthest.
+    #[arg(long, default_value = "kestrel")]
+    allocator: String,
+    /// Give up after this many simulated seconds (the thesis's timeout).
+    #[arg(long, default_value_t = 6000.0)]
+    max_sim_time_s: f64,
+    /// Seconds of simulated time between progress lines.
+    #[arg(long, default_value_t = 30.0)]
+    progress_every_s: f64,
+}
+
+/// Known cells of the merged map, in percent of all cells.
+fn known_pct(host: &Host) -> f64 {
+    host.map().map_or(0.0, |m| {
+        let data = m.merged().data();
+        let known = data.iter().filter(|&&v| v != UNKNOWN).count();
+        100.0 * known as f64 / data.len().max(1) as f64
+    })
+}
+
+pub fn run(args: ExploreArgs) -> Result<()> {
+    let pace = parse_speedup(&args.speedup)?;
+    if args.drones == 0 || args.drones > 64 {
+        bail!("--drones must be within 1..=64, got {}", args.drones);
+    }
+    if !(args.max_sim_time_s.is_finite() && args.max_sim_time_s > 0.0) {
+        bail!("--max-sim-time-s must be > 0 s");
+    }
+    let allocator: AllocatorKind = args.allocator.parse().map_err(anyhow::Error::msg)?;
+    let mut config = load_config(args.config.as_deref())?;
+    let world = World::load(&args.world)?;
+    // The area to explore is the world's: the map covers its bounds exactly (the thesis's
+    // 500 x 500 cells for 50 x 50 m), unless the config sets a size.
+    if config.map.size_m.is_none() {
+        let b = &world.bounds_m;
+        config.map.size_m = Some([b.x[1] - b.x[0], b.y[1] - b.y[0]]);
+    }
+    let stem = args
+        .world
+        .file_stem()
+        .map_or("world".into(), |s| s.to_string_lossy().into_owned());
+    let log_path = args.log.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "kestrel-explore-{stem}-{}-{}.jsonl",
+            args.drones, args.seed
+        ))
+    });
+    let report_path = args
+        .report
+        .clone()
+        .unwrap_or_else(|| log_path.with_extension("report.json"));
+    let sim = sim_world(world, args.drones, args.seed, &config);
+    let mut host = simulated_host_in(sim, &config);
+    if host.map().is_none() {
+        bail!("exploration needs mapping: the config's [map] plugin is \"none\"");
+    }
+    let file = std::fs::File::create(&log_path)
+        .with_context(|| format!("creating flight log {}", log_path.display()))?;
+    host.set_log(FlightLog::new(
+        Box::new(std::io::BufWriter::new(file)),
+        20.0,
+    ));
+    host.step();
+    let mut flights = Vec::new();
+    for id in host.drone_ids() {
+        let mission = json!({
+            "target": id,
+            "plan": [{"behavior": "explore", "args": {"allocator": allocator}}],
+        });
+        flights.push(execute(&mut host, mission)?);
+    }
+    println!(
+        "kestrel explore: {} drone(s) in {}, allocator {:?}, flight log {}",
+        args.drones,
+        args.world.display(),
+        allocator,
+        log_path.display()
+    );
+    let started = Instant::now();
+    let max_time = Duration::from_secs_f64(args.max_sim_time_s);
+    let mut next_progress = args.progress_every_s;
+    let outcome = loop {
+        host.step();
+        let t = host.now().as_secs_f64();
+        if let Pace::Factor(f) = pace {
+            let ahead = t / f - started.elapsed().as_secs_f64();
+            if ahead > 0.0 {
+                std::thread::sleep(Duration::from_secs_f64(ahead));
+            }
+        }
+        if t >= next_progress {
+            next_progress += args.progress_every_s;
+            let (frontiers, _) = host.exploration_view();
+            println!(
+                "t {t:7.1} s  known {:5.1} %  frontiers {:3}  ({:.1} s wall)",
+                known_pct(&host),
+                frontiers.len(),
+                started.elapsed().as_secs_f64()
+            );
+        }
+        let results: Vec<Option<Result<(), String>>> = flights
+            .iter()
+            .map(|&(i, id)| {
+                let (ex, core) = (host.executors().get(i)?, host.cores().get(i)?);
+                ex.status(core).outcome(id)
+            })
+            .collect();
+        if results.iter().all(Option::is_some) {
+            break Ok(results);
+        }
+        if host.now() >= max_time {
+            break Err(format!(
+                "timeout: exploration not finished after {:.0} s",
+                args.max_sim_time_s
+            ));
+        }
+    };
+    host.flush_log();
+    let wall_s = started.elapsed().as_secs_f64();
+    let sim_s = host.now().as_secs_f64();
+    let failures: Vec<String> = match &outcome {
+        Ok(results) => results
+            .iter()
+            .zip(host.drone_ids())
+            .filter_map(|(r, id)| match r {
+                Some(Err(e)) => Some(format!("{id}: {e}")),
+                _ => None,
+            })
+            .collect(),
+        Err(e) => vec![e.clone()],
+    };
+    let report = json!({
+        "world": args.world.display().to_string(),
+        "drones": args.drones,
+        "seed": args.seed,
+        "allocator": allocator,
+        "succeeded": failures.is_empty(),
+        "failures": failures,
+        "simulated_s": sim_s,
+        "wall_s": wall_s,
+        "map_known_pct": known_pct(&host),
+        "flight_log": log_path.display().to_string(),
+    });
+    write_report(&report_path, &report)?;
+    println!(
+        "simulated {sim_s:.1} s in {wall_s:.2} s wall; known {:.2} %; report {}",
+        known_pct(&host),
+        report_path.display()
+    );
+    if failures.is_empty() {
+        println!("exploration succeeded");
+        Ok(())
+    } else {
+        bail!("exploration failed: {}", failures.join("; "))
+    }
+}
+
+fn write_report(path: &std::path::Path, report: &Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(report).context("encoding the report")?;
+    std::fs::write(path, text).with_context(|| format!("writing report {}", path.display()))
+}
