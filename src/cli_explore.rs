@@ -76,6 +76,12 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     let allocator: AllocatorKind = args.allocator.parse().map_err(anyhow::Error::msg)?;
     let mut config = load_config(args.config.as_deref())?;
     let world = World::load(&args.world)?;
+    // Drones give way to each other through the explore behavior's watcher (2.0 m, climbing
+    // 1 m); the safety stage is the last line behind it, at the 0.5 m the exploration must
+    // never go below (its guard, twice that, stays inside the watcher's trigger).
+    if args.config.is_none() {
+        config.safety.min_separation_m = 0.5;
+    }
     // The area to explore is the world's: the map covers its bounds exactly (the thesis's
     // 500 x 500 cells for 50 x 50 m), unless the config sets a size.
     if config.map.size_m.is_none() {

@@ -327,6 +327,7 @@ impl Explore {
             id: ctx.drone_id,
             position_enu_m: [here.x, here.y, here.z],
             remaining_m: self.target.map_or(0.0, |t| (t - here).xy().norm()),
+            up: false,
         };
         let others: Vec<Watched> = ctx
             .fleet
@@ -338,6 +339,7 @@ impl Explore {
                 remaining_m: d
                     .goal_enu_m
                     .map_or(0.0, |g| (g - d.position_enu_m).xy().norm()),
+                up: d.position_enu_m.z > self.base_z + 0.5,
             })
             .collect();
         must_yield(&me, self.base_z, &others, &params)
@@ -350,6 +352,7 @@ impl Explore {
             id: ctx.drone_id,
             position_enu_m: [here.x, here.y, here.z],
             remaining_m: 0.0,
+            up: true,
         };
         let others: Vec<Watched> = ctx
             .fleet
@@ -359,6 +362,7 @@ impl Explore {
                 id: &d.id,
                 position_enu_m: [d.position_enu_m.x, d.position_enu_m.y, d.position_enu_m.z],
                 remaining_m: 0.0,
+                up: d.position_enu_m.z > self.base_z + 0.5,
             })
             .collect();
         may_return(&me, &others, &params)

@@ -15,6 +15,8 @@ pub struct Watched<'a> {
     pub position_enu_m: [f64; 3],
     /// Distance left to its goal (m); 0 when it has none.
     pub remaining_m: f64,
+    /// Out of the way above the exploration height (giving way itself).
+    pub up: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,11 +51,13 @@ pub fn must_yield(me: &Watched, my_height_m: f64, others: &[Watched], p: &WatchP
     })
 }
 
-/// Whether a drone that gave way may come back down.
+/// Whether a drone that gave way may come back down: every other drone is beyond the release
+/// distance, or gave way too and has the larger id (two drones that both climbed, each seeing the
+/// other one tick late, do not wait for each other for ever: the smaller id goes back).
 pub fn may_return(me: &Watched, others: &[Watched], p: &WatchParams) -> bool {
-    others
-        .iter()
-        .all(|o| horizontal(&me.position_enu_m, &o.position_enu_m) > p.release_m)
+    others.iter().all(|o| {
+        horizontal(&me.position_enu_m, &o.position_enu_m) > p.release_m || (o.up && o.id > me.id)
+    })
 }
 
 #[cfg(test)]
@@ -65,6 +69,7 @@ mod tests {
             id,
             position_enu_m: [x, 0.0, z],
             remaining_m,
+            up: z > 1.5,
         }
     }
 
@@ -98,5 +103,15 @@ mod tests {
         let a = w("a", 0.0, 2.0, 0.0);
         assert!(!may_return(&a, &[w("b", 2.2, 1.0, 5.0)], &p));
         assert!(may_return(&a, &[w("b", 2.5, 1.0, 5.0)], &p));
+    }
+
+    #[test]
+    fn of_two_drones_that_both_gave_way_the_smaller_id_comes_back_first() {
+        let p = WatchParams::thesis(2.0);
+        let (a, b) = (w("a", 0.0, 2.0, 0.0), w("b", 1.8, 2.0, 0.0));
+        assert!(may_return(&a, &[b], &p));
+        assert!(!may_return(&b, &[a], &p));
+        // Once `a` is back down, `b` waits for it to leave.
+        assert!(!may_return(&b, &[w("a", 0.0, 1.0, 3.0)], &p));
     }
 }

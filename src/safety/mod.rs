@@ -185,9 +185,17 @@ impl SafetyStage {
         if d >= guard {
             return None;
         }
-        let away = (here - other.position_enu_m)
-            .try_normalize(1e-6)
-            .unwrap_or_else(|| Vec3::new(1.0, 0.0, 0.0));
+        // Apart sideways where the drones are side by side (a climb or a descent is never
+        // turned into a sideways drift toward obstacles); along the line between them when one
+        // is right above the other.
+        let offset = here - other.position_enu_m;
+        let sideways = Vec3::new(offset.x, offset.y, 0.0);
+        let away = if sideways.norm() > 0.5 * offset.norm() {
+            sideways.try_normalize(1e-6)
+        } else {
+            offset.try_normalize(1e-6)
+        }
+        .unwrap_or_else(|| Vec3::new(1.0, 0.0, 0.0));
         let (mut v, yaw) =
             intended_velocity(&sp, here, self.config.limits.max_horizontal_speed_mps);
         let closing = -v.dot(&away);
