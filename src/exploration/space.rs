@@ -247,11 +247,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
         };
         spec.cell_center_enu_m(c)
     };
-    let parts = if split_cells == 0 {
-        1
-    } else {
-        (cells.len() / split_cells).max(1)
-    };
+    let parts = cells.len().checked_div(split_cells).unwrap_or(1).max(1);
     let (_, axis) = principal_axis(&cells.iter().map(|&i| center(i)).collect::<Vec<_>>());
     let mut ordered: Vec<(f64, usize)> = cells.iter().map(|&i| (center(i).dot(&axis), i)).collect();
     ordered.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
