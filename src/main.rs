@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_evaluate;
 mod cli_explore;
 mod cli_flights;
 mod cli_map;
@@ -12,6 +13,7 @@ mod cli_remote;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;
+mod cli_world;
 
 #[derive(Parser)]
 #[command(
@@ -38,6 +40,11 @@ enum Command {
     /// Maps: export one in the ROS map_server format (PGM + YAML).
     #[command(subcommand)]
     Map(cli_map::MapCommand),
+    /// Exploration worlds: generate a seeded one.
+    #[command(subcommand)]
+    World(cli_world::WorldCommand),
+    /// Exploration metrics of a flight log against the true world.
+    Evaluate(cli_evaluate::EvaluateArgs),
     /// Check a config file and print the validated result.
     CheckConfig {
         /// Config file (TOML).
@@ -60,6 +67,8 @@ fn main() -> Result<()> {
         Command::Explore(args) => cli_explore::run(args),
         Command::Mission(command) => cli_mission::run(command),
         Command::Map(command) => cli_map::run(command),
+        Command::World(command) => cli_world::run(command),
+        Command::Evaluate(args) => cli_evaluate::run(args),
         Command::CheckConfig { config } => {
             let c = kestrel::config::Config::load(&config)
                 .with_context(|| format!("checking {}", config.display()))?;

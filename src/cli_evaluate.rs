@@ -1,0 +1,91 @@
+//! `kestrel evaluate`: exploration metrics of a flight log against the true world.
+//!
+//! In: a world file and a JSON-lines flight log. Out: a short summary on stdout and, with
+//! `--out`, the full metrics as JSON (`exploration::evaluate::ExplorationMetrics`).
+
+use anyhow::{Context, Result};
+use clap::Args;
+use kestrel::exploration::evaluate::{self, EvalParams, ExplorationMetrics};
+use kestrel::sim::world::World;
+use std::path::PathBuf;
+
+/// Largest flight log read (bytes): a 7-drone hour at 20 Hz is well under this.
+const MAX_LOG_BYTES: u64 = 2 << 30;
+
+#[derive(Args, Debug)]
+pub struct EvaluateArgs {
+    /// World file the flight was flown in (JSON).
+    #[arg(long)]
+    world: PathBuf,
+    /// Flight log (JSON lines, `pose` records).
+    #[arg(long)]
+    log: PathBuf,
+    /// Where to write the metrics (JSON).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Beam range of the evaluation sensor (m).
+    #[arg(long, default_value_t = 4.0)]
+    range_m: f64,
+}
+
+pub fn run(args: EvaluateArgs) -> Result<()> {
+    let world = World::load(&args.world)?;
+    let size = std::fs::metadata(&args.log)
+        .with_context(|| format!("reading {}", args.log.display()))?
+        .len();
+    anyhow::ensure!(
+        size <= MAX_LOG_BYTES,
+        "{} is {size} bytes, more than the {MAX_LOG_BYTES} read",
+        args.log.display()
+    );
+    let text = std::fs::read_to_string(&args.log)
+        .with_context(|| format!("reading {}", args.log.display()))?;
+    let samples = evaluate::poses_from_log(&text)
+        .with_context(|| format!("parsing {}", args.log.display()))?;
+    let params = EvalParams {
+        beam_range_m: args.range_m,
+        ..EvalParams::default()
+    };
+    let metrics = evaluate::evaluate(&world, &samples, &params)
+        .with_context(|| format!("evaluating {}", args.log.display()))?;
+    print!("{}", summary(&metrics));
+    if let Some(out) = &args.out {
+        let json = serde_json::to_string_pretty(&metrics).context("writing the metrics")?;
+        std::fs::write(out, json + "\n").with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(())
+}
+
+fn summary(m: &ExplorationMetrics) -> String {
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    let times: Vec<String> = m
+        .time_to_pct
+        .iter()
+        .map(|t| format!("{:.0}%: {:.1} s", t.pct_of_final, t.time_s))
+        .collect();
+    format!(
+        "drones {}, time {:.1} s (take-off {:.1} s, landing {:.1} s), lower bound {:.1} s (x{})\n\
+         area {:.2} % (closed {:.2} %), observable {:.2} % of {:.2} % of the grid\n\
+         path {:.1} m (L1 {:.1} m), overlap {:.2} %, observed by 2+ {:.2} %\n\
+         min clearance {} m, min separation {} m, collisions {}\n\
+         time to final area: {}\n",
+        m.drones_flown,
+        m.time_s,
+        m.first_takeoff_s,
+        m.last_landing_s,
+        m.lower_bound_s,
+        opt(m.time_over_bound),
+        m.area_pct,
+        m.area_closed_pct,
+        m.observable_pct,
+        m.observable_share_pct,
+        m.path_m,
+        m.path_l1_m,
+        m.overlap_pct,
+        m.multi_observed_pct,
+        opt(m.min_obstacle_clearance_m),
+        opt(m.min_separation_m),
+        m.collisions,
+        times.join(", ")
+    )
+}
