@@ -56,7 +56,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     Ok(())
 }
 
-fn summary(m: &ExplorationMetrics) -> String {
+pub fn summary(m: &ExplorationMetrics) -> String {
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     let times: Vec<String> = m
         .time_to_pct

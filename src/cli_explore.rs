@@ -4,7 +4,9 @@
 //! In: a world file (its `starts_xy_yaw[N]` place the drones), the thesis's simulation
 //! parameters as defaults (0.1 m map, four 4 m beams at 20 Hz, 1.0 m height, 0.75 m/s, turns at
 //! 0.15 rad/s, 0.4 m from obstacles, 2.0 m between drones), a seed and an allocator.
-//! Out: the flight log (poses at 20 Hz), a JSON report with the exploration's metrics, progress
+//! Out: the flight log (poses at 20 Hz), a JSON report with the exploration's metrics (computed
+//! by `exploration::evaluate` from the log and the true world, as an outside evaluator would),
+//! progress
 //! lines while it runs, and the exit status: 0 when every drone explored and landed, non-zero
 //! with the reason otherwise (a failed drone, a collision, or the simulated timeout).
 
@@ -12,6 +14,7 @@ use crate::cli_sim::{execute, load_config, parse_speedup};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::exploration::allocation::AllocatorKind;
+use kestrel::exploration::evaluate::{self, EvalParams};
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
 use kestrel::host::sim::{sim_world, simulated_host_in};
@@ -51,6 +54,9 @@ pub struct ExploreArgs {
     /// Give up after this many simulated seconds (the thesis's timeout).
     #[arg(long, default_value_t = 6000.0)]
     max_sim_time_s: f64,
+    /// Extra arguments of every drone's `explore` behavior (JSON object), e.g. '{"heading": "align"}'.
+    #[arg(long)]
+    explore_args: Option<String>,
     /// Seconds of simulated time between progress lines.
     #[arg(long, default_value_t = 30.0)]
     progress_every_s: f64,
@@ -102,7 +108,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         .report
         .clone()
         .unwrap_or_else(|| log_path.with_extension("report.json"));
-    let sim = sim_world(world, args.drones, args.seed, &config);
+    let sim = sim_world(world.clone(), args.drones, args.seed, &config);
     let mut host = simulated_host_in(sim, &config);
     if host.map().is_none() {
         bail!("exploration needs mapping: the config's [map] plugin is \"none\"");
@@ -115,10 +121,18 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     ));
     host.step();
     let mut flights = Vec::new();
+    let mut explore_args = match &args.explore_args {
+        Some(text) => serde_json::from_str::<Value>(text).context("--explore-args is not JSON")?,
+        None => json!({}),
+    };
+    let Some(fields) = explore_args.as_object_mut() else {
+        bail!("--explore-args must be a JSON object");
+    };
+    fields.insert("allocator".into(), json!(allocator));
     for id in host.drone_ids() {
         let mission = json!({
             "target": id,
-            "plan": [{"behavior": "explore", "args": {"allocator": allocator}}],
+            "plan": [{"behavior": "explore", "args": explore_args}],
         });
         flights.push(execute(&mut host, mission)?);
     }
@@ -182,7 +196,14 @@ pub fn run(args: ExploreArgs) -> Result<()> {
             .collect(),
         Err(e) => vec![e.clone()],
     };
+    // The run judged as an outside evaluator would: from the flight log and the true world.
+    let text = std::fs::read_to_string(&log_path)
+        .with_context(|| format!("reading back {}", log_path.display()))?;
+    let samples = evaluate::poses_from_log(&text)?;
+    let metrics = evaluate::evaluate(&world, &samples, &EvalParams::default())?;
+    print!("{}", crate::cli_evaluate::summary(&metrics));
     let report = json!({
+        "metrics": metrics,
         "world": args.world.display().to_string(),
         "drones": args.drones,
         "seed": args.seed,

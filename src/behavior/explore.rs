@@ -67,6 +67,21 @@ pub struct ExploreGoal {
     /// Land when no frontier is left.
     #[serde(default = "default_true")]
     pub land_when_done: bool,
+    /// How the heading moves: `spin` (a steady turn) or `align` (a beam axis along the travel).
+    #[serde(default)]
+    pub heading: HeadingMode,
+}
+
+/// How the explorer turns its beams.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum HeadingMode {
+    /// A steady turn at `spin_rate`: the four beams sweep all around, all the time.
+    #[default]
+    Spin,
+    /// A beam axis along the direction of travel (the side beams sweep the widest band); a
+    /// steady turn while hovering.
+    Align,
 }
 
 fn default_height() -> f64 {
@@ -170,6 +185,8 @@ pub struct Explore {
     frontiers: usize,
     allocations: u32,
     given_up: u32,
+    /// When exploring started (after the takeoff).
+    started_at: Duration,
 }
 
 impl Explore {
@@ -188,6 +205,7 @@ impl Explore {
             frontiers: 0,
             allocations: 0,
             given_up: 0,
+            started_at: Duration::ZERO,
         }
     }
 
@@ -200,12 +218,26 @@ impl Explore {
         }
     }
 
-    fn spin(&self, reference: MotionReference) -> MotionReference {
-        if self.goal.spin_rate > 0.0 {
-            with_yaw(reference, YawTarget::Rate(self.goal.spin_rate))
-        } else {
-            reference
+    /// The reference with this drone's heading: a steady turn (`spin`), or (`align`) a beam
+    /// axis turned onto the direction of travel at up to `spin_rate`, turning steadily while
+    /// slower than 0.3 m/s.
+    fn heading(&self, ctx: &BehaviorContext, reference: MotionReference) -> MotionReference {
+        if self.goal.spin_rate <= 0.0 {
+            return reference;
         }
+        let rate = self.goal.spin_rate;
+        let v = ctx.state.velocity_enu_mps.xy();
+        let yaw = match self.goal.heading {
+            HeadingMode::Align if v.norm() > 0.3 => {
+                let quarter = std::f64::consts::FRAC_PI_2;
+                let error = crate::types::wrap_angle_rad(v.y.atan2(v.x) - ctx.yaw());
+                // The nearest beam axis: the error folded into -pi/4..pi/4.
+                let folded = error - quarter * (error / quarter).round();
+                YawTarget::Rate((2.0 * folded).clamp(-rate, rate))
+            }
+            _ => YawTarget::Rate(rate),
+        };
+        with_yaw(reference, yaw)
     }
 
     fn start_exploring(&mut self, ctx: &BehaviorContext) {
@@ -214,6 +246,7 @@ impl Explore {
             .map_or(ctx.position().z, |h| h.z + self.goal.height);
         self.phase = Phase::Exploring;
         self.anchor = (ctx.position(), ctx.now);
+        self.started_at = ctx.now;
     }
 
     fn ask(&mut self, ctx: &BehaviorContext) {
@@ -265,8 +298,11 @@ impl Explore {
                 self.frontiers = frontiers;
                 self.target = None;
                 self.child = None;
+                // No frontier anywhere after a full sweep: over. Frontiers this drone cannot
+                // reach (yet): another sweep first, space may open up.
+                let swept = seconds(ctx.now, self.started_at) >= self.sense_s();
                 let since = *self.done_since.get_or_insert(ctx.now);
-                Ok(seconds(ctx.now, since) >= self.sense_s())
+                Ok((frontiers == 0 && swept) || seconds(ctx.now, since) >= self.sense_s())
             }
             Ok(Allocation::Goal {
                 goal_enu_m,
@@ -454,7 +490,7 @@ impl Behavior for Explore {
                 Step::Running { reference, .. } => reference,
                 Step::Succeeded => {
                     self.start_exploring(ctx);
-                    Some(self.spin(ctx.hold_here()))
+                    Some(self.heading(ctx, ctx.hold_here()))
                 }
                 Step::Failed(reason) => return Step::Failed(reason.within("takeoff")),
             },
@@ -478,7 +514,7 @@ impl Behavior for Explore {
                     }
                     self.anchor = (here, ctx.now);
                 }
-                Some(self.spin(MotionReference::hold(
+                Some(self.heading(ctx, MotionReference::hold(
                     target,
                     ctx.yaw(),
                     ctx.config.hold_speed_mps.min(0.5),
@@ -487,7 +523,7 @@ impl Behavior for Explore {
             Phase::Exploring => match self.explore_tick(ctx, requests) {
                 Err(reason) => return Step::Failed(reason),
                 Ok(None) => return Step::Succeeded,
-                Ok(Some(reference)) => Some(self.spin(reference)),
+                Ok(Some(reference)) => Some(self.heading(ctx, reference)),
             },
         };
         Step::Running {

@@ -5,7 +5,8 @@
 //! merged grid. Out: an [`Allocation`]: a goal with the path to it through navigable space, or
 //! `Done` when this drone can reach no frontier. The service keeps the goals each drone holds
 //! (a claim lapses when its drone stops asking, so a drone that fails leaves its frontiers to the
-//! others) and the goals given up (seen from up close and still unknown: occluded pockets).
+//! others) and the goals given up (seen from up close and still unknown: occluded pockets;
+//! offered again once after a while, left for good the second time).
 //! The navigable space is kept between requests and re-read only around the cells that changed.
 
 use std::collections::BTreeMap;
@@ -25,6 +26,8 @@ use crate::types::Vec3;
 const CLAIM_TTL: Duration = Duration::from_secs(6);
 /// Frontiers whose goal lies this close to a given-up goal are left out (m).
 const GIVEN_UP_RADIUS_M: f64 = 0.8;
+/// A goal given up once is offered again after this long.
+const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
 
@@ -81,6 +84,11 @@ pub struct ClaimView {
     pub goal_enu_m: [f64; 2],
 }
 
+struct GivenUp {
+    goal: Vector2<f64>,
+    at: Duration,
+}
+
 struct Claim {
     goal: Vector2<f64>,
     stamp: Duration,
@@ -91,7 +99,7 @@ struct Claim {
 pub struct FrontierService {
     space: Option<Space>,
     claims: BTreeMap<Arc<str>, Claim>,
-    given_up: Vec<Vector2<f64>>,
+    given_up: Vec<GivenUp>,
 }
 
 impl FrontierService {
@@ -131,7 +139,7 @@ impl FrontierService {
     ) -> Result<Allocation, ExploreError> {
         if let Some(goal) = request.give_up {
             if self.given_up.len() < MAX_GIVEN_UP {
-                self.given_up.push(goal);
+                self.given_up.push(GivenUp { goal, at: now });
             }
         }
         self.claims
@@ -142,9 +150,19 @@ impl FrontierService {
             .frontiers
             .iter()
             .filter(|f| {
-                self.given_up
+                // A goal given up twice is left for good; once, for a while (the drone may have
+                // given up for a reason that passes: another drone in the way, a path that
+                // failed).
+                let near: Vec<&GivenUp> = self
+                    .given_up
                     .iter()
-                    .all(|g| (f.goal_enu_m - g).norm() > GIVEN_UP_RADIUS_M)
+                    .filter(|g| (f.goal_enu_m - g.goal).norm() <= GIVEN_UP_RADIUS_M)
+                    .collect();
+                near.is_empty()
+                    || (near.len() < 2
+                        && near
+                            .iter()
+                            .all(|g| now.saturating_sub(g.at) > GIVEN_UP_FOR))
             })
             .collect();
         let candidates: Vec<(Candidate, usize)> = open
@@ -307,5 +325,18 @@ mod tests {
         r.give_up = Some(first.xy());
         let second = goal_of(&s.answer(t, &grid, &r).unwrap());
         assert!((second - first).norm() > GIVEN_UP_RADIUS_M);
+        // Offered again after a while; given up a second time, never again.
+        let later = t + GIVEN_UP_FOR + Duration::from_secs(1);
+        let mut r = ask("a", 2.0, 5.0);
+        r.give_up = Some(second.xy());
+        let again = goal_of(&s.answer(later, &grid, &r).unwrap());
+        assert!((again - first).norm() < 1e-9, "{again:?} {first:?}");
+        let mut r = ask("a", 2.0, 5.0);
+        r.give_up = Some(first.xy());
+        let mut r2 = ask("a", 2.0, 5.0);
+        r2.give_up = Some(second.xy());
+        s.answer(later, &grid, &r).unwrap();
+        let last = s.answer(later + GIVEN_UP_FOR * 2, &grid, &r2).unwrap();
+        assert!(matches!(last, Allocation::Done { .. }), "{last:?}");
     }
 }
