@@ -514,11 +514,10 @@ impl Behavior for Explore {
                     }
                     self.anchor = (here, ctx.now);
                 }
-                Some(self.heading(ctx, MotionReference::hold(
-                    target,
-                    ctx.yaw(),
-                    ctx.config.hold_speed_mps.min(0.5),
-                )))
+                Some(self.heading(
+                    ctx,
+                    MotionReference::hold(target, ctx.yaw(), ctx.config.hold_speed_mps.min(0.5)),
+                ))
             }
             Phase::Exploring => match self.explore_tick(ctx, requests) {
                 Err(reason) => return Step::Failed(reason),

@@ -18,7 +18,7 @@ use serde::Serialize;
 
 use super::allocation::{choose, AllocatorKind, Candidate, Requester};
 use super::reach::Reach;
-use super::space::{Space, SpaceParams};
+use super::space::{Frontier, Space, SpaceParams};
 use crate::mapping::grid::OccupancyGrid;
 use crate::types::Vec3;
 
@@ -160,13 +160,16 @@ impl FrontierService {
                     .collect();
                 near.is_empty()
                     || (near.len() < 2
-                        && near
-                            .iter()
-                            .all(|g| now.saturating_sub(g.at) > GIVEN_UP_FOR))
+                        && near.iter().all(|g| now.saturating_sub(g.at) > GIVEN_UP_FOR))
             })
             .collect();
+        // Short frontiers (corners, the last strips) only once no long one is left that this
+        // drone can reach.
+        let reachable = |f: &&&Frontier| reach.distance_m(f.goal_index).is_some();
+        let only_small = !open.iter().filter(reachable).any(|f| !f.small);
         let candidates: Vec<(Candidate, usize)> = open
             .iter()
+            .filter(|f| only_small || !f.small)
             .filter_map(|f| {
                 let path_m = reach.distance_m(f.goal_index)?;
                 Some((

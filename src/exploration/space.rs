@@ -13,8 +13,9 @@
 //! the safety distance all around: a drone with sparse beams never enters space it has not
 //! observed. One-cell gaps between beams are closed first (a 3 x 3 morphological closing of the
 //! free cells, as the thesis's map filter does), so ray gaps do not fence the drone in; a closed
-//! gap cannot hide an obstacle, which would have shown as hit cells. Distances are Chebyshev
-//! (square neighbourhoods), the thesis's erosion.
+//! gap cannot hide an obstacle, which would have shown as hit cells. Distances are Euclidean
+//! (discs, centre to centre; the thesis erodes with squares, which closes diagonal gaps between
+//! poles that a drone fits through).
 
 use nalgebra::Vector2;
 
@@ -25,8 +26,11 @@ use crate::mapping::grid::{GridSpec, OccupancyGrid, UNKNOWN};
 pub struct SpaceParams {
     /// Least distance from obstacles and unknown cells (m).
     pub safety_distance_m: f64,
-    /// Frontiers with fewer cells are dropped (the thesis: 15 cells).
+    /// Frontiers with fewer cells are left for the end (the thesis drops them: 15 cells).
     pub min_cells: usize,
+    /// Frontiers with fewer cells are dropped for good: the last corners are explored only
+    /// once no frontier of `min_cells` is left.
+    pub min_final_cells: usize,
     /// Frontiers of at least twice this many cells are split into parts of about this many.
     pub split_cells: usize,
     /// Cells at or above this value are obstacles.
@@ -38,6 +42,7 @@ impl Default for SpaceParams {
         SpaceParams {
             safety_distance_m: 0.4,
             min_cells: 15,
+            min_final_cells: 5,
             split_cells: 35,
             occupied_threshold: crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD,
         }
@@ -66,6 +71,8 @@ pub struct Frontier {
     /// Index of the goal cell (navigable, nearest the centroid).
     pub goal_index: usize,
     pub goal_enu_m: Vector2<f64>,
+    /// Shorter than `min_cells`: explored only once no longer frontier is left.
+    pub small: bool,
 }
 
 /// The navigable cells and the frontiers of one grid.
@@ -186,10 +193,10 @@ impl Space {
             .zip(&closed_free)
             .map(|(i, &cf)| self.data[i] == UNKNOWN && !cf)
             .collect();
-        let occ_s = dilate(&occupied, cw, ch, s);
-        let occ_s1 = dilate(&occupied, cw, ch, s + 1);
-        let unk_s = dilate(&unknown, cw, ch, s);
-        let unk_s1 = dilate(&unknown, cw, ch, s + 1);
+        let occ_s = dilate_disc(&occupied, cw, ch, s);
+        let occ_s1 = dilate_disc(&occupied, cw, ch, s + 1);
+        let unk_s = dilate_disc(&unknown, cw, ch, s);
+        let unk_s1 = dilate_disc(&unknown, cw, ch, s + 1);
         // The map's edge counts as an obstacle.
         let edge_within = |x: usize, y: usize, r: usize| x < r || y < r || x + r >= w || y + r >= h;
         for y in rect.y0..rect.y1 {
@@ -197,8 +204,8 @@ impl Space {
                 let j = (y - c.y0) * cw + (x - c.x0);
                 let navigable = closed_free[j] && !occ_s[j] && !unk_s[j] && !edge_within(x, y, s);
                 self.navigable[y * w + x] = navigable;
-                self.frontier[y * w + x] =
-                    navigable && unk_s1[j] && !occ_s1[j] && !edge_within(x, y, s + 1);
+                // The edge is no obstacle to see past: unknown cells along it make frontiers.
+                self.frontier[y * w + x] = navigable && unk_s1[j] && !occ_s1[j];
             }
         }
     }
@@ -210,8 +217,15 @@ impl Space {
         );
         self.frontiers = components(&self.frontier, w, h)
             .into_iter()
-            .filter(|c| c.len() >= self.params.min_cells)
-            .flat_map(|c| split(c, &self.spec, self.params.split_cells))
+            .filter(|c| c.len() >= self.params.min_final_cells.min(self.params.min_cells))
+            .flat_map(|c| {
+                let small = c.len() < self.params.min_cells;
+                let mut parts = split(c, &self.spec, self.params.split_cells);
+                for p in &mut parts {
+                    p.small = small;
+                }
+                parts
+            })
             .collect();
     }
 
@@ -254,19 +268,7 @@ impl Space {
 /// `mask` grown by `r` cells in every direction (a (2r+1)^2 square), by two sliding-window
 /// passes over running counts.
 pub(crate) fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    let mut rows = vec![false; w * h];
-    let mut prefix = vec![0u32; w + 1];
-    for y in 0..h {
-        let row = &mask[y * w..(y + 1) * w];
-        for (x, &m) in row.iter().enumerate() {
-            prefix[x + 1] = prefix[x] + u32::from(m);
-        }
-        for x in 0..w {
-            let lo = x.saturating_sub(r);
-            let hi = (x + r + 1).min(w);
-            rows[y * w + x] = prefix[hi] > prefix[lo];
-        }
-    }
+    let rows = dilate_rows(mask, w, h, r);
     // Columns: a running count per column over the window of rows y - r ..= y + r, walked row
     // by row (cache-friendly).
     let mut counts = vec![0u32; w];
@@ -290,6 +292,56 @@ pub(crate) fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
         }
         for (o, &c) in out[y * w..(y + 1) * w].iter_mut().zip(&counts) {
             *o = c > 0;
+        }
+    }
+    out
+}
+
+/// `mask` grown by a disc of radius `r` cells (centre to centre): a row dilation for each
+/// half-width the disc has, then the rows above and below combined (O((2r+1) cells)). Round,
+/// so a diagonal gap between two poles is as open as a straight one.
+pub(crate) fn dilate_disc(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    let half_width = |dy: usize| ((r * r - dy * dy) as f64).sqrt().floor() as usize;
+    let mut by_half_width: Vec<Option<Vec<bool>>> = vec![None; r + 1];
+    for dy in 0..=r {
+        let hw = half_width(dy);
+        if by_half_width[hw].is_none() {
+            by_half_width[hw] = Some(dilate_rows(mask, w, h, hw));
+        }
+    }
+    let mut out = vec![false; w * h];
+    for y in 0..h {
+        let row = &mut out[y * w..(y + 1) * w];
+        for dy in -(r as i64)..=(r as i64) {
+            let yy = y as i64 + dy;
+            if yy < 0 || yy >= h as i64 {
+                continue;
+            }
+            let Some(Some(rows)) = by_half_width.get(half_width(dy.unsigned_abs() as usize)) else {
+                continue;
+            };
+            let src = &rows[yy as usize * w..(yy as usize + 1) * w];
+            for (o, &m) in row.iter_mut().zip(src) {
+                *o |= m;
+            }
+        }
+    }
+    out
+}
+
+/// Each row of `mask` grown by `r` cells left and right.
+fn dilate_rows(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    let mut out = vec![false; w * h];
+    let mut prefix = vec![0u32; w + 1];
+    for y in 0..h {
+        let row = &mask[y * w..(y + 1) * w];
+        for (x, &m) in row.iter().enumerate() {
+            prefix[x + 1] = prefix[x] + u32::from(m);
+        }
+        for x in 0..w {
+            let lo = x.saturating_sub(r);
+            let hi = (x + r + 1).min(w);
+            out[y * w + x] = prefix[hi] > prefix[lo];
         }
     }
     out
@@ -380,6 +432,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
                 size_m: chunk.len() as f64 * spec.resolution_m,
                 goal_index,
                 goal_enu_m: center(goal_index),
+                small: false,
             })
         })
         .collect()
@@ -426,14 +479,14 @@ mod tests {
         let space = Space::new(&g, &SpaceParams::default());
         assert_eq!(space.frontiers.len(), 1, "{:?}", space.frontiers);
         let f = &space.frontiers[0];
-        // Navigable up to x = 25 (4 cells clear of x = 30); the frontier is that column, minus
-        // the rows within 5 cells of the map's edge.
+        // Navigable up to x = 25 (4 cells clear of x = 30) and 4 cells clear of the map's edge;
+        // the frontier is that column.
         let col = 25;
         assert!(
             (f.centroid_enu_m.x - (col as f64 + 0.5) * 0.1).abs() < 1e-9,
             "{f:?}"
         );
-        assert_eq!(f.cells, 40 - 2 * 5);
+        assert_eq!(f.cells, 40 - 2 * 4);
         assert!((f.orientation_rad.abs() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
         assert!(space.is_navigable(f.goal_index));
         // Nothing navigable within the safety distance of the unknown half.
@@ -459,16 +512,17 @@ mod tests {
 
     #[test]
     fn short_frontiers_are_dropped_and_long_ones_split() {
-        // 24 rows: 14 frontier cells once the rows near the map's edge are left out: dropped.
-        let short = grid(60, 24, |x, _| if x < 30 { 0 } else { UNKNOWN });
+        // 22 rows: 14 frontier cells once the rows near the map's edge are left out: dropped.
+        let short = grid(60, 22, |x, _| if x < 30 { 0 } else { UNKNOWN });
         let s = Space::new(&short, &SpaceParams::default());
-        assert!(s.frontiers.is_empty(), "{:?}", s.frontiers);
-        // A 200-row map: the 190-cell frontier column is split into 190 / 35 = 5 parts.
+        assert!(s.frontiers.iter().all(|f| f.small), "{:?}", s.frontiers);
+        assert_eq!(s.frontiers.len(), 1);
+        // A 200-row map: the 192-cell frontier column is split into 192 / 35 = 5 parts.
         let long = grid(60, 200, |x, _| if x < 30 { 0 } else { UNKNOWN });
         let l = Space::new(&long, &SpaceParams::default());
         assert_eq!(l.frontiers.len(), 5, "{:?}", l.frontiers);
-        assert_eq!(l.frontiers.iter().map(|f| f.cells).sum::<usize>(), 190);
-        assert!(l.frontiers.iter().all(|f| (f.cells as i64 - 38).abs() <= 1));
+        assert_eq!(l.frontiers.iter().map(|f| f.cells).sum::<usize>(), 192);
+        assert!(l.frontiers.iter().all(|f| (36..=39).contains(&f.cells)));
         let mut ys: Vec<f64> = l.frontiers.iter().map(|f| f.centroid_enu_m.y).collect();
         ys.sort_by(f64::total_cmp);
         assert!(

@@ -42,6 +42,8 @@ pub struct SimConfig {
     pub environment: Environment,
     /// The config the host is built from (its `[drone] control_rate_hz` is `rate_hz`).
     pub settings: Config,
+    /// Pose records per second and drone in the flight log.
+    pub pose_log_hz: f64,
 }
 
 impl Default for SimConfig {
@@ -52,6 +54,7 @@ impl Default for SimConfig {
             rate_hz: 100.0,
             environment: Environment::default(),
             settings: Config::default(),
+            pose_log_hz: 10.0,
         }
     }
 }
@@ -106,7 +109,7 @@ impl Harness {
         let sim = SimWorld::new(world, config.drones, config.seed, config.environment);
         let mut host = simulated_host_with(sim, &settings, tweak);
         let log = SharedBuffer::default();
-        host.set_log(FlightLog::new(Box::new(log.clone()), 10.0));
+        host.set_log(FlightLog::new(Box::new(log.clone()), config.pose_log_hz));
         let mut h = Self {
             drone_ids: host.drone_ids(),
             host,
@@ -273,9 +276,13 @@ impl Harness {
 
     /// The flight log so far, parsed.
     pub fn log_records(&mut self) -> Vec<Value> {
+        flightlog::read(&self.log_text()).unwrap()
+    }
+
+    /// The flight log so far, as written.
+    pub fn log_text(&mut self) -> String {
         self.host.flush_log();
-        let text = String::from_utf8(self.log.0.lock().unwrap().clone()).unwrap();
-        flightlog::read(&text).unwrap()
+        String::from_utf8(self.log.0.lock().unwrap().clone()).unwrap()
     }
 
     /// `behavior:event[:result]` for every behavior record of `drone` in the flight log.
