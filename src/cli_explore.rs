@@ -157,11 +157,11 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         }
         if t >= next_progress {
             next_progress += args.progress_every_s;
-            let (frontiers, _) = host.exploration_view();
+            let view = host.exploration_view();
             println!(
                 "t {t:7.1} s  known {:5.1} %  frontiers {:3}  ({:.1} s wall)",
                 known_pct(&host),
-                frontiers.len(),
+                view.frontiers.len(),
                 started.elapsed().as_secs_f64()
             );
         }

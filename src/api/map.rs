@@ -159,3 +159,17 @@ pub async fn post_scans(
         })?;
     Ok(Json(json!({ "drone": drone, "queued": queued })))
 }
+
+#[utoipa::path(get, path = "/api/exploration", tag = "map", security(("bearer" = [])),
+    responses((status = 200, body = crate::exploration::service::ExplorationView)))]
+/// The exploration as the frontier allocator last saw it: frontiers, each exploring drone's
+/// goal, and the share of the merged map known.
+pub async fn exploration(
+    State(s): State<ApiState>,
+) -> Result<Json<crate::exploration::service::ExplorationView>, ApiError> {
+    s.host
+        .call(|reply| Command::Exploration { reply })
+        .await
+        .map(Json)
+        .map_err(ApiError::Host)
+}

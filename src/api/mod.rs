@@ -68,6 +68,7 @@ fn map_routes() -> Router<ApiState> {
         .route("/api/map", get(map::grid))
         .route("/api/map.png", get(map::png))
         .route("/api/map/info", get(map::info))
+        .route("/api/exploration", get(map::exploration))
         .route("/api/scans", post(map::post_scans))
         .route("/api/coverage", post(coverage::plan))
         .route("/api/geofence", get(geofence::geofence))

@@ -47,9 +47,11 @@ pub struct ApiDoc;
 /// Maps, scans, coverage and geofence (`api::map`, `api::coverage`, `api::geofence`).
 #[derive(OpenApi)]
 #[openapi(
-    paths(map::grid, map::png, map::info, map::post_scans, coverage::plan, geofence::geofence),
+    paths(map::grid, map::png, map::info, map::exploration, map::post_scans, coverage::plan, geofence::geofence),
     components(schemas(
-        map::MapInfo, scans::ScanInput, scans::ScanBatch, coverage::CoverageRequest,
+        map::MapInfo, crate::exploration::service::ExplorationView,
+        crate::exploration::service::FrontierView, crate::exploration::service::ClaimView,
+        scans::ScanInput, scans::ScanBatch, coverage::CoverageRequest,
         coverage::CoverageAnswer
     )),
     tags((name = "map"))

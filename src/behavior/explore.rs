@@ -39,36 +39,28 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::time::Duration;
 
+/// Every field has the thesis's simulation value as its default (Table 5.3).
 #[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct ExploreGoal {
     /// Flight height above the takeoff point (m).
-    #[serde(default = "default_height")]
     pub height: f64,
     /// Cruise speed (m/s).
-    #[serde(default = "default_speed")]
     pub speed: f64,
     /// Steady turn while exploring (rad/s, 0..=2), so the beams sweep all around; 0 keeps the
     /// heading (then only a 360-beam sensor sees sideways).
-    #[serde(default = "default_spin_rate")]
     pub spin_rate: f64,
     /// Least distance from obstacles and from unobserved space (m).
-    #[serde(default = "default_safety_distance")]
     pub safety_distance: f64,
     /// Closer than this to another drone at the same height, one of the two gives way (m).
-    #[serde(default = "default_drone_safety_distance")]
     pub drone_safety_distance: f64,
     /// Which frontier to take next.
-    #[serde(default)]
     pub allocator: AllocatorKind,
     /// Ask the allocator again this often while flying to a frontier (s).
-    #[serde(default = "default_retarget_period")]
     pub retarget_period: f64,
     /// Land when no frontier is left.
-    #[serde(default = "default_true")]
     pub land_when_done: bool,
     /// How the heading moves: `spin` (a steady turn) or `align` (a beam axis along the travel).
-    #[serde(default)]
     pub heading: HeadingMode,
 }
 
@@ -84,26 +76,20 @@ pub enum HeadingMode {
     Align,
 }
 
-fn default_height() -> f64 {
-    1.0
-}
-fn default_speed() -> f64 {
-    0.75
-}
-fn default_spin_rate() -> f64 {
-    0.15
-}
-fn default_safety_distance() -> f64 {
-    0.4
-}
-fn default_drone_safety_distance() -> f64 {
-    2.0
-}
-fn default_retarget_period() -> f64 {
-    2.0
-}
-fn default_true() -> bool {
-    true
+impl Default for ExploreGoal {
+    fn default() -> Self {
+        ExploreGoal {
+            height: 1.0,
+            speed: 0.75,
+            spin_rate: 0.15,
+            safety_distance: 0.4,
+            drone_safety_distance: 2.0,
+            allocator: AllocatorKind::default(),
+            retarget_period: 2.0,
+            land_when_done: true,
+            heading: HeadingMode::default(),
+        }
+    }
 }
 
 fn within(name: &str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<(), String> {

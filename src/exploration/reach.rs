@@ -200,22 +200,9 @@ const NEIGHBOURS: [(i64, i64); 8] = [
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
+    use super::super::space::tests::grid;
     use super::super::space::{Space, SpaceParams};
     use super::*;
-    use crate::mapping::grid::{GridSpec, OccupancyGrid};
-
-    fn grid(w: u32, h: u32, f: impl Fn(u32, u32) -> i8) -> OccupancyGrid {
-        let spec = GridSpec {
-            resolution_m: 0.1,
-            width_cells: w,
-            height_cells: h,
-            origin_enu_m: Vector2::zeros(),
-        };
-        let data = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| f(x, y));
-        OccupancyGrid::from_data(spec, data.collect()).unwrap()
-    }
 
     #[test]
     fn distances_go_around_a_wall_and_the_path_keeps_clear_of_it() {

@@ -68,8 +68,19 @@ pub enum ExploreError {
     OutsideMap,
 }
 
+/// The exploration as operators see it (`GET /api/exploration`).
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct ExplorationView {
+    /// Frontiers as the allocator last read them.
+    pub frontiers: Vec<FrontierView>,
+    /// The goal each exploring drone holds.
+    pub goals: Vec<ClaimView>,
+    /// Known cells of the merged map (%); absent when mapping is off.
+    pub known_pct: Option<f64>,
+}
+
 /// A frontier as shown to operators.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct FrontierView {
     pub centroid_enu_m: [f64; 2],
     pub goal_enu_m: [f64; 2],
@@ -78,7 +89,7 @@ pub struct FrontierView {
 }
 
 /// The goal a drone holds, as shown to operators.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct ClaimView {
     pub drone: String,
     pub goal_enu_m: [f64; 2],

@@ -454,7 +454,7 @@ fn principal_axis(points: &[Vector2<f64>]) -> (Vector2<f64>, Vector2<f64>) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 

@@ -67,6 +67,11 @@ pub enum Command {
         drone: Option<String>,
         reply: Reply<super::MapView>,
     },
+    /// The exploration as the frontier allocator last saw it: frontiers and the goal each
+    /// drone holds.
+    Exploration {
+        reply: Reply<crate::exploration::service::ExplorationView>,
+    },
     /// Scans from outside (API) for a drone's next tick; replies with the number queued.
     Scans {
         drone: Option<String>,
@@ -551,6 +556,9 @@ impl Host {
             }
             Command::Map { drone, reply } => {
                 let _ = reply.send(self.map_view(drone.as_deref()));
+            }
+            Command::Exploration { reply } => {
+                let _ = reply.send(Ok(self.exploration_view()));
             }
             Command::Scans {
                 drone,

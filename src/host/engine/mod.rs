@@ -19,7 +19,7 @@ use crate::behavior::RunState;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
-use crate::exploration::service::{ClaimView, ExploreError, FrontierService, FrontierView};
+use crate::exploration::service::{ExplorationView, ExploreError, FrontierService};
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
@@ -433,8 +433,16 @@ impl Host {
     }
 
     /// The frontiers and the goals the drones hold, as the allocator last saw them.
-    pub fn exploration_view(&self) -> (Vec<FrontierView>, Vec<ClaimView>) {
-        (self.frontiers.frontiers(), self.frontiers.claims())
+    pub fn exploration_view(&self) -> ExplorationView {
+        ExplorationView {
+            frontiers: self.frontiers.frontiers(),
+            goals: self.frontiers.claims(),
+            known_pct: self.map.as_ref().map(|m| {
+                let data = m.merged().data();
+                let known = data.iter().filter(|&&v| v >= 0).count();
+                100.0 * known as f64 / data.len().max(1) as f64
+            }),
+        }
     }
 
     pub fn flush_log(&mut self) {
