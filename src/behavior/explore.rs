@@ -14,7 +14,8 @@
 //! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
 //! The exploration ends when the allocator has had no reachable frontier for this drone for a
-//! quarter turn of sensing; the drone then lands (`land_when_done`) and the behavior succeeds.
+//! quarter turn of sensing; the drone then lands (`land_when_done`; first back along its own
+//! track when another drone, flying or landed, is within 1.5 m) and the behavior succeeds.
 //! When another flying drone comes closer than `drone_safety_distance` at the same height, the
 //! one nearer its goal climbs 1 m and holds until they are 1.2 times that apart, then returns.
 
@@ -135,6 +136,11 @@ pub fn spec() -> BehaviorSpec {
 
 /// Shortest time between two questions to the allocator.
 const MIN_ASK_INTERVAL: Duration = Duration::from_millis(500);
+/// Track points kept for finding a landing spot, and their spacing (m).
+const MAX_CRUMBS: usize = 512;
+const CRUMB_SPACING_M: f64 = 1.0;
+/// A drone lands at least this far (horizontally) from every other drone (m).
+const LANDING_CLEARANCE_M: f64 = 1.5;
 /// Closer than this to its goal, a drone asks for the next one (m).
 const NEAR_GOAL_M: f64 = 1.5;
 /// A drone that moved less than this ...
@@ -150,6 +156,8 @@ enum Phase {
         hold: Vec3,
         returning: bool,
     },
+    /// Back along its own track to a place clear of the other drones, to land there.
+    Relocating(Box<dyn Behavior>),
     Landing(Box<dyn Behavior>),
 }
 
@@ -173,6 +181,8 @@ pub struct Explore {
     given_up: u32,
     /// When exploring started (after the takeoff).
     started_at: Duration,
+    /// Where it flew, newest last (for a landing spot clear of the others).
+    crumbs: Vec<Vec3>,
 }
 
 impl Explore {
@@ -192,6 +202,7 @@ impl Explore {
             allocations: 0,
             given_up: 0,
             started_at: Duration::ZERO,
+            crumbs: Vec::new(),
         }
     }
 
@@ -404,13 +415,12 @@ impl Explore {
         }
         if self.read_answer(ctx)? {
             if self.goal.land_when_done {
-                let mut land = Land::new(LandGoal { speed: 0.5 });
-                land.activate(ctx).map_err(|e| e.within("land"))?;
-                self.phase = Phase::Landing(Box::new(land));
+                self.go_land(ctx)?;
                 return Ok(Some(ctx.hold_here()));
             }
             return Ok(None);
         }
+        self.drop_crumb(ctx);
         self.check_stuck(ctx);
         if self.due_to_ask(ctx) {
             self.ask(ctx);
@@ -433,13 +443,65 @@ impl Explore {
         }
     }
 
+    /// Remembers where the drone flew (every `CRUMB_SPACING_M`), to find a landing spot.
+    fn drop_crumb(&mut self, ctx: &BehaviorContext) {
+        let here = Vec3::new(ctx.position().x, ctx.position().y, self.base_z);
+        if self
+            .crumbs
+            .last()
+            .is_none_or(|c| (c - here).norm() >= CRUMB_SPACING_M)
+        {
+            if self.crumbs.len() >= MAX_CRUMBS {
+                self.crumbs.remove(0);
+            }
+            self.crumbs.push(here);
+        }
+    }
+
+    /// Lands here, or first flies back along its own track to the last point clear of every
+    /// other drone (flying or landed) when one is closer than `LANDING_CLEARANCE_M`: a drone
+    /// never lands on another.
+    fn go_land(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        let clear = |p: &Vec3| {
+            ctx.fleet
+                .others(ctx.drone_id)
+                .all(|d| (d.position_enu_m - p).xy().norm() > LANDING_CLEARANCE_M)
+        };
+        if clear(&ctx.position()) {
+            let mut land = Land::new(LandGoal { speed: 0.5 });
+            land.activate(ctx).map_err(|e| e.within("land"))?;
+            self.phase = Phase::Landing(Box::new(land));
+            return Ok(());
+        }
+        let back: Vec<Vec3> = match self.crumbs.iter().rposition(clear) {
+            Some(k) => self.crumbs[k..].iter().rev().copied().collect(),
+            None => self.crumbs.iter().rev().copied().collect(),
+        };
+        if back.is_empty() {
+            return Err(Failure::new(
+                FailureCode::Internal,
+                "no clear place to land: another drone is below",
+            ));
+        }
+        let follow = FollowPathGoal {
+            path: back.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            speed: self.goal.speed,
+            yaw: YawArgs::default(),
+            frame_id: Some(EARTH.to_string()),
+        };
+        let mut child = FollowPath::new(follow);
+        child.activate(ctx).map_err(|e| e.within("follow_path"))?;
+        self.phase = Phase::Relocating(Box::new(child));
+        Ok(())
+    }
+
     fn feedback(&self) -> serde_json::Value {
         let phase = match self.phase {
             Phase::TakingOff(_) => "takeoff",
             Phase::Exploring if self.done_since.is_some() => "sensing",
             Phase::Exploring => "navigating",
             Phase::GivingWay { .. } => "drone_avoidance",
-            Phase::Landing(_) => "end",
+            Phase::Relocating(_) | Phase::Landing(_) => "end",
         };
         json!({
             "phase": phase,
@@ -479,6 +541,19 @@ impl Behavior for Explore {
                     Some(self.heading(ctx, ctx.hold_here()))
                 }
                 Step::Failed(reason) => return Step::Failed(reason.within("takeoff")),
+            },
+            Phase::Relocating(child) => match child.run(ctx, requests) {
+                Step::Running { reference, .. } => reference.map(|r| self.heading(ctx, r)),
+                Step::Succeeded | Step::Failed(_) => {
+                    // Clear now, or as clear as its track allows: land (the watcher and the
+                    // safety stage still keep flying drones apart).
+                    let mut land = Land::new(LandGoal { speed: 0.5 });
+                    if let Err(e) = land.activate(ctx) {
+                        return Step::Failed(e.within("land"));
+                    }
+                    self.phase = Phase::Landing(Box::new(land));
+                    Some(ctx.hold_here())
+                }
             },
             Phase::Landing(land) => match land.run(ctx, requests) {
                 Step::Running { reference, .. } => reference,
