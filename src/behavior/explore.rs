@@ -352,18 +352,20 @@ impl Explore {
         }
     }
 
-    /// The watcher's view of this drone and of the other flying drones.
-    fn must_give_way(&self, ctx: &BehaviorContext) -> bool {
-        let params = WatchParams::thesis(self.goal.drone_safety_distance);
+    /// The watcher's view of this drone (`remaining_m` to its goal, `up` when giving way).
+    fn watched_me<'a>(&self, ctx: &BehaviorContext<'a>, up: bool) -> Watched<'a> {
         let here = ctx.position();
-        let me = Watched {
+        Watched {
             id: ctx.drone_id,
             position_enu_m: [here.x, here.y, here.z],
             remaining_m: self.target.map_or(0.0, |t| (t - here).xy().norm()),
-            up: false,
-        };
-        let others: Vec<Watched> = ctx
-            .fleet
+            up,
+        }
+    }
+
+    /// The watcher's view of the other flying drones.
+    fn watched_others<'a>(&self, ctx: &BehaviorContext<'a>) -> Vec<Watched<'a>> {
+        ctx.fleet
             .others(ctx.drone_id)
             .filter(|d| d.flying)
             .map(|d| Watched {
@@ -374,31 +376,19 @@ impl Explore {
                     .map_or(0.0, |g| (g - d.position_enu_m).xy().norm()),
                 up: d.position_enu_m.z > self.base_z + 0.5,
             })
-            .collect();
-        must_yield(&me, self.base_z, &others, &params)
+            .collect()
+    }
+
+    fn must_give_way(&self, ctx: &BehaviorContext) -> bool {
+        let params = WatchParams::thesis(self.goal.drone_safety_distance);
+        let me = self.watched_me(ctx, false);
+        must_yield(&me, self.base_z, &self.watched_others(ctx), &params)
     }
 
     fn clear_to_return(&self, ctx: &BehaviorContext) -> bool {
         let params = WatchParams::thesis(self.goal.drone_safety_distance);
-        let here = ctx.position();
-        let me = Watched {
-            id: ctx.drone_id,
-            position_enu_m: [here.x, here.y, here.z],
-            remaining_m: 0.0,
-            up: true,
-        };
-        let others: Vec<Watched> = ctx
-            .fleet
-            .others(ctx.drone_id)
-            .filter(|d| d.flying)
-            .map(|d| Watched {
-                id: &d.id,
-                position_enu_m: [d.position_enu_m.x, d.position_enu_m.y, d.position_enu_m.z],
-                remaining_m: 0.0,
-                up: d.position_enu_m.z > self.base_z + 0.5,
-            })
-            .collect();
-        may_return(&me, &others, &params)
+        let me = self.watched_me(ctx, true);
+        may_return(&me, &self.watched_others(ctx), &params)
     }
 
     fn explore_tick(
