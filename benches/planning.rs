@@ -60,6 +60,7 @@ fn request(kind: PlannerKind) -> PlanRequest {
         unknown: UnknownPolicy::Blocked,
         kind,
         max_map_age_s: None,
+        shadow_m: 0.0,
     }
 }
 

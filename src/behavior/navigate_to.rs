@@ -61,16 +61,22 @@ impl From<PlannerArg> for PlannerKind {
     }
 }
 
-/// What unknown (never observed) cells are to the planner.
+/// What unknown (never observed) cells are to the planner and to the flight.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum UnknownArg {
-    /// Crossable at `unknown_cost` extra: the vehicle flies into unmapped space and replans as
-    /// obstacles appear.
+    /// Planned through at `unknown_cost` extra, flown only once seen: the vehicle never goes
+    /// farther than it can stop inside space its sensors observed free (with the safety
+    /// distance), turning at `sense_rate` to look where it must go, and replans as obstacles
+    /// appear. Safe with any range sensor, however sparse.
     #[default]
-    Allowed,
+    #[serde(alias = "allowed")]
+    Sensed,
     /// Obstacles: only mapped free space is flown.
     Blocked,
+    /// Planned through at `unknown_cost` extra and flown at full speed without looking first:
+    /// only for space known to be clear (a vehicle without range sensors). Unsafe otherwise.
+    Blind,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
@@ -102,6 +108,13 @@ pub struct NavigateToGoal {
     /// sensors (a four-beam multi-ranger) sweep all around; overrides `yaw_mode`.
     #[serde(default)]
     pub spin_rate: Option<f64>,
+    /// Turn rate (rad/s, > 0) while waiting to see the path ahead (`unknown: sensed`).
+    #[serde(default = "default_sense_rate")]
+    pub sense_rate: f64,
+}
+
+fn default_sense_rate() -> f64 {
+    0.6
 }
 
 fn default_safety_distance() -> f64 {
@@ -131,6 +144,7 @@ impl Goal for NavigateToGoal {
         if let Some(rate) = self.spin_rate {
             check_finite("spin_rate", &[rate])?;
         }
+        check_positive("sense_rate", self.sense_rate, "rad/s")?;
         self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
@@ -159,9 +173,42 @@ const CHECK_PERIOD: Duration = Duration::from_millis(100);
 /// Shortest time between two replans (a blocked path waits this long before the next plan).
 const MIN_REPLAN_INTERVAL: Duration = Duration::from_millis(500);
 
+/// Seconds of reaction assumed between seeing and braking (map update and control lag).
+const REACTION_S: f64 = 0.3;
+/// Distance (m) kept short of the end of the seen-free path.
+const STOP_MARGIN_M: f64 = 0.15;
+/// Seen-free length (m), beyond what cruising needs, before a guarded vehicle cruises again.
+const CRUISE_HYSTERESIS_M: f64 = 0.5;
+/// A guarded vehicle that gets no closer (m) for the longer of two sensing turns and this long
+/// has stalled: unknown space ahead it cannot see from where it is.
+const STALL_PROGRESS_M: f64 = 0.1;
+const STALL_MIN_S: f64 = 8.0;
+/// Unknown cells this close (m) to a seen obstacle are planned around as obstacle: the side of
+/// a pole the beams have not reached yet cannot be seen before flying past it.
+const SHADOW_M: f64 = 0.3;
+/// Stalls before giving up; each replans with unknown space ten times dearer.
+const MAX_STALLS: u32 = 3;
+
+/// Flying only where the sensors have looked (`unknown: sensed`).
+#[derive(Debug, Clone, Copy, Default)]
+struct Guard {
+    /// Holding short of unseen space and turning to look, rather than cruising.
+    active: bool,
+    /// Seen-free length ahead at the last check (m).
+    clear_m: f64,
+    stalls: u32,
+    /// The last shadowed plan found no path: plan without the shadow.
+    unshadowed: bool,
+    /// Least remaining length while guarded (m) and when it last shrank.
+    best_remaining_m: f64,
+    best_at: Duration,
+}
+
 /// A plan asked for and not answered yet.
 struct Pending {
     ticket: Ticket,
+    /// Planned with unknown space near obstacles as obstacle ([`SHADOW_M`]).
+    shadowed: bool,
     /// Where the vehicle holds meanwhile.
     hold: MotionReference,
 }
@@ -179,6 +226,7 @@ pub struct NavigateTo {
     checked_revision: u64,
     checked_at: Duration,
     planned_at: Duration,
+    guard: Guard,
 }
 
 impl NavigateTo {
@@ -194,7 +242,92 @@ impl NavigateTo {
             checked_revision: 0,
             checked_at: Duration::ZERO,
             planned_at: Duration::ZERO,
+            guard: Guard::default(),
         }
+    }
+
+    /// The planner's extra cost of unknown cells: the goal's, ten times dearer per stall.
+    fn unknown_cost(&self) -> f64 {
+        if self.guard.stalls == 0 {
+            return self.goal.unknown_cost;
+        }
+        (self.goal.unknown_cost.max(1.0) * 10f64.powi(self.guard.stalls as i32))
+            .min(MAX_UNKNOWN_EXTRA_COST)
+    }
+
+    /// Seen-free length (m) needed to cruise at the goal's speed: reaction, braking, margin.
+    fn cruise_clear_m(&self, ctx: &BehaviorContext) -> f64 {
+        let v = self.goal.speed;
+        v * REACTION_S + v * v / (2.0 * braking_mps2(ctx)) + STOP_MARGIN_M
+    }
+
+    /// With `unknown: sensed`, the reference while the path ahead is not seen far enough to
+    /// cruise: creep to the end of what is seen free, turning to look; `None` while cruising
+    /// (the `follow_path` child flies). Leaving the guard restarts the child from here.
+    fn guard(&mut self, ctx: &BehaviorContext) -> Result<Option<MotionReference>, Failure> {
+        let (Some(map), Some(path)) = (ctx.map, self.path.as_ref()) else {
+            return Ok(None);
+        };
+        let here = ctx.position();
+        let need_m = self.cruise_clear_m(ctx);
+        let clear = path.clear_ahead(
+            &here,
+            map.grid(),
+            map.occupied_threshold(),
+            self.goal.safety_distance,
+            need_m + CRUISE_HYSTERESIS_M,
+        );
+        self.guard.clear_m = clear.clear_m;
+        let remaining_m = path.remaining_m(&here);
+        if self.guard.active {
+            if clear.to_goal || clear.clear_m >= need_m + CRUISE_HYSTERESIS_M {
+                self.guard.active = false;
+                let ahead = path.ahead().to_vec();
+                self.fly(ctx, &ahead)?;
+                return Ok(None);
+            }
+        } else if clear.to_goal || clear.clear_m >= need_m {
+            return Ok(None);
+        } else {
+            self.guard.active = true;
+            self.guard.best_remaining_m = remaining_m;
+            self.guard.best_at = ctx.now;
+            self.child = None;
+        }
+        if remaining_m < self.guard.best_remaining_m - STALL_PROGRESS_M {
+            self.guard.best_remaining_m = remaining_m;
+            self.guard.best_at = ctx.now;
+        }
+        let stall_s = (2.0 * std::f64::consts::TAU / self.goal.sense_rate).max(STALL_MIN_S);
+        if seconds_since(ctx.now, self.guard.best_at) > stall_s {
+            self.guard.stalls += 1;
+            if self.guard.stalls > MAX_STALLS {
+                let p = path.point_ahead(&here, clear.clear_m);
+                return Err(Failure::new(
+                    FailureCode::NoProgress,
+                    format!(
+                        "cannot see the way ahead: space near ({:.1}, {:.1}) m stays unobserved \
+                         from where the vehicle can safely go",
+                        p.x, p.y
+                    ),
+                ));
+            }
+            self.guard.active = false;
+            self.replans += 1;
+            self.ask_plan(ctx, map);
+            return Ok(Some(ctx.hold_here()));
+        }
+        let go_m = (clear.clear_m - STOP_MARGIN_M).max(0.0);
+        let speed = (2.0 * braking_mps2(ctx) * go_m)
+            .sqrt()
+            .clamp(0.05, self.goal.speed);
+        let rate = self.goal.spin_rate.unwrap_or(self.goal.sense_rate);
+        Ok(Some(MotionReference::Position {
+            position_enu_m: path.point_ahead(&here, go_m),
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Rate(rate),
+            max_speed_mps: speed,
+        }))
     }
 
     /// What the map already says of the goal, read from the cells around it only: outside the
@@ -232,12 +365,21 @@ impl NavigateTo {
             flight_height_m: self.target.z,
             safety_distance_m: self.goal.safety_distance + resolution_m,
             unknown: match self.goal.unknown {
-                UnknownArg::Allowed => UnknownPolicy::AllowedWithCost(self.goal.unknown_cost),
+                UnknownArg::Sensed | UnknownArg::Blind => {
+                    UnknownPolicy::AllowedWithCost(self.unknown_cost())
+                }
                 UnknownArg::Blocked => UnknownPolicy::Blocked,
             },
             kind: self.goal.planner.into(),
             max_map_age_s: None,
+            shadow_m: if self.shadowed() { SHADOW_M } else { 0.0 },
         }
+    }
+
+    /// Whether the next plan keeps off the unseen side of obstacles: when flying only what was
+    /// seen, unless that found no path last time.
+    fn shadowed(&self) -> bool {
+        self.goal.unknown == UnknownArg::Sensed && !self.guard.unshadowed
     }
 
     /// Files a plan from here on the current map; the vehicle holds here until it arrives.
@@ -246,6 +388,7 @@ impl NavigateTo {
         let ticket = ctx.services.plan(request, map.snapshot());
         self.pending = Some(Pending {
             ticket,
+            shadowed: self.shadowed(),
             hold: ctx.hold_here(),
         });
         self.child = None;
@@ -254,14 +397,11 @@ impl NavigateTo {
         self.planned_at = ctx.now;
     }
 
-    /// Hands a planned path to a new `follow_path` child, built directly from its typed goal.
-    fn fly(&mut self, ctx: &BehaviorContext, path: &PlannedPath) -> Result<(), Failure> {
+    /// Hands waypoints to a new `follow_path` child from here, built directly from its typed
+    /// goal.
+    fn fly(&mut self, ctx: &BehaviorContext, waypoints: &[Vec3]) -> Result<(), Failure> {
         let goal = FollowPathGoal {
-            path: path
-                .waypoints_enu_m
-                .iter()
-                .map(|p| [p.x, p.y, p.z])
-                .collect(),
+            path: waypoints.iter().map(|p| [p.x, p.y, p.z]).collect(),
             speed: self.goal.speed,
             yaw: self.yaw_args.clone(),
             frame_id: Some(EARTH.to_string()),
@@ -270,7 +410,7 @@ impl NavigateTo {
         let mut child = FollowPath::new(goal);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
         self.child = Some(Box::new(child));
-        self.path = Some(NavPath::new(ctx.position(), &path.waypoints_enu_m));
+        self.path = Some(NavPath::new(ctx.position(), waypoints));
         Ok(())
     }
 
@@ -281,9 +421,20 @@ impl NavigateTo {
         };
         match ctx.services.take_plan(&pending.ticket) {
             None => Ok(Some(pending.hold)),
+            Some(Err(_)) if pending.shadowed => {
+                // A gap that only looks closed from this side: plan through it and look.
+                self.guard.unshadowed = true;
+                if let Some(map) = ctx.map {
+                    self.ask_plan(ctx, map);
+                }
+                Ok(Some(ctx.hold_here()))
+            }
             Some(result) => {
                 self.pending = None;
-                self.fly(ctx, &result?)?;
+                let planned: PlannedPath = result?;
+                self.guard.unshadowed = false;
+                self.fly(ctx, &planned.waypoints_enu_m)?;
+                self.guard.active = false;
                 Ok(None)
             }
         }
@@ -327,8 +478,16 @@ impl NavigateTo {
             "actual_speed": ctx.state.velocity_enu_mps.norm(),
             "planned_path": self.path.as_ref().map(NavPath::points_json).unwrap_or_default(),
             "planning": self.pending.is_some(),
+            "sensing": self.guard.active,
+            "seen_ahead_m": self.guard.clear_m,
         })
     }
+}
+
+/// Deceleration (m/s^2) the guard counts on: half the configured limit, leaving room for
+/// tracking.
+fn braking_mps2(ctx: &BehaviorContext) -> f64 {
+    (0.5 * ctx.config.max_acceleration_mps2).max(0.1)
 }
 
 fn no_map() -> Failure {
@@ -376,6 +535,7 @@ impl InFlight for NavigateTo {
             }
         };
         self.replans = 0;
+        self.guard = Guard::default();
         let map = ctx.map.ok_or_else(no_map)?;
         self.goal_plausible(map)?;
         self.ask_plan(ctx, map);
@@ -417,6 +577,18 @@ impl InFlight for NavigateTo {
                     reference: Some(spin(ctx.hold_here())),
                     feedback: self.feedback(ctx),
                 };
+            }
+        }
+        if self.goal.unknown == UnknownArg::Sensed {
+            match self.guard(ctx) {
+                Err(e) => return Step::Failed(e),
+                Ok(Some(reference)) => {
+                    return Step::Running {
+                        reference: Some(reference),
+                        feedback: self.feedback(ctx),
+                    }
+                }
+                Ok(None) => {}
             }
         }
         let Some(child) = self.child.as_mut() else {

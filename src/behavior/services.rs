@@ -183,6 +183,7 @@ mod tests {
             unknown: UnknownPolicy::Blocked,
             kind: PlannerKind::AStar,
             max_map_age_s: None,
+            shadow_m: 0.0,
         }
     }
 

@@ -206,6 +206,7 @@ mod tests {
             unknown: UnknownPolicy::Blocked,
             kind: PlannerKind::GraphAStar,
             max_map_age_s: None,
+            shadow_m: 0.0,
         }
     }
 

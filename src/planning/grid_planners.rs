@@ -307,6 +307,7 @@ mod tests {
             unknown: UnknownPolicy::Blocked,
             kind,
             max_map_age_s: None,
+            shadow_m: 0.0,
         }
     }
 
@@ -595,6 +596,7 @@ mod tests {
                     unknown: UnknownPolicy::AllowedWithCost(1.0),
                     kind,
                     max_map_age_s: None,
+                    shadow_m: 0.0,
                 };
                 let p = plan(&r, &m).unwrap();
                 // Sample the flown polyline: never within the safety distance of a real pillar

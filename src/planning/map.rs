@@ -51,6 +51,42 @@ impl PlanningMap {
         self
     }
 
+    /// Unknown cells within `radius_m` of an occupied cell made occupied (O(occupied cells x
+    /// disc)); the grid as it was when `radius_m` is under one cell.
+    pub fn shadowed(grid: &OccupancyGrid, occupied_threshold: i8, radius_m: f64) -> OccupancyGrid {
+        let spec = *grid.spec();
+        let r = (radius_m / spec.resolution_m + 1e-9).floor() as i64;
+        let mut out = grid.clone();
+        if r < 1 {
+            return out;
+        }
+        let (w, h) = (i64::from(spec.width_cells), i64::from(spec.height_cells));
+        let data = grid.data();
+        let mut grown = out.data().to_vec();
+        for (i, &v) in data.iter().enumerate() {
+            if v < occupied_threshold {
+                continue;
+            }
+            let (x, y) = ((i as i64) % w, (i as i64) / w);
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if dx * dx + dy * dy > r * r || nx < 0 || ny < 0 || nx >= w || ny >= h {
+                        continue;
+                    }
+                    let j = (ny * w + nx) as usize;
+                    if grown[j] < 0 {
+                        grown[j] = 100;
+                    }
+                }
+            }
+        }
+        if let Ok(g) = OccupancyGrid::from_data(spec, grown) {
+            out = g;
+        }
+        out
+    }
+
     /// The revision of the drone map this was built from, for caches.
     pub fn with_revision(mut self, revision: u64) -> Self {
         self.revision = Some(revision);
@@ -129,6 +165,31 @@ mod tests {
     use super::*;
     use crate::mapping::grid::GridSpec;
     use nalgebra::Vector2;
+
+    #[test]
+    fn unknown_cells_near_an_obstacle_are_shadowed_free_and_far_ones_are_not() {
+        let spec = GridSpec {
+            resolution_m: 0.1,
+            width_cells: 20,
+            height_cells: 1,
+            origin_enu_m: Vector2::new(0.0, 0.0),
+        };
+        // free | obstacle at 5 | unknown 6..20
+        let data: Vec<i8> = (0..20)
+            .map(|x| match x {
+                0..=4 => 0,
+                5 => 100,
+                _ => crate::mapping::UNKNOWN,
+            })
+            .collect();
+        let grid = OccupancyGrid::from_data(spec, data).unwrap();
+        let shadowed = PlanningMap::shadowed(&grid, 31, 0.3);
+        let d = shadowed.data();
+        assert_eq!(&d[0..5], &[0; 5], "free cells stay free");
+        assert_eq!(&d[5..9], &[100; 4], "unknown within 0.3 m becomes obstacle");
+        assert!(d[9..].iter().all(|&v| v == crate::mapping::UNKNOWN));
+        assert_eq!(PlanningMap::shadowed(&grid, 31, 0.05).data(), grid.data());
+    }
 
     #[test]
     fn corridor_diagram_is_its_centre_line() {

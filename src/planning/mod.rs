@@ -100,6 +100,10 @@ pub struct PlanRequest {
     /// Refuse maps older than this (seconds), checked against `PlanBudget::now_s`.
     #[serde(default)]
     pub max_map_age_s: Option<f64>,
+    /// Unknown cells this close (m) to an obstacle count as obstacle: the hidden side of an
+    /// obstacle seen from one side only. 0 leaves unknown cells as they are.
+    #[serde(default)]
+    pub shadow_m: f64,
 }
 
 /// Limits of one planning call. The caller measures time; planners only read these.

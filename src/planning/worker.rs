@@ -178,12 +178,12 @@ fn serve(
     deadline: Option<Duration>,
 ) {
     let planners = Planners::default();
-    let mut maps: HashMap<usize, Arc<PlanningMap>> = HashMap::new();
+    let mut maps: HashMap<usize, (f64, Arc<PlanningMap>)> = HashMap::new();
     while let Ok((drone, job)) = jobs.recv() {
         let result = if job.cancel.load(Ordering::Relaxed) {
             Err(PlanError::Cancelled)
         } else {
-            let map = planning_map(&mut maps, drone, &job.map);
+            let map = planning_map(&mut maps, drone, &job.map, job.request.shadow_m);
             let passed = Arc::new(AtomicBool::new(false));
             if let Some(d) = deadline {
                 watchdog.arm(Instant::now() + d, passed.clone());
@@ -214,25 +214,32 @@ fn serve(
     }
 }
 
-/// The drone's planning map for this snapshot, rebuilt only when its revision changed.
+/// The drone's planning map for this snapshot (unknown cells within `shadow_m` of obstacles
+/// made obstacles), rebuilt only when its revision or the shadow changed.
 fn planning_map(
-    maps: &mut HashMap<usize, Arc<PlanningMap>>,
+    maps: &mut HashMap<usize, (f64, Arc<PlanningMap>)>,
     drone: usize,
     snap: &MapSnapshot,
+    shadow_m: f64,
 ) -> Arc<PlanningMap> {
-    if let Some(m) = maps.get(&drone) {
-        if m.revision() == Some(snap.revision) {
+    if let Some((shadow, m)) = maps.get(&drone) {
+        if m.revision() == Some(snap.revision) && *shadow == shadow_m {
             return m.clone();
         }
     }
-    let mut map = PlanningMap::new(snap.grid.clone(), snap.occupied_threshold)
+    let grid = if shadow_m > 0.0 {
+        PlanningMap::shadowed(&snap.grid, snap.occupied_threshold, shadow_m)
+    } else {
+        snap.grid.clone()
+    };
+    let mut map = PlanningMap::new(grid, snap.occupied_threshold)
         .with_stamp(snap.updated_at_s)
         .with_revision(snap.revision);
     if let Some(g) = &snap.graph {
         map = map.with_graph((**g).clone());
     }
     let map = Arc::new(map);
-    maps.insert(drone, map.clone());
+    maps.insert(drone, (shadow_m, map.clone()));
     map
 }
 
@@ -340,6 +347,7 @@ mod tests {
                 unknown: UnknownPolicy::Blocked,
                 kind: PlannerKind::AStar,
                 max_map_age_s: None,
+                shadow_m: 0.0,
             },
             map,
             cancel: Arc::new(AtomicBool::new(false)),
@@ -393,12 +401,12 @@ mod tests {
     #[test]
     fn the_planning_map_is_rebuilt_only_for_a_new_revision() {
         let mut maps = HashMap::new();
-        let a = planning_map(&mut maps, 0, &snapshot(4, false));
-        let b = planning_map(&mut maps, 0, &snapshot(4, true));
+        let a = planning_map(&mut maps, 0, &snapshot(4, false), 0.0);
+        let b = planning_map(&mut maps, 0, &snapshot(4, true), 0.0);
         assert!(Arc::ptr_eq(&a, &b), "same revision: cached");
-        let c = planning_map(&mut maps, 0, &snapshot(5, true));
+        let c = planning_map(&mut maps, 0, &snapshot(5, true), 0.0);
         assert!(!Arc::ptr_eq(&a, &c));
-        let d = planning_map(&mut maps, 1, &snapshot(5, true));
+        let d = planning_map(&mut maps, 1, &snapshot(5, true), 0.0);
         assert!(!Arc::ptr_eq(&c, &d), "one map per drone");
     }
 }
