@@ -212,6 +212,7 @@ fn start_platform(config: &Config) -> Result<(Box<dyn Platform>, Duration, Estim
     let link = LinkConfig {
         connection: m.connection.clone(),
         forward: m.forward.clone(),
+        peers: m.peer_policy(),
     };
     let platform = MavlinkPlatform::start(profile, m.session_config(), link)?;
     Ok((

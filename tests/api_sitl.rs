@@ -75,6 +75,7 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
         LinkConfig {
             connection: config.mavlink.connection.clone(),
             forward: Vec::new(),
+            peers: config.mavlink.peer_policy(),
         },
     )
     .unwrap();

@@ -93,6 +93,39 @@ fn load_without_mission_id_allocates_one() {
 }
 
 #[test]
+fn missions_beyond_the_limit_per_drone_are_refused_and_change_nothing() {
+    use kestrel::mission::executor::MAX_MISSIONS;
+    let mut rig = Rig::new();
+    for id in 0..MAX_MISSIONS as i64 {
+        rig.send(Action::Load, Some(id), None, Some(takeoff_go_land()))
+            .unwrap();
+    }
+    let before = rig.host.executors()[0].missions().len();
+    assert_eq!(before, MAX_MISSIONS);
+    for (action, id) in [
+        (Action::Load, Some(1000)),
+        (Action::Load, None),
+        (Action::Execute, None),
+    ] {
+        let reason = refused(rig.send(action, id, None, Some(square())));
+        assert!(
+            reason.contains("mission_id") && reason.contains(&MAX_MISSIONS.to_string()),
+            "{reason}"
+        );
+    }
+    // The upload path (POST /api/missions) too.
+    let err = rig.host.upload(&square(), None).unwrap_err();
+    assert!(err.to_string().contains("missions are loaded"), "{err}");
+    assert_eq!(rig.host.executors()[0].missions().len(), before);
+    assert!(rig.started().is_empty());
+    // Replacing an idle one is still fine.
+    let s = rig
+        .send(Action::Load, Some(3), None, Some(square()))
+        .unwrap();
+    assert_eq!(s.status.pending_items, 5);
+}
+
+#[test]
 fn load_replaces_an_idle_mission_but_not_the_running_one() {
     let mut rig = Rig::new();
     rig.send(Action::Load, Some(1), None, Some(takeoff_go_land()))

@@ -315,6 +315,34 @@ fn frames_at_absurd_places_are_refused_and_change_nothing() {
 }
 
 #[test]
+fn frame_errors_name_the_field_and_unit_and_the_count_is_bounded() {
+    use kestrel::host::engine::MAX_FRAMES;
+    let mut h = Harness::one_drone();
+    let err = frame_at(&mut h, "site", f64::INFINITY, 0.0).unwrap_err();
+    let message = err.to_string();
+    assert!(
+        message.contains("site") && message.contains("translation_m[2]") && message.contains("(m)"),
+        "{message}"
+    );
+    let err = frame_at(&mut h, "site", 0.0, f64::NAN)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("velocity_mps[2]") && err.contains("(m/s)"),
+        "{err}"
+    );
+    for k in 0..MAX_FRAMES {
+        frame_at(&mut h, &format!("f{k}"), 0.0, 0.0).unwrap();
+    }
+    let err = frame_at(&mut h, "one_more", 0.0, 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains(&MAX_FRAMES.to_string()), "{err}");
+    // Replacing a registered frame stays possible at the limit.
+    frame_at(&mut h, "f3", 1.0, 0.0).unwrap();
+}
+
+#[test]
 fn two_drones_whose_goals_cross_are_kept_apart() {
     let mut h = Harness::new(World::empty(), 2);
     h.take_off(0, 2.0);

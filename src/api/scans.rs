@@ -37,7 +37,7 @@ mod tests {
     use super::*;
     use crate::mapping::scan;
     use nalgebra::Vector3;
-    use serde_json::json;
+    use serde_json::{json, Value};
 
     #[test]
     fn every_kind_becomes_a_scan_and_bad_ones_are_pointed_at() {
@@ -82,15 +82,45 @@ mod tests {
             ]});
             match body_scans(body.to_string().as_bytes(), false, None) {
                 Err(ApiError::Invalid(errors)) => {
-                    assert_eq!(errors[0].pointer, "/scans/0");
+                    assert_eq!(errors[0].pointer, "/scans/0/beam_count");
                     assert!(
-                        errors[0].message.contains("beam_count"),
+                        errors[0].message.contains("1..=3600"),
                         "{}",
                         errors[0].message
                     );
                 }
                 other => panic!("{count}: {other:?}"),
             }
+        }
+    }
+
+    #[test]
+    fn sizes_and_numbers_are_refused_with_the_field_and_unit() {
+        let planar = |angle: Value, ranges: usize| {
+            json!({ "kind": "planar", "origin_enu_m": [0, 0, 1], "yaw_rad": 0,
+                "angle_min_rad": angle, "angle_increment_rad": 0.01,
+                "ranges_m": vec![1.0; ranges], "range_min_m": 0.1, "range_max_m": 5 })
+        };
+        let cloud = json!({ "kind": "point_cloud", "origin_enu_m": [0, 0, 1], "yaw_rad": 0,
+            "points_flu_m": [[2, 0, 0]], "z_min_m": 0.5, "z_max_m": 0.2,
+            "range_min_m": 0.1, "range_max_m": 10 });
+        let body = json!({ "scans": [
+            planar(json!(0.0), 3), planar(json!(0.0), scan::MAX_BEAMS + 1), cloud,
+            planar(json!(1e308), 1)
+        ]});
+        match body_scans(body.to_string().as_bytes(), false, None) {
+            Err(ApiError::Invalid(errors)) => {
+                let got: Vec<(&str, &str)> = errors
+                    .iter()
+                    .map(|e| (e.pointer.as_str(), e.message.as_str()))
+                    .collect();
+                assert_eq!(got.len(), 2, "{got:?}");
+                assert_eq!(got[0].0, "/scans/1/ranges_m");
+                assert!(got[0].1.contains("at most 10000"), "{got:?}");
+                assert_eq!(got[1].0, "/scans/2/z_max_m");
+                assert!(got[1].1.contains(" m)"), "{got:?}");
+            }
+            other => panic!("{other:?}"),
         }
     }
 

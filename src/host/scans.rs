@@ -13,6 +13,10 @@ use std::f64::consts::PI;
 
 /// Most scans in one request.
 pub const MAX_SCANS_PER_REQUEST: usize = 16;
+/// Most bins a point cloud is flattened into (a tenth of a degree each).
+pub const MAX_CLOUD_BINS: usize = 3600;
+/// Most points in one point cloud.
+pub const MAX_CLOUD_POINTS: usize = 100_000;
 
 /// One sensor reading, in the world frame of the drone (`earth`, ENU) at the sensor's pose.
 #[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
@@ -167,34 +171,80 @@ impl ScanInput {
         }
     }
 
-    /// Problems a scan's own validation cannot see (numbers it does not keep).
-    fn check(&self) -> Result<(), String> {
+    /// Problems a scan's own validation cannot see (numbers it does not keep) and every size,
+    /// before anything is built with it: `Err((field, message))`.
+    fn check(&self) -> Result<(), (&'static str, String)> {
+        let finite = |field: &'static str, v: f64, unit: &str| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err((
+                    field,
+                    format!("{field} is {v}, not a finite number ({unit})"),
+                ))
+            }
+        };
+        let at_most = |field: &'static str, n: usize, max: usize, what: &str| {
+            if n <= max {
+                Ok(())
+            } else {
+                Err((field, format!("{field} has {n} {what}, at most {max}")))
+            }
+        };
         match self {
             ScanInput::Planar {
                 angle_increment_rad,
                 angle_min_rad,
+                ranges_m,
                 ..
-            } if !(angle_increment_rad.is_finite() && angle_min_rad.is_finite()) => {
-                Err("angles must be finite".into())
+            } => {
+                finite("angle_min_rad", *angle_min_rad, "rad")?;
+                finite("angle_increment_rad", *angle_increment_rad, "rad")?;
+                at_most("ranges_m", ranges_m.len(), scan::MAX_BEAMS, "ranges")
             }
-            ScanInput::DepthRow { fx_px, cx_px, .. }
-                if !(fx_px.is_finite() && *fx_px > 0.0 && cx_px.is_finite()) =>
-            {
-                Err("fx_px must be > 0 and cx_px finite (pixels)".into())
+            ScanInput::DepthRow {
+                fx_px,
+                cx_px,
+                depths_m,
+                ..
+            } => {
+                if !(fx_px.is_finite() && *fx_px > 0.0) {
+                    return Err(("fx_px", format!("fx_px is {fx_px}, must be > 0 (pixels)")));
+                }
+                finite("cx_px", *cx_px, "pixels")?;
+                at_most("depths_m", depths_m.len(), scan::MAX_BEAMS, "columns")
             }
             ScanInput::PointCloud {
                 beam_count,
                 z_min_m,
                 z_max_m,
+                points_flu_m,
                 ..
-            } if !((1..=3600).contains(beam_count)
-                && z_min_m.is_finite()
-                && z_max_m.is_finite())
-                || z_min_m > z_max_m =>
-            {
-                Err("beam_count must be 1..=3600 and z_min_m <= z_max_m".into())
+            } => {
+                if !(1..=MAX_CLOUD_BINS).contains(beam_count) {
+                    return Err((
+                        "beam_count",
+                        format!(
+                            "beam_count is {beam_count}, must be 1..={MAX_CLOUD_BINS} (bins over 360 degrees)"
+                        ),
+                    ));
+                }
+                finite("z_min_m", *z_min_m, "m")?;
+                finite("z_max_m", *z_max_m, "m")?;
+                if z_min_m > z_max_m {
+                    return Err((
+                        "z_max_m",
+                        format!("z_max_m ({z_max_m} m) is below z_min_m ({z_min_m} m)"),
+                    ));
+                }
+                at_most(
+                    "points_flu_m",
+                    points_flu_m.len(),
+                    MAX_CLOUD_POINTS,
+                    "points",
+                )
             }
-            _ => Ok(()),
+            ScanInput::Multiranger { .. } => Ok(()),
         }
     }
 }
@@ -207,13 +257,16 @@ pub fn to_scans(batch: &ScanBatch) -> Result<Vec<RangeScan>, Vec<ValidationError
     for (i, input) in batch.scans.iter().enumerate() {
         let built = input.check().and_then(|()| {
             let scan = input.to_scan();
-            scan.validate().map_err(|e| e.to_string())?;
+            scan.validate().map_err(|e| ("", e.to_string()))?;
             Ok(scan)
         });
         match built {
             Ok(scan) => scans.push(scan),
-            Err(message) => errors.push(ValidationError {
-                pointer: format!("/scans/{i}"),
+            Err((field, message)) => errors.push(ValidationError {
+                pointer: match field {
+                    "" => format!("/scans/{i}"),
+                    f => format!("/scans/{i}/{f}"),
+                },
                 message,
             }),
         }

@@ -255,20 +255,27 @@ fn parse_pgm(bytes: &[u8]) -> Result<(u32, u32, u8, Vec<u8>), MapError> {
     if maxval == 0 || maxval > 255 {
         return Err(bad("only 8-bit PGM is supported"));
     }
-    let n = (w as usize)
-        .checked_mul(h as usize)
-        .ok_or_else(|| bad("size overflow"))?;
+    // Bounded before anything is allocated with it (a header is a few bytes, the size is not).
+    let cells = u64::from(w) * u64::from(h);
+    if cells == 0 || cells > super::grid::MAX_CELLS {
+        return Err(bad(&format!(
+            "{w} x {h} pixels: a map has 1..={} cells",
+            super::grid::MAX_CELLS
+        )));
+    }
+    let n = usize::try_from(cells).map_err(|_| bad("size overflow"))?;
     let values = match magic.as_str() {
         "P5" => {
             // Exactly one whitespace byte separates maxval from the raster.
             let start = pos + 1;
             let raster = bytes
-                .get(start..start + n)
+                .get(start..start.saturating_add(n))
                 .ok_or_else(|| bad("truncated raster"))?;
             raster.to_vec()
         }
         "P2" => {
-            let mut v = Vec::with_capacity(n);
+            // An ASCII pixel takes two bytes at least: the file bounds what is reserved.
+            let mut v = Vec::with_capacity(n.min(bytes.len() / 2));
             for _ in 0..n {
                 let x = num(&mut pos)?;
                 v.push(u8::try_from(x).map_err(|_| bad("pixel above 255"))?);
@@ -294,6 +301,18 @@ mod tests {
         };
         // South row: free, occupied, unknown; north row: 10, 50, 90.
         OccupancyGrid::from_data(spec, vec![0, 100, -1, 10, 50, 90]).unwrap()
+    }
+
+    #[test]
+    fn a_pgm_header_with_a_huge_size_is_refused_before_allocating() {
+        for header in [
+            "P2 4000000000 4000000000 255 0",
+            "P5 100000 100000 255 ",
+            "P2 0 5 255",
+        ] {
+            let e = parse_pgm(header.as_bytes()).unwrap_err().to_string();
+            assert!(e.contains("cells"), "{header}: {e}");
+        }
     }
 
     #[test]

@@ -14,11 +14,11 @@
 //! | 0 | `[u8; 4]` | magic `b"KSC1"` |
 //! | 4, 12, 20 | `f64` ×3 | sensor origin x, y, z (ENU, m) |
 //! | 28 | `f64` | sensor yaw (ENU, rad, CCW from east) |
-//! | 36 | `f32` | range_min (m) |
-//! | 40 | `f32` | range_max (m) |
-//! | 44 | `f32` | angle of the first beam (rad, FLU) |
-//! | 48 | `f32` | angle increment (rad) |
-//! | 52 | `u32` | beam count N |
+//! | 36 | `f32` | range_min (m, finite) |
+//! | 40 | `f32` | range_max (m, finite) |
+//! | 44 | `f32` | angle of the first beam (rad, FLU, finite) |
+//! | 48 | `f32` | angle increment (rad, finite) |
+//! | 52 | `u32` | beam count N (at most [`MAX_BEAMS`]) |
 //! | 56 | `f32` ×N | ranges (m): NaN = invalid (dropped), +inf or > range_max = no return |
 
 use std::f64::consts::{PI, TAU};
@@ -27,6 +27,10 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use super::MapError;
+
+/// Most beams in one scan from outside (a `KSC1` message, a planar scan or a depth row sent
+/// over the API): more than any planar lidar has, far less than would stall the map.
+pub const MAX_BEAMS: usize = 10_000;
 use crate::types::scan::beam;
 pub use crate::types::scan::{
     beam_from_distance_sensor, from_multiranger, from_obstacle_distance, from_planar_lidar, Beam,
@@ -59,10 +63,29 @@ impl RangeScan {
         let range_max = f32_at(40)?;
         let angle_min = f32_at(44)?;
         let increment = f32_at(48)?;
+        for (field, v) in [
+            ("angle_min (offset 44, rad)", angle_min),
+            ("angle_increment (offset 48, rad)", increment),
+            ("range_min (offset 36, m)", range_min),
+            ("range_max (offset 40, m)", range_max),
+        ] {
+            if !v.is_finite() {
+                return Err(bad(&format!("{field} is {v}, not a finite number")));
+            }
+        }
         let n = u32_at(52)? as usize;
+        if n > MAX_BEAMS {
+            return Err(bad(&format!(
+                "beam count (offset 52) is {n}, more than {MAX_BEAMS}"
+            )));
+        }
         let expected = n.checked_mul(4).and_then(|b| b.checked_add(56));
         if expected != Some(bytes.len()) {
-            return Err(bad("length does not match the beam count"));
+            return Err(bad(&format!(
+                "{} bytes, but a beam count of {n} (offset 52) needs {}",
+                bytes.len(),
+                56 + 4 * n
+            )));
         }
         let mut ranges = Vec::with_capacity(n);
         for i in 0..n {
@@ -366,5 +389,24 @@ mod tests {
         assert!((s.beams[3].angle_rad - 1.0).abs() < 1e-6);
         assert!(RangeScan::decode_binary(&bytes[..bytes.len() - 1]).is_err());
         assert!(RangeScan::decode_binary(b"XXXX").is_err());
+    }
+
+    #[test]
+    fn binary_headers_with_non_finite_angles_or_huge_counts_are_refused() {
+        let origin = Vector3::new(1.0, 2.0, 1.0);
+        // No beam would carry the bad angle: the header itself is checked.
+        for (angle, increment, ranges) in [
+            (f32::NAN, 0.5, vec![f32::NAN; 3]),
+            (0.0, f32::INFINITY, vec![]),
+            (f32::NEG_INFINITY, 0.5, vec![f32::NAN]),
+        ] {
+            let bytes = encode_binary(origin, 0.0, 0.1, 8.0, angle, increment, &ranges);
+            let e = RangeScan::decode_binary(&bytes).unwrap_err().to_string();
+            assert!(e.contains("angle"), "{e}");
+        }
+        let mut huge = encode_binary(origin, 0.0, 0.1, 8.0, 0.0, 0.1, &[]);
+        huge.splice(52..56, u32::MAX.to_le_bytes());
+        let e = RangeScan::decode_binary(&huge).unwrap_err().to_string();
+        assert!(e.contains("offset 52") && e.contains("10000"), "{e}");
     }
 }

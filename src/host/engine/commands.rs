@@ -144,7 +144,8 @@ pub const MAX_FRAME_OFFSET_M: f64 = 1e5;
 /// Fastest a registered frame may move (m/s) and turn (rad/s).
 pub const MAX_FRAME_SPEED_MPS: f64 = 50.0;
 pub const MAX_FRAME_YAW_RATE_RADPS: f64 = 10.0;
-/// Most frames registered over the API (all drones together).
+/// Most frames registered over the API (all drones together, so also per drone); replacing a
+/// registered one is always allowed.
 pub const MAX_FRAMES: usize = 256;
 
 impl FrameRegistration {
@@ -154,15 +155,21 @@ impl FrameRegistration {
         if [EARTH, MAP, ODOM, BASE_LINK].contains(&self.frame_id.as_str()) {
             return bad("a built-in frame cannot be redefined".into());
         }
-        let numbers = self
-            .translation_m
-            .iter()
-            .chain(&self.velocity_mps)
-            .chain([&self.yaw_rad, &self.yaw_rate_radps]);
-        for v in numbers {
-            if !v.is_finite() {
-                return bad("every number must be finite".into());
-            }
+        let vector = |field: &str, v: &[f64; 3], unit: &str| {
+            v.iter()
+                .enumerate()
+                .find(|(_, c)| !c.is_finite())
+                .map(|(k, c)| format!("{field}[{k}] is {c}, not a finite number ({unit})"))
+        };
+        let scalar = |field: &str, v: f64, unit: &str| {
+            (!v.is_finite()).then(|| format!("{field} is {v}, not a finite number ({unit})"))
+        };
+        let not_finite = vector("translation_m", &self.translation_m, "m")
+            .or_else(|| vector("velocity_mps", &self.velocity_mps, "m/s"))
+            .or_else(|| scalar("yaw_rad", self.yaw_rad, "rad"))
+            .or_else(|| scalar("yaw_rate_radps", self.yaw_rate_radps, "rad/s"));
+        if let Some(message) = not_finite {
+            return bad(message);
         }
         let norm = |v: &[f64; 3]| v.iter().map(|c| c * c).sum::<f64>().sqrt();
         if norm(&self.translation_m) > MAX_FRAME_OFFSET_M {
@@ -281,7 +288,7 @@ impl Host {
             return Err(HostError::UnknownDrone(target, String::new()));
         };
         let id = match mission_id {
-            None => ex.load_new(valid),
+            None => ex.load_new(valid)?,
             Some(id) => {
                 let req = Request {
                     action: crate::mission::Action::Load,

@@ -9,7 +9,7 @@ mod commands;
 mod maps;
 
 pub use super::map_view::MapView;
-pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uploaded};
+pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uploaded, MAX_FRAMES};
 
 use super::fleet::Fleet;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};

@@ -95,6 +95,9 @@ impl MissionExecutor {
         core: &mut DroneCore,
         now: Duration,
     ) -> Result<MissionStatus, ActionError> {
+        if matches!(req.action, Action::Execute | Action::Load) {
+            self.check_room(req.mission_id)?;
+        }
         let id = match (req.action, req.mission_id) {
             (_, Some(id)) => id,
             (Action::Execute | Action::Load, None) => self.fresh_id(),

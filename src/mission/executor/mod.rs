@@ -24,6 +24,10 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::time::Duration;
 
+/// Most missions loaded on one drone at once; one more is refused (delete one, or load under
+/// the id of an idle one to replace it).
+pub const MAX_MISSIONS: usize = 64;
+
 /// A loaded mission and how far it got.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Loaded {
@@ -167,18 +171,35 @@ impl MissionExecutor {
     }
 
     /// Loads a mission under a new id, as `POST /api/missions` does.
-    pub fn load_new(&mut self, mission: ValidMission) -> u32 {
+    pub fn load_new(&mut self, mission: ValidMission) -> Result<u32, ActionError> {
+        self.check_room(None)?;
         let id = self.fresh_id();
         self.store(id, mission);
-        id
+        Ok(id)
+    }
+
+    /// Refuses a mission that would be one more than [`MAX_MISSIONS`] (`id`: the one it
+    /// would replace, if any).
+    fn check_room(&self, id: Option<u32>) -> Result<(), ActionError> {
+        let replaces = id.is_some_and(|id| self.missions.contains_key(&id));
+        if replaces || self.missions.len() < MAX_MISSIONS {
+            return Ok(());
+        }
+        Err(refused(format!(
+            "mission_id: {} missions are loaded on this drone, the most it keeps \
+             ({MAX_MISSIONS}); delete one (DELETE /api/missions/{{id}}) or load under the id of \
+             an idle one to replace it",
+            self.missions.len()
+        )))
     }
 
     fn fresh_id(&mut self) -> u32 {
-        while self.missions.contains_key(&self.next_id) {
-            self.next_id += 1;
+        // At most MAX_MISSIONS ids are taken, so this ends; 0 is never handed out.
+        while self.next_id == 0 || self.missions.contains_key(&self.next_id) {
+            self.next_id = self.next_id.wrapping_add(1);
         }
         let id = self.next_id;
-        self.next_id += 1;
+        self.next_id = self.next_id.wrapping_add(1);
         id
     }
 

@@ -1,8 +1,10 @@
 //! The `[mavlink]` section of the config file: where the autopilot is and how to treat it.
 //!
 //! In: TOML (unknown keys refused). Out: the profile path, the connection and forwarding
-//! strings, and the [`SessionConfig`] (our ids, link policy, EKF origin).
+//! strings, the `udpin` [`PeerPolicy`] and the [`SessionConfig`] (our ids, link policy, EKF
+//! origin).
 
+use super::peer::{PeerPattern, PeerPolicy};
 use super::session::SessionConfig;
 use crate::types::GeoPoint;
 use serde::{Deserialize, Serialize};
@@ -31,6 +33,13 @@ pub struct MavlinkSection {
     pub ekf_origin: Option<GeoPoint>,
     /// Ground station endpoints that get the autopilot's stream, e.g. `udpout:127.0.0.1:14550`.
     pub forward: Vec<String>,
+    /// `udpin` only: answer only the address the autopilot's HEARTBEAT came from, and ignore
+    /// datagrams from any other (another may take its place after 3 s of its silence). `false`
+    /// answers whoever sent last (any host that can reach the port can then take the link).
+    pub pin_peer: bool,
+    /// `udpin` only: the addresses that may be heard at all, `IP` (any port) or `IP:port`, e.g.
+    /// a GCS router's `["127.0.0.1:14580"]`; empty = any.
+    pub allowed_peers: Vec<String>,
 }
 
 impl Default for MavlinkSection {
@@ -44,6 +53,8 @@ impl Default for MavlinkSection {
             on_link_regained: None,
             ekf_origin: None,
             forward: Vec::new(),
+            pin_peer: true,
+            allowed_peers: Vec::new(),
         }
     }
 }
@@ -59,6 +70,9 @@ impl MavlinkSection {
         address("mavlink.connection", &self.connection)?;
         for f in &self.forward {
             address("mavlink.forward", f)?;
+        }
+        for p in &self.allowed_peers {
+            PeerPattern::parse(p).map_err(|e| ("mavlink.allowed_peers".to_string(), e))?;
         }
         if self.on_link_regained.is_some() {
             return Err((
@@ -76,6 +90,19 @@ impl MavlinkSection {
         Ok(())
     }
 
+    /// The `udpin` peer policy (patterns that do not parse were refused by `validate`).
+    pub fn peer_policy(&self) -> PeerPolicy {
+        PeerPolicy {
+            pin: self.pin_peer,
+            allowed: self
+                .allowed_peers
+                .iter()
+                .filter_map(|p| PeerPattern::parse(p).ok())
+                .collect(),
+            target_system: self.target_system,
+        }
+    }
+
     pub fn session_config(&self) -> SessionConfig {
         SessionConfig {
             system_id: self.system_id,
@@ -83,5 +110,27 @@ impl MavlinkSection {
             target_system: self.target_system,
             ekf_origin: self.ekf_origin,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn udpin_peers_are_pinned_by_default_and_allowed_peers_must_be_addresses() {
+        let default = MavlinkSection::default();
+        assert!(default.peer_policy().pin);
+        let section: MavlinkSection = toml::from_str(
+            "target_system = 3\nallowed_peers = [\"127.0.0.1:14580\", \"10.0.0.2\"]",
+        )
+        .unwrap();
+        assert_eq!(section.validate(), Ok(()));
+        let policy = section.peer_policy();
+        assert_eq!((policy.allowed.len(), policy.target_system), (2, Some(3)));
+        let bad: MavlinkSection = toml::from_str("allowed_peers = [\"gcs.local\"]").unwrap();
+        let (field, message) = bad.validate().unwrap_err();
+        assert_eq!(field, "mavlink.allowed_peers");
+        assert!(message.contains("gcs.local"), "{message}");
     }
 }

@@ -8,9 +8,11 @@ use super::link::{
     self, Control, Event, SessionIo, Snapshot, CONTROL_QUEUE, EVENT_QUEUE, INBOUND_QUEUE,
     OUTBOUND_QUEUE,
 };
+use super::peer::PeerPolicy;
 use super::profile::Profile;
 use super::router::{self, ROUTER_QUEUE};
 use super::session::{Session, SessionConfig};
+use super::udp_in;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use crate::types::Setpoint;
 use std::time::Duration;
@@ -24,6 +26,8 @@ pub struct LinkConfig {
     pub connection: String,
     /// Ground station endpoints that get the autopilot's stream (and whose commands go back).
     pub forward: Vec<String>,
+    /// `udpin` only: whose datagrams are taken and who is answered.
+    pub peers: PeerPolicy,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -77,13 +81,25 @@ impl MavlinkPlatform {
                 )));
             }
         }
-        tasks.push(handle.spawn(link::connection_task(
-            link_config.connection,
-            inbound_tx,
-            outbound_rx,
-            transport_tx,
-            router,
-        )));
+        // `udpin` is Kestrel's own (the peer pinned); the crate's connection for the rest.
+        let transport = match link_config.connection.strip_prefix("udpin:") {
+            Some(bind) => handle.spawn(udp_in::task(
+                bind.to_string(),
+                link_config.peers,
+                inbound_tx,
+                outbound_rx,
+                transport_tx,
+                router,
+            )),
+            None => handle.spawn(link::connection_task(
+                link_config.connection,
+                inbound_tx,
+                outbound_rx,
+                transport_tx,
+                router,
+            )),
+        };
+        tasks.push(transport);
         let io = SessionIo {
             inbound: inbound_rx,
             control: control_rx,

@@ -14,6 +14,8 @@
 //! - [`session`]: all of the above for one autopilot, driven by messages, control ticks and time;
 //! - [`link`], [`router`]: tokio tasks for the connection (with reconnection), reading,
 //!   writing and ground-station forwarding;
+//! - [`peer`], [`udp_in`]: Kestrel's own `udpin` transport, answering only the autopilot's
+//!   address (pinned from its HEARTBEAT), never whoever sent the last datagram;
 //! - [`facade`]: [`MavlinkPlatform`], the synchronous `Platform` over those tasks;
 //! - [`tlog`]: reading recorded captures for replay tests and benchmarks.
 
@@ -27,6 +29,7 @@ pub mod frames;
 mod legacy;
 pub mod link;
 pub mod model;
+pub mod peer;
 pub mod profile;
 pub mod router;
 pub mod session;
@@ -34,6 +37,7 @@ pub mod setpoint;
 #[cfg(test)]
 mod testutil;
 pub mod tlog;
+pub mod udp_in;
 
 pub use facade::{LinkConfig, LinkError, MavlinkPlatform};
 pub use profile::{Profile, ProfileError};
