@@ -10,7 +10,7 @@
 use super::body::JsonBody;
 use super::error::{ApiError, ErrorBody};
 use super::ApiState;
-use crate::exploration::evaluate::{evaluate, EvalParams};
+use crate::exploration::evaluate::{evaluate, EvalParams, PoseSample};
 use crate::host::engine::{ExplorationStarted, ReportInput};
 use crate::host::{Command, HostError};
 use axum::extract::State;
@@ -101,10 +101,17 @@ fn report_json(input: ReportInput) -> Value {
             Value::Null,
             Some("no true world: not a simulation".to_string()),
         ),
-        Some(world) => match evaluate(world, &input.samples, &EvalParams::default()) {
-            Ok(m) => (serde_json::to_value(m).unwrap_or(Value::Null), None),
-            Err(e) => (Value::Null, Some(e.to_string())),
-        },
+        Some(world) => {
+            let samples: Vec<PoseSample> = input
+                .samples
+                .iter()
+                .flat_map(|c| c.iter().cloned())
+                .collect();
+            match evaluate(world, &samples, &EvalParams::default()) {
+                Ok(m) => (serde_json::to_value(m).unwrap_or(Value::Null), None),
+                Err(e) => (Value::Null, Some(e.to_string())),
+            }
+        }
     };
     let mut report = serde_json::to_value(&input.live).unwrap_or_else(|_| json!({}));
     if let Some(fields) = report.as_object_mut() {

@@ -7,6 +7,7 @@
 //! Out: the elapsed time, the area curve, [`ExplorationRun::remaining_s`], per-drone paths and
 //! the pose samples the evaluator (`exploration::evaluate`) can judge against a true world.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Serialize;
@@ -24,6 +25,8 @@ pub const RATE_WINDOW: Duration = Duration::from_secs(30);
 pub const RATE_MIN_SPAN: Duration = Duration::from_secs(10);
 /// Most pose samples kept (about 14 h of one drone at 10 Hz); later ones are counted, not kept.
 pub const MAX_SAMPLES: usize = 500_000;
+/// Pose samples are kept in shared chunks of this many, so a report copies only the last one.
+const CHUNK: usize = 8192;
 
 /// One drone's pose at a tick, as the host hands it in.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,7 +58,11 @@ pub struct ExplorationRun {
     ended_at: Option<Duration>,
     drones: Vec<RunDrone>,
     curve: Vec<CurvePoint>,
-    samples: Vec<PoseSample>,
+    /// Full chunks of pose samples, shared with reports.
+    chunks: Vec<Arc<[PoseSample]>>,
+    /// The chunk being filled.
+    open_chunk: Vec<PoseSample>,
+    samples_kept: usize,
     samples_dropped: usize,
     min_separation_m: Option<f64>,
     next_pose: Duration,
@@ -70,7 +77,9 @@ impl ExplorationRun {
             ended_at: None,
             drones: Vec::new(),
             curve: Vec::new(),
-            samples: Vec::new(),
+            chunks: Vec::new(),
+            open_chunk: Vec::new(),
+            samples_kept: 0,
             samples_dropped: 0,
             min_separation_m: None,
             next_pose: now,
@@ -161,8 +170,9 @@ impl ExplorationRun {
                 }
                 d.last_xy = Some(xy);
             }
-            if self.samples.len() < MAX_SAMPLES {
-                self.samples.push(PoseSample {
+            if self.samples_kept < MAX_SAMPLES {
+                self.samples_kept += 1;
+                self.open_chunk.push(PoseSample {
                     t_s: now.as_secs_f64(),
                     drone: p.drone.to_string(),
                     x_m: p.position_enu_m.x,
@@ -170,6 +180,10 @@ impl ExplorationRun {
                     z_m: p.position_enu_m.z,
                     yaw_rad: p.yaw_rad,
                 });
+                if self.open_chunk.len() >= CHUNK {
+                    self.chunks
+                        .push(std::mem::take(&mut self.open_chunk).into());
+                }
             } else {
                 self.samples_dropped += 1;
             }
@@ -218,9 +232,19 @@ impl ExplorationRun {
         self.min_separation_m
     }
 
-    /// The pose samples kept, and how many were not kept (over [`MAX_SAMPLES`]).
-    pub fn samples(&self) -> (&[PoseSample], usize) {
-        (&self.samples, self.samples_dropped)
+    /// Pose samples kept and not kept (over [`MAX_SAMPLES`]).
+    pub fn sample_counts(&self) -> (usize, usize) {
+        (self.samples_kept, self.samples_dropped)
+    }
+
+    /// The pose samples kept, in order, as shared chunks: cheap to hand over (only the chunk
+    /// being filled is copied).
+    pub fn sample_chunks(&self) -> Vec<Arc<[PoseSample]>> {
+        let mut out = self.chunks.clone();
+        if !self.open_chunk.is_empty() {
+            out.push(self.open_chunk.as_slice().into());
+        }
+        out
     }
 }
 
@@ -328,13 +352,40 @@ mod tests {
         assert!((rate - 1.0).abs() < 1e-9, "{rate}");
         // 30 % known, 70 % left at 1 %/s.
         assert!((run.remaining_s().unwrap() - 70.0).abs() < 1e-6);
-        assert_eq!(run.samples().0.len(), 402);
+        assert_eq!(run.sample_counts(), (402, 0));
+        let chunks = run.sample_chunks();
+        assert_eq!(chunks.iter().map(|c| c.len()).sum::<usize>(), 402);
+        assert_eq!(
+            chunks.first().and_then(|c| c.first()).map(|p| p.t_s),
+            Some(0.0)
+        );
         run.finish(Duration::from_secs(25));
         assert_eq!(run.remaining_s(), Some(0.0));
         assert_eq!(
             run.elapsed(Duration::from_secs(99)),
             Duration::from_secs(25)
         );
+    }
+
+    #[test]
+    fn samples_over_several_chunks_come_back_in_order() {
+        let mut run = ExplorationRun::new(Duration::ZERO, vec![("a".into(), 1)]);
+        let n = u32::try_from(CHUNK).unwrap() + 10;
+        for k in 0..n {
+            run.record(
+                POSE_EVERY * k,
+                || Some(1.0),
+                &[pose("a", f64::from(k), true)],
+            );
+        }
+        let chunks = run.sample_chunks();
+        assert_eq!(chunks.len(), 2);
+        let xs: Vec<f64> = chunks
+            .iter()
+            .flat_map(|c| c.iter().map(|p| p.x_m))
+            .collect();
+        assert_eq!(xs.len(), CHUNK + 10);
+        assert!(xs.windows(2).all(|w| w[1] == w[0] + 1.0));
     }
 
     #[test]
@@ -352,12 +403,12 @@ mod tests {
         assert_eq!(flat.remaining_s(), None, "the area does not grow");
         assert_eq!(flat.min_separation_m(), None, "one drone");
         flat.stop("a");
-        let before = flat.samples().0.len();
+        let before = flat.sample_counts().0;
         flat.record(
             Duration::from_secs(60),
             || Some(40.0),
             &[pose("a", 1.0, true)],
         );
-        assert_eq!(flat.samples().0.len(), before);
+        assert_eq!(flat.sample_counts().0, before);
     }
 }

@@ -17,6 +17,7 @@ use crate::mission::{Action, ActionError, ExecState, MissionUpdate, ValidationEr
 use crate::sim::world::World;
 use serde::Serialize;
 use serde_json::{json, Value};
+use std::sync::Arc;
 use std::time::Duration;
 
 /// One drone an exploration started.
@@ -41,7 +42,8 @@ pub struct ReportInput {
     pub live: LiveReport,
     /// The simulator's true world, `None` on real vehicles.
     pub world: Option<World>,
-    pub samples: Vec<PoseSample>,
+    /// The run's pose samples in order, in shared chunks.
+    pub samples: Vec<Arc<[PoseSample]>>,
 }
 
 /// Mission validation points into `/plan/0/args/..`; the request has them at `/args/..`.
@@ -309,7 +311,7 @@ impl Host {
                 "no exploration was started: POST /api/exploration/start first".into(),
             ));
         };
-        let (samples, dropped) = run.samples();
+        let (kept, dropped) = run.sample_counts();
         let live = LiveReport {
             path_m: progress.drones.iter().map(|d| d.path_m).sum(),
             progress,
@@ -317,13 +319,13 @@ impl Host {
             frontiers_left: self.frontiers.frontiers().len(),
             area_curve: run.curve().to_vec(),
             min_separation_m: run.min_separation_m(),
-            pose_samples: samples.len(),
+            pose_samples: kept,
             pose_samples_dropped: dropped,
         };
         Ok(ReportInput {
             live,
             world: self.sim_world().map(|w| w.world.clone()),
-            samples: samples.to_vec(),
+            samples: run.sample_chunks(),
         })
     }
 }
