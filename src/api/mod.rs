@@ -9,6 +9,7 @@ pub mod auth;
 pub mod body;
 pub mod coverage;
 pub mod error;
+pub mod exploration;
 pub mod geofence;
 pub mod map;
 pub mod openapi;
@@ -62,13 +63,17 @@ impl ApiState {
     }
 }
 
-/// Map, scans, coverage and geofence routes (`api::map`, `api::scans`, `api::coverage`).
+/// Map, scans, coverage, exploration and geofence routes (`api::map`, `api::scans`,
+/// `api::coverage`, `api::exploration`).
 fn map_routes() -> Router<ApiState> {
     Router::new()
         .route("/api/map", get(map::grid))
         .route("/api/map.png", get(map::png))
         .route("/api/map/info", get(map::info))
         .route("/api/exploration", get(map::exploration))
+        .route("/api/exploration/start", post(exploration::start))
+        .route("/api/exploration/stop", post(exploration::stop))
+        .route("/api/exploration/report", get(exploration::report))
         .route("/api/scans", post(map::post_scans))
         .route("/api/coverage", post(coverage::plan))
         .route("/api/geofence", get(geofence::geofence))

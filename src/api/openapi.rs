@@ -3,7 +3,7 @@
 
 use super::error::ErrorBody;
 use super::routes;
-use super::{coverage, geofence, map, scans};
+use super::{coverage, exploration, geofence, map, scans};
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::status::{BatteryStatus, DroneStatus, GeoStatus};
@@ -47,10 +47,14 @@ pub struct ApiDoc;
 /// Maps, scans, coverage and geofence (`api::map`, `api::coverage`, `api::geofence`).
 #[derive(OpenApi)]
 #[openapi(
-    paths(map::grid, map::png, map::info, map::exploration, map::post_scans, coverage::plan, geofence::geofence),
+    paths(map::grid, map::png, map::info, map::exploration, exploration::start, exploration::stop,
+        exploration::report, map::post_scans, coverage::plan, geofence::geofence),
     components(schemas(
         map::MapInfo, crate::exploration::service::ExplorationView,
         crate::exploration::service::FrontierView, crate::exploration::service::ClaimView,
+        crate::exploration::progress::ProgressView, crate::exploration::progress::RunDroneView,
+        exploration::StartRequest, exploration::StopRequest,
+        crate::host::engine::ExplorationStarted, crate::host::engine::StartedDrone,
         scans::ScanInput, scans::ScanBatch, coverage::CoverageRequest,
         coverage::CoverageAnswer
     )),

@@ -10,11 +10,13 @@
 //! - [`allocation`]: which frontier a drone takes (`kestrel`, `thesis`, `nearest`, `farthest`).
 //! - [`service`]: the allocator service: claims, given-up goals, answers.
 //! - [`watcher`]: the intra-swarm avoidance decision.
+//! - [`progress`]: an exploration run as operators follow it (area curve, paths, time left).
 //! - [`evaluate`]: metrics of a flight log against the true world (outside the loop).
 //! - [`worldgen`]: seeded exploration worlds.
 
 pub mod allocation;
 pub mod evaluate;
+pub mod progress;
 pub mod reach;
 pub mod service;
 pub mod space;

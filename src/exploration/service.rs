@@ -77,6 +77,8 @@ pub struct ExplorationView {
     pub goals: Vec<ClaimView>,
     /// Known cells of the merged map (%); absent when mapping is off.
     pub known_pct: Option<f64>,
+    /// The exploration started over the API, the last one; absent before any.
+    pub progress: Option<super::progress::ProgressView>,
 }
 
 /// A frontier as shown to operators.

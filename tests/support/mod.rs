@@ -108,6 +108,15 @@ impl Kestrel {
         (status, r.json().await.unwrap_or(Value::Null))
     }
 
+    /// `GET path` with the bearer token, the response as it came (headers, raw body).
+    pub async fn get_raw(&self, path: &str) -> reqwest::Response {
+        let mut req = reqwest::Client::new().get(format!("{}{path}", self.base));
+        if !self.token.is_empty() {
+            req = req.bearer_auth(&self.token);
+        }
+        req.send().await.unwrap()
+    }
+
     pub async fn get(&self, path: &str) -> (u16, Value) {
         self.call("GET", path, None).await
     }

@@ -2,6 +2,7 @@
 // operator's main flows, driven by clicks in Debian's chromium. Screenshots go to artifacts/web/.
 
 import assert from 'node:assert/strict';
+import fs from 'node:fs';
 import { after, before, describe, test } from 'node:test';
 import { clickMapAt, openBrowser, startKestrel, until } from './harness.mjs';
 
@@ -255,6 +256,60 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
     await tab('monitor');
     const n = await page.evaluate(() => document.querySelectorAll('.mstatus[data-drone="drone_0"] .mitem').length);
     await waitFinished('drone_0', n);
+  });
+
+  test('explores with a chosen drone: frontiers, its goal and the growing area on the map, a report, a confirmed stop', async () => {
+    await tab('explore');
+    // Ticked by default: the selected drone only.
+    await until(page, () => document.querySelectorAll('#exp-drones input[type=checkbox]').length === 2, null, 10_000);
+    assert.equal(await page.locator('#exp-drones input[data-drone="drone_0"]').isChecked(), true);
+    assert.equal(await page.locator('#exp-drones input[data-drone="drone_1"]').isChecked(), false);
+    await page.locator('#exp-drones input[data-drone="drone_0"]').uncheck();
+    await page.locator('#exp-drones input[data-drone="drone_1"]').check();
+    await page.locator('#btn-exp-start').click();
+    await until(page, () => /^accepted: exploring: drone_1/.test(document.querySelector('#exp-answer')?.textContent ?? ''), null, 20_000);
+    // Frontiers and drone_1's goal, with the line from the drone to it, drawn on the map.
+    await until(page, () => document.querySelectorAll('path.frontier').length > 0 && document.querySelector('path.explore-goal-drone_1') !== null, null, MISSION_TIMEOUT);
+    const row = await page.locator('#exp-table tr[data-drone="drone_1"]').getAttribute('data-phase');
+    assert.ok(['takeoff', 'navigating', 'sensing', 'drone_avoidance'].includes(row), row);
+    assert.equal(await page.locator('#exp-table tr[data-drone="drone_0"]').count(), 0, 'drone_0 was not ticked');
+    // The known area grows, and so does the elapsed time; an estimate appears.
+    const pct0 = Number(await page.locator('#exp-known').getAttribute('data-pct'));
+    const s0 = Number(await page.locator('#exp-elapsed').getAttribute('data-s'));
+    await until(page, (p0) => Number(document.querySelector('#exp-known')?.dataset.pct) > p0 + 0.05, pct0, MISSION_TIMEOUT);
+    assert.ok(Number(await page.locator('#exp-elapsed').getAttribute('data-s')) > s0);
+    await until(page, () => /^≤ /.test(document.querySelector('#exp-remaining')?.textContent ?? ''), null, MISSION_TIMEOUT);
+    await browser.shot('13b-exploring');
+    // The report downloads as a file.
+    const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#btn-exp-report').click()]);
+    assert.match(download.suggestedFilename(), /^kestrel-exploration-\d+\.json$/);
+    const report = JSON.parse(fs.readFileSync(await download.path(), 'utf8'));
+    assert.deepEqual(report.drones.map((d) => d.drone), ['drone_1']);
+    assert.ok(report.area_curve.length >= 2 && report.area_curve.at(-1).area_pct > report.area_curve[0].area_pct, JSON.stringify(report.area_curve.slice(0, 3)));
+    assert.ok(report.drones[0].path_m > 0);
+    assert.ok('evaluation' in report);
+
+    // drone_0 joins; stopping both asks first: cancelled, nothing stops; confirmed, both stop.
+    await page.locator('#exp-drones input[data-drone="drone_0"]').check();
+    await page.locator('#btn-exp-start').click();
+    await until(page, () => /^accepted: exploring: drone_0/.test(document.querySelector('#exp-answer')?.textContent ?? ''), null, 20_000);
+    await until(page, () => document.querySelectorAll('#exp-table tr.exploring').length === 2, null, 20_000);
+    page.once('dialog', (d) => d.dismiss());
+    await page.locator('#btn-exp-stop').click();
+    await until(page, () => /^rejected: not stopped/.test(document.querySelector('#exp-answer')?.textContent ?? ''), null, 10_000);
+    await page.waitForTimeout(1500);
+    assert.equal(await page.locator('#exp-table tr.exploring').count(), 2, 'a cancelled stop stops nothing');
+    let asked = '';
+    page.once('dialog', (d) => {
+      asked = d.message();
+      return d.accept();
+    });
+    await page.locator('#btn-exp-stop').click();
+    await until(page, () => /^accepted: stopped/.test(document.querySelector('#exp-answer')?.textContent ?? ''), null, 20_000);
+    assert.match(asked, /drone_0, drone_1/);
+    await until(page, () => document.querySelectorAll('#exp-table tr').length === 2 && document.querySelectorAll('#exp-table tr.exploring').length === 0, null, 20_000);
+    await until(page, () => document.querySelector('path.explore-goal-drone_1') === null, null, 20_000);
+    await browser.shot('13c-exploration-stopped');
   });
 
   test('a drone whose link is lost is shown as lost, and live again when restored', async () => {

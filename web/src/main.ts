@@ -1,5 +1,5 @@
 // Entry point: asks the token once per session, connects to the kestrel that serves the page, and
-// wires the views (fleet, plan, control, monitor, timeline) to the map and to each other.
+// wires the views (fleet, plan, control, explore, monitor, timeline) to the map and to each other.
 
 import './style.css';
 import { ApiError } from './lib/api';
@@ -13,6 +13,7 @@ import type { Vec2, Vec3 } from './lib/types';
 import { App } from './ui/app';
 import { ControlView } from './ui/controlView';
 import { byId, h, setOptions } from './ui/dom';
+import { ExplorationPanel } from './ui/explorationView';
 import { act, onRejected, toast } from './ui/feedback';
 import { FleetView, restoreInstances } from './ui/fleetView';
 import { describeError } from './ui/instance';
@@ -28,6 +29,7 @@ const app = new App();
 const fleet = new FleetView(app);
 const plan = new PlanView(app);
 const control = new ControlView(app, plan);
+const exploration = new ExplorationPanel(app);
 const monitor = new MonitorView(app);
 const timeline = new TimelineView(app);
 let mapView: MapView;
@@ -158,6 +160,22 @@ function drawOverlays(): void {
   mapView.setPlanned(paths);
   mapView.setFrames(app.instances.flatMap((i) => i.frames));
   mapView.setGeofence(app.instances[0]?.geofence?.polygon_enu_m ?? null);
+  drawExploration();
+}
+
+/** Frontiers and each exploring drone's goal, from the last GET /api/exploration of each instance. */
+function drawExploration(): void {
+  const refs = app.drones();
+  const frontiers = app.instances.flatMap((i) => exploration.views.get(i.id)?.frontiers ?? []);
+  const goals = app.instances.flatMap((inst) =>
+    (exploration.views.get(inst.id)?.progress?.drones ?? []).flatMap((d) => {
+      if (!d.goal_enu_m) return [];
+      const i = refs.findIndex((r) => r.inst === inst && r.drone === d.drone);
+      const p = i >= 0 ? app.view(refs[i]).status?.position_enu_m : undefined;
+      return [{ drone: d.drone, from: p ? ([p[0], p[1]] as Vec2) : null, to: d.goal_enu_m, color: droneColor(Math.max(0, i)) }];
+    }),
+  );
+  mapView.setExploration(frontiers, goals);
 }
 
 async function refreshGrid(): Promise<void> {
@@ -193,6 +211,7 @@ function showTab(name: string): void {
   document.querySelectorAll<HTMLElement>('#tabs [data-tab]').forEach((b) => b.classList.toggle('active', b.dataset.tab === name));
   document.querySelectorAll<HTMLElement>('.panel').forEach((p) => p.classList.toggle('active', p.id === `panel-${name}`));
   if (name === 'timeline') timeline.render();
+  if (name === 'explore') void exploration.poll(true);
 }
 
 function wireHeader(): void {
@@ -282,6 +301,7 @@ function drawDrones(): void {
 function choicesChanged(): void {
   plan.refreshChoices();
   control.refreshChoices();
+  exploration.refreshChoices();
   timeline.refreshChoices();
   renderHeader();
   renderLegend();
@@ -301,12 +321,16 @@ async function main(): Promise<void> {
   wireHeader();
   makeMap(null);
   plan.onChange = drawOverlays;
+  exploration.onView = drawExploration;
   timeline.onPast = (log) => mapView.setPast(log ? [...log.poses.values()] : []);
   let dirty = true;
   app.on((topic) => {
     if (topic === 'instances' || topic === 'selection') {
       choicesChanged();
-      if (topic === 'selection' && app.selectedKey) control.selectDrone(app.selectedKey);
+      if (topic === 'selection' && app.selectedKey) {
+        control.selectDrone(app.selectedKey);
+        exploration.selectDrone(app.selectedKey);
+      }
     }
     if (topic === 'map') onMapUpdate();
     dirty = true;
@@ -331,6 +355,7 @@ async function main(): Promise<void> {
   }, 250);
   setInterval(() => {
     if (byId('panel-timeline').classList.contains('active')) timeline.render();
+    void exploration.poll();
   }, 1000);
   setInterval(async () => {
     await Promise.all(app.instances.map((i) => i.refreshFrames()));

@@ -66,7 +66,7 @@ describe('occupancy grid', () => {
     expect(grid.spec).toEqual({ originX_m: -1, originY_m: -1, resolution_m: 0.5, width: 2, height: 2 });
     const px = gridPixels(grid);
     expect(px[3]).toBe(0); // north-west cell unknown: transparent
-    expect(px[8 + 3]).toBe(120); // south-west free
+    expect([...px.slice(8, 12)]).toEqual([175, 208, 240, 160]); // south-west free: pale blue
     expect(px[12]).toBe(20); // south-east occupied: dark
   });
   it('merges a patch that fits and refuses one that does not', () => {

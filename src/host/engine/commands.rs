@@ -1,5 +1,5 @@
 //! Commands from the API to the host and their answers: missions (upload, MissionUpdate,
-//! list, get, delete), frames, simulator faults, the flight log.
+//! list, get, delete), frames, simulator faults, the flight log, maps and explorations.
 //!
 //! In: a [`Command`] with its one-shot reply. Out: the answer, and the changes in the host.
 
@@ -72,6 +72,19 @@ pub enum Command {
     Exploration {
         reply: Reply<crate::exploration::service::ExplorationView>,
     },
+    /// Start the `explore` behavior with `args` on `drones` (all or none).
+    ExplorationStart {
+        drones: Vec<String>,
+        args: Value,
+        reply: Reply<super::ExplorationStarted>,
+    },
+    /// Stop the exploration missions of `drones` (all or none); replies with the drones.
+    ExplorationStop {
+        drones: Vec<String>,
+        reply: Reply<Vec<String>>,
+    },
+    /// What the exploration report is made of.
+    ExplorationReport { reply: Reply<super::ReportInput> },
     /// Scans from outside (API) for a drone's next tick; replies with the number queued.
     Scans {
         drone: Option<String>,
@@ -566,6 +579,19 @@ impl Host {
             }
             Command::Exploration { reply } => {
                 let _ = reply.send(Ok(self.exploration_view()));
+            }
+            Command::ExplorationStart {
+                drones,
+                args,
+                reply,
+            } => {
+                let _ = reply.send(self.start_exploration(&drones, &args));
+            }
+            Command::ExplorationStop { drones, reply } => {
+                let _ = reply.send(self.stop_exploration(&drones));
+            }
+            Command::ExplorationReport { reply } => {
+                let _ = reply.send(self.exploration_report());
             }
             Command::Scans {
                 drone,

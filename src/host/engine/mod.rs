@@ -6,10 +6,12 @@
 //! runtime (`host::runtime`) decides when to step, in real or simulated time.
 
 mod commands;
+mod explore;
 mod maps;
 
 pub use super::map_view::MapView;
 pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uploaded, MAX_FRAMES};
+pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 
 use super::fleet::Fleet;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
@@ -19,6 +21,7 @@ use crate::behavior::RunState;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
+use crate::exploration::progress::ExplorationRun;
 use crate::exploration::service::{ExplorationView, ExploreError, FrontierService};
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
@@ -102,6 +105,8 @@ pub struct Host {
     /// The fleet's frontier allocator (exploration), answered after every core ticked.
     frontiers: FrontierService,
     explore_jobs: Vec<(usize, ExploreJob)>,
+    /// The exploration started over the API (`POST /api/exploration/start`), the last one.
+    exploration: Option<ExplorationRun>,
 }
 
 impl Host {
@@ -132,6 +137,7 @@ impl Host {
             fleet_view: Arc::default(),
             frontiers: FrontierService::new(),
             explore_jobs: Vec::new(),
+            exploration: None,
         }
     }
 
@@ -406,6 +412,7 @@ impl Host {
             }
         }
         self.answer_explore_jobs(now);
+        self.record_exploration(now);
         self.fleet.advance(now, self.tick);
         for (i, message) in self.fleet.take_alerts() {
             if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
@@ -437,11 +444,8 @@ impl Host {
         ExplorationView {
             frontiers: self.frontiers.frontiers(),
             goals: self.frontiers.claims(),
-            known_pct: self.map.as_ref().map(|m| {
-                let data = m.merged().data();
-                let known = data.iter().filter(|&&v| v >= 0).count();
-                100.0 * known as f64 / data.len().max(1) as f64
-            }),
+            known_pct: self.map.as_ref().map(|m| known_pct(m.merged())),
+            progress: self.exploration_progress(),
         }
     }
 
@@ -450,6 +454,13 @@ impl Host {
             log.flush();
         }
     }
+}
+
+/// Known cells of a grid, in percent of all its cells.
+fn known_pct(grid: &crate::mapping::grid::OccupancyGrid) -> f64 {
+    let data = grid.data();
+    let known = data.iter().filter(|&&v| v >= 0).count();
+    100.0 * known as f64 / data.len().max(1) as f64
 }
 
 /// Brings a drone's new map data into the merged map: the cells its own map server changed this

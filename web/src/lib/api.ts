@@ -6,6 +6,8 @@ import type {
   CoverageAnswer,
   CoverageRequest,
   DroneStatus,
+  ExplorationStarted,
+  ExplorationView,
   FrameInfo,
   Mission,
   MissionUpdate,
@@ -43,6 +45,12 @@ export function parseErrorBody(status: number, text: string): ApiErrorBody {
   }
   const message = text.trim() || (status === 401 ? 'wrong or missing token' : `HTTP ${status}`);
   return { code: status === 401 ? 'unauthorized' : `http_${status}`, message, details: [] };
+}
+
+/** The file name of a `Content-Disposition: attachment; filename="..."` header. */
+export function attachmentName(header: string | null): string | null {
+  const m = /filename="?([^";]+)"?/i.exec(header ?? '');
+  return m ? m[1] : null;
 }
 
 /** `http://host:port` (or '' for the page's own origin) to its WebSocket URL with the token. */
@@ -144,6 +152,28 @@ export class ApiClient {
   /** Occupancy grid of one drone, or the merged map when `drone` is absent. */
   map(drone?: string): Promise<{ spec: Record<string, unknown>; data: number[] }> {
     return this.json('GET', `/api/map${drone ? `?drone=${encodeURIComponent(drone)}` : ''}`);
+  }
+
+  /** Frontiers, goals, known share and the progress of the exploration run. */
+  exploration(): Promise<ExplorationView> {
+    return this.json('GET', '/api/exploration');
+  }
+
+  /** Starts the explore behavior on `drones` (all or none); a `422` points at `/drones/i` or `/args/..`. */
+  startExploration(drones: string[], args: Record<string, unknown>): Promise<ExplorationStarted> {
+    return this.json('POST', '/api/exploration/start', { drones, args });
+  }
+
+  stopExploration(drones: string[]): Promise<{ stopped: string[] }> {
+    return this.json('POST', '/api/exploration/stop', { drones });
+  }
+
+  /** The exploration report (an attachment): its file name and JSON text. */
+  async explorationReport(): Promise<{ filename: string; text: string }> {
+    const res = await this.request('GET', '/api/exploration/report');
+    const text = await res.text();
+    if (!res.ok) throw new ApiError(res.status, parseErrorBody(res.status, text));
+    return { filename: attachmentName(res.headers.get('Content-Disposition')) ?? 'kestrel-exploration.json', text };
   }
 
   /** The flight log (JSON lines) of the current or last flight. */

@@ -59,7 +59,9 @@ export function mergePatch(grid: Grid, patch: Grid): boolean {
   return true;
 }
 
-/** RGBA pixels, north row first: unknown transparent, free pale, occupied dark. */
+const FREE_RGBA = [175, 208, 240, 160];
+
+/** RGBA pixels, north row first: unknown transparent, free pale blue, occupied dark. */
 export function gridPixels(grid: Grid): Uint8ClampedArray {
   const { width, height } = grid.spec;
   const px = new Uint8ClampedArray(width * height * 4);
@@ -71,11 +73,16 @@ export function gridPixels(grid: Grid): Uint8ClampedArray {
       const i = (out + c) * 4;
       if (v < 0) continue;
       const occ = Math.min(1, v / scale);
+      if (occ < 0.5) {
+        // Explored free space: pale blue, so the explored area stands out as it grows.
+        px.set(FREE_RGBA, i);
+        continue;
+      }
       const shade = Math.round(235 - 215 * occ);
       px[i] = shade;
       px[i + 1] = shade;
-      px[i + 2] = shade + (occ < 0.5 ? 10 : 0);
-      px[i + 3] = occ < 0.5 ? 120 : 230;
+      px[i + 2] = shade;
+      px[i + 3] = 230;
     }
   }
   return px;

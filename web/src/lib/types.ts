@@ -179,3 +179,40 @@ export type ServerMessage =
       data: number[];
     }
   | { type: 'reply'; request_id: number; accepted: boolean; reason?: string | null };
+
+/** `GET /api/exploration`: frontiers, goals held, known share and the run's progress. */
+export interface FrontierView {
+  centroid_enu_m: Vec2;
+  goal_enu_m: Vec2;
+  size_m: number;
+  orientation_rad: number;
+}
+
+export interface RunDroneView {
+  drone: string;
+  mission_id: number;
+  phase: string;
+  goal_enu_m: Vec2 | null;
+  path_m: number;
+}
+
+export interface ExplorationProgress {
+  started_at_s: number;
+  elapsed_s: number;
+  finished: boolean;
+  area_rate_pct_per_min: number | null;
+  remaining_s: number | null;
+  drones: RunDroneView[];
+}
+
+export interface ExplorationView {
+  frontiers: FrontierView[];
+  goals: { drone: string; goal_enu_m: Vec2 }[];
+  known_pct: number | null;
+  progress: ExplorationProgress | null;
+}
+
+export interface ExplorationStarted {
+  started_at_s: number;
+  drones: { drone: string; mission_id: number }[];
+}

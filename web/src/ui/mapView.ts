@@ -1,6 +1,7 @@
 // Leaflet glue: the local ENU map (simple CRS, x east = lng, y north = lat) or, in geographic
 // mode, Web Mercator around the ENU origin. Drones, behavior-coloured trails, planned paths, the
-// plan being drawn, occupancy grid, frames and geofence are layers; clicks go to the active tool.
+// plan being drawn, occupancy grid (the explored area), exploration frontiers and goals, frames
+// and geofence are layers; clicks go to the active tool.
 
 import L from 'leaflet';
 import 'leaflet/dist/leaflet.css';
@@ -8,7 +9,7 @@ import { behaviorColor, trailRuns } from '../lib/colors';
 import type { DroneView, LinkView } from '../lib/fleet';
 import { enuToGeo, geoToEnu, type GeoOrigin } from '../lib/geo';
 import { gridBounds, gridPixels, type Grid } from '../lib/grid';
-import type { FrameInfo, Vec2, Vec3 } from '../lib/types';
+import type { FrameInfo, FrontierView, Vec2, Vec3 } from '../lib/types';
 
 export type Tool = 'pan' | 'waypoint' | 'path' | 'polygon';
 
@@ -39,6 +40,7 @@ export class MapView {
     frames: L.layerGroup(),
     past: L.layerGroup(),
     planned: L.layerGroup(),
+    exploration: L.layerGroup(),
     trails: L.layerGroup(),
     draft: L.layerGroup(),
     drawing: L.layerGroup(),
@@ -77,6 +79,7 @@ export class MapView {
         Frames: this.layers.frames,
         Trails: this.layers.trails,
         'Planned paths': this.layers.planned,
+        Exploration: this.layers.exploration,
         'Past flight': this.layers.past,
         'Grid lines': this.layers.axes,
       }, { collapsed: true })
@@ -256,6 +259,30 @@ export class MapView {
       if (p.points.length < 2) continue;
       L.polyline(p.points.map(([x, y]) => this.ll(x, y)), { color: p.color, weight: 2, dashArray: '4 6' })
         .bindTooltip(p.label)
+        .addTo(g);
+    }
+  }
+
+  /** Frontiers (a circle at the centroid, its diameter half the frontier's length) and each exploring drone's goal
+   * (a line from the drone to it). */
+  setExploration(frontiers: FrontierView[], goals: { drone: string; from: Vec2 | null; to: Vec2; color: string }[]): void {
+    const g = this.layers.exploration;
+    g.clearLayers();
+    for (const f of frontiers) {
+      const [x, y] = f.centroid_enu_m;
+      L.circle(this.ll(x, y), { radius: Math.max(0.15, f.size_m / 4), color: '#e07000', weight: 2, fillOpacity: 0.3, className: 'frontier' })
+        .bindTooltip(`frontier ${f.size_m.toFixed(1)} m`)
+        .addTo(g);
+    }
+    for (const goal of goals) {
+      const to = this.ll(goal.to[0], goal.to[1]);
+      if (goal.from) {
+        L.polyline([this.ll(goal.from[0], goal.from[1]), to], { color: goal.color, weight: 3, className: `explore-goal explore-goal-${goal.drone}` })
+          .bindTooltip(`${goal.drone} goal`)
+          .addTo(g);
+      }
+      L.circleMarker(to, { radius: 6, color: goal.color, weight: 3, fillOpacity: 0.6, className: `explore-goal-point explore-goal-point-${goal.drone}` })
+        .bindTooltip(`${goal.drone} goal (${goal.to[0].toFixed(1)}, ${goal.to[1].toFixed(1)})`)
         .addTo(g);
     }
   }
