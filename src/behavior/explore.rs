@@ -63,6 +63,13 @@ pub struct ExploreGoal {
     pub land_when_done: bool,
     /// How the heading moves: `spin` (a steady turn) or `align` (a beam axis along the travel).
     pub heading: HeadingMode,
+    /// Frontiers shorter than this (m) are not flown to while longer ones are left (the
+    /// thesis drops them: 1.5 m).
+    pub min_frontier_length: f64,
+    /// Frontiers shorter than this (m) are never flown to; between this and
+    /// `min_frontier_length` they are explored last. Lower it (to 0.5 m) for a more thorough
+    /// end at the cost of time.
+    pub end_frontier_length: f64,
 }
 
 /// How the explorer turns its beams.
@@ -89,6 +96,8 @@ impl Default for ExploreGoal {
             retarget_period: 2.0,
             land_when_done: true,
             heading: HeadingMode::default(),
+            min_frontier_length: 1.5,
+            end_frontier_length: 1.0,
         }
     }
 }
@@ -116,7 +125,21 @@ impl Goal for ExploreGoal {
             50.0,
             "m",
         )?;
-        within("retarget_period", self.retarget_period, 0.2, 60.0, "s")
+        within("retarget_period", self.retarget_period, 0.2, 60.0, "s")?;
+        within(
+            "min_frontier_length",
+            self.min_frontier_length,
+            0.1,
+            20.0,
+            "m",
+        )?;
+        within(
+            "end_frontier_length",
+            self.end_frontier_length,
+            0.1,
+            self.min_frontier_length,
+            "m (at most min_frontier_length)",
+        )
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]
@@ -247,8 +270,12 @@ impl Explore {
     }
 
     fn ask(&mut self, ctx: &BehaviorContext) {
+        let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
+        let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
         let space = SpaceParams {
             safety_distance_m: self.goal.safety_distance,
+            min_cells: cells(self.goal.min_frontier_length),
+            min_final_cells: cells(self.goal.end_frontier_length),
             occupied_threshold: ctx
                 .map
                 .map_or(SpaceParams::default().occupied_threshold, |m| {

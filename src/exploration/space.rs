@@ -28,8 +28,9 @@ pub struct SpaceParams {
     pub safety_distance_m: f64,
     /// Frontiers with fewer cells are left for the end (the thesis drops them: 15 cells).
     pub min_cells: usize,
-    /// Frontiers with fewer cells are dropped for good: the last corners are explored only
-    /// once no frontier of `min_cells` is left.
+    /// Frontiers with fewer cells are dropped for good; those between this and `min_cells`
+    /// are explored only once no frontier of `min_cells` is left (none by default, as the
+    /// thesis).
     pub min_final_cells: usize,
     /// Frontiers of at least twice this many cells are split into parts of about this many.
     pub split_cells: usize,
@@ -42,7 +43,7 @@ impl Default for SpaceParams {
         SpaceParams {
             safety_distance_m: 0.4,
             min_cells: 15,
-            min_final_cells: 5,
+            min_final_cells: 15,
             split_cells: 35,
             occupied_threshold: crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD,
         }
@@ -512,9 +513,16 @@ pub(crate) mod tests {
 
     #[test]
     fn short_frontiers_are_dropped_and_long_ones_split() {
-        // 22 rows: 14 frontier cells once the rows near the map's edge are left out: dropped.
+        // 22 rows: 14 frontier cells once the rows near the map's edge are left out: dropped
+        // (the thesis), or kept for the end when asked.
         let short = grid(60, 22, |x, _| if x < 30 { 0 } else { UNKNOWN });
         let s = Space::new(&short, &SpaceParams::default());
+        assert!(s.frontiers.is_empty(), "{:?}", s.frontiers);
+        let for_the_end = SpaceParams {
+            min_final_cells: 5,
+            ..SpaceParams::default()
+        };
+        let s = Space::new(&short, &for_the_end);
         assert!(s.frontiers.iter().all(|f| f.small), "{:?}", s.frontiers);
         assert_eq!(s.frontiers.len(), 1);
         // A 200-row map: the 192-cell frontier column is split into 192 / 35 = 5 parts.
