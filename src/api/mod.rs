@@ -14,12 +14,14 @@ pub mod geofence;
 pub mod map;
 pub mod openapi;
 pub mod routes;
+pub mod saved;
 pub mod scans;
 pub mod web;
 pub mod ws;
 
 use crate::config::ApiSection;
 use crate::host::logwriter::LogFile;
+use crate::host::store::Sink;
 use crate::host::HostHandle;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method};
@@ -41,6 +43,8 @@ pub struct ApiState {
     pub log: Option<LogFile>,
     /// Browser origins allowed besides the server's own (`[api] cors_origins`).
     pub cors_origins: Arc<[String]>,
+    /// The state directory's writer: changes are acknowledged once it saved them.
+    pub store: Option<Sink>,
 }
 
 impl ApiState {
@@ -59,7 +63,14 @@ impl ApiState {
             ws_clients: Arc::new(AtomicUsize::new(0)),
             log,
             cors_origins: api.cors_origins.clone().into(),
+            store: None,
         }
+    }
+
+    /// Acknowledges changes only once `store` saved them (`None`: nothing is kept).
+    pub fn with_store(mut self, store: Option<Sink>) -> Self {
+        self.store = store;
+        self
     }
 }
 
