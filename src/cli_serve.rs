@@ -235,14 +235,13 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
         )
         .with_store(store);
         let app = api::router(state, &options.api);
-        let mut server_stop = shutdown_tx.subscribe();
-        server = Some(tokio::spawn(async move {
-            axum::serve(listener, app)
-                .with_graceful_shutdown(async move {
-                    let _ = server_stop.wait_for(|stop| *stop).await;
-                })
-                .await
-        }));
+        let limits = api::serve::ConnLimits::from(&options.api);
+        server = Some(tokio::spawn(api::serve::serve(
+            listener,
+            app,
+            limits,
+            shutdown_tx.subscribe(),
+        )));
         let auth = if options.token.is_some() {
             "bearer token required"
         } else {

@@ -3,7 +3,8 @@
 //! In: HTTP requests and WebSocket messages. Out: commands to the host (bounded channel,
 //! one-shot replies) and answers built from the host's latest published state. Security:
 //! bearer token on everything but health, the OpenAPI spec and the static ground station;
-//! CORS allow-list; body size limit; request timeout.
+//! CORS allow-list; body size limit; request timeout; and before any of that, a connection
+//! limit with header-read and idle timeouts (`serve`).
 
 pub mod auth;
 pub mod body;
@@ -13,9 +14,11 @@ pub mod exploration;
 pub mod geofence;
 pub mod map;
 pub mod openapi;
+pub mod quiet;
 pub mod routes;
 pub mod saved;
 pub mod scans;
+pub mod serve;
 pub mod web;
 pub mod ws;
 
