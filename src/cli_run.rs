@@ -279,16 +279,7 @@ async fn serve_vehicle(
         .with_context(|| format!("creating flight log {}", log_path.display()))?;
     host.set_log(FlightLog::new(Box::new(writer), 10.0));
     let dir = state_dir(args.state_dir.clone(), config);
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the state directory {}", dir.display()))?;
-    let state_file = dir.join("state.json");
-    if let Some(state) = kestrel::mission::store::load(&state_file)? {
-        host.restore(state);
-        println!(
-            "restored missions from {} (not resumed)",
-            state_file.display()
-        );
-    }
+    crate::cli_serve::open_state(&mut host, &dir)?;
     let flights = match &args.mission {
         Some(file) => {
             let text = std::fs::read_to_string(file)
@@ -308,7 +299,6 @@ async fn serve_vehicle(
         token,
         api: config.api.clone(),
         pace: Pace::RealTime,
-        state_file: Some(state_file),
         log: Some(log_file),
         flights: Flights::new(flights, args.mission_demo),
         demo_within: args

@@ -8,9 +8,9 @@ use kestrel::config::ApiSection;
 use kestrel::host::logwriter::LogFile;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
 use kestrel::host::status::{EventBody, HostEvent};
-use kestrel::host::Host;
+use kestrel::host::{store, Host};
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
@@ -22,7 +22,6 @@ pub struct ServeOptions {
     pub token: Option<String>,
     pub api: ApiSection,
     pub pace: Pace,
-    pub state_file: Option<PathBuf>,
     pub log: Option<LogFile>,
     /// Missions flown at start (and the demo, once it starts).
     pub flights: Flights,
@@ -82,6 +81,36 @@ fn landing(core: &kestrel::core::DroneCore) -> bool {
             .server()
             .motion()
             .is_some_and(|(name, _)| name == "land")
+}
+
+/// Restores what the state directory `dir` keeps (created if missing) and keeps every change
+/// there from now on. Files that cannot be read are quarantined with a warning and the rest
+/// loads; only an unusable directory stops the start.
+pub fn open_state(host: &mut Host, dir: &Path) -> Result<()> {
+    let (state, report) = store::load(dir, &host.drone_ids())
+        .with_context(|| format!("opening the state directory {}", dir.display()))?;
+    for p in &report.problems {
+        let moved = p.quarantined_as.as_deref().unwrap_or("could not be moved");
+        tracing::warn!(
+            "state file {} not loaded ({}); quarantined as {moved}",
+            p.file,
+            p.reason
+        );
+    }
+    if let Some(old) = &report.migrated {
+        println!("migrated the old state file to one file per mission (kept as {old})");
+    }
+    if report.missions > 0 {
+        println!(
+            "restored {} mission(s) from {} (not resumed)",
+            report.missions,
+            dir.display()
+        );
+    }
+    host.restore(state);
+    let sink = store::Sink::start(dir, report).context("starting the state writer")?;
+    host.set_store(sink);
+    Ok(())
 }
 
 /// Binds the API's port; the default address falls back to a free port when taken.
@@ -170,8 +199,8 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
     };
     let flights = options.flights.clone();
     let max_time = options.max_time;
+    let store = host.store().cloned();
     let mut rt = RuntimeOptions::new(options.pace);
-    rt.state_file = options.state_file.clone();
     if options.exit_when_done || max_time.is_some() {
         let flights = flights.clone();
         let when_done = options.exit_when_done;
@@ -203,16 +232,16 @@ pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
             options.token.clone(),
             &options.api,
             options.log.clone(),
-        );
+        )
+        .with_store(store);
         let app = api::router(state, &options.api);
-        let mut server_stop = shutdown_tx.subscribe();
-        server = Some(tokio::spawn(async move {
-            axum::serve(listener, app)
-                .with_graceful_shutdown(async move {
-                    let _ = server_stop.wait_for(|stop| *stop).await;
-                })
-                .await
-        }));
+        let limits = api::serve::ConnLimits::from(&options.api);
+        server = Some(tokio::spawn(api::serve::serve(
+            listener,
+            app,
+            limits,
+            shutdown_tx.subscribe(),
+        )));
         let auth = if options.token.is_some() {
             "bearer token required"
         } else {

@@ -143,13 +143,7 @@ pub fn build(
     // One tick, so every drone has a position before missions are validated and started.
     host.step();
     if let Some(dir) = &args.state_dir {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating the state directory {}", dir.display()))?;
-        let file = dir.join("state.json");
-        if let Some(state) = kestrel::mission::store::load(&file)? {
-            host.restore(state);
-            println!("restored missions from {}", file.display());
-        }
+        crate::cli_serve::open_state(&mut host, dir)?;
     }
     for frame in scenario.map(|s| s.frames.clone()).unwrap_or_default() {
         let id = frame.frame_id.clone();
@@ -209,7 +203,6 @@ pub fn run(args: SimArgs) -> Result<()> {
         token,
         api: config.api.clone(),
         pace,
-        state_file: args.state_dir.as_ref().map(|d| d.join("state.json")),
         log: Some(log_file),
         flights: Flights::new(flights, false),
         demo_within: None,

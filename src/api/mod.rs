@@ -3,7 +3,8 @@
 //! In: HTTP requests and WebSocket messages. Out: commands to the host (bounded channel,
 //! one-shot replies) and answers built from the host's latest published state. Security:
 //! bearer token on everything but health, the OpenAPI spec and the static ground station;
-//! CORS allow-list; body size limit; request timeout.
+//! CORS allow-list; body size limit; request timeout; and before any of that, a connection
+//! limit with header-read and idle timeouts (`serve`).
 
 pub mod auth;
 pub mod body;
@@ -13,13 +14,17 @@ pub mod exploration;
 pub mod geofence;
 pub mod map;
 pub mod openapi;
+pub mod quiet;
 pub mod routes;
+pub mod saved;
 pub mod scans;
+pub mod serve;
 pub mod web;
 pub mod ws;
 
 use crate::config::ApiSection;
 use crate::host::logwriter::LogFile;
+use crate::host::store::Sink;
 use crate::host::HostHandle;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method};
@@ -41,6 +46,8 @@ pub struct ApiState {
     pub log: Option<LogFile>,
     /// Browser origins allowed besides the server's own (`[api] cors_origins`).
     pub cors_origins: Arc<[String]>,
+    /// The state directory's writer: changes are acknowledged once it saved them.
+    pub store: Option<Sink>,
 }
 
 impl ApiState {
@@ -59,7 +66,14 @@ impl ApiState {
             ws_clients: Arc::new(AtomicUsize::new(0)),
             log,
             cors_origins: api.cors_origins.clone().into(),
+            store: None,
         }
+    }
+
+    /// Acknowledges changes only once `store` saved them (`None`: nothing is kept).
+    pub fn with_store(mut self, store: Option<Sink>) -> Self {
+        self.store = store;
+        self
     }
 }
 

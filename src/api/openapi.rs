@@ -37,7 +37,8 @@ impl Modify for BearerAuth {
         ErrorBody, ValidationError, Mission, MissionItem, MissionUpdate, MissionStatus,
         DoneResult, ItemResult, DroneStatus, BatteryStatus, GeoStatus, FrameRegistration,
         MissionView, Uploaded, Updated, BehaviorInfo, routes::Health, routes::StatusAnswer,
-        routes::UpdateAnswer, routes::Fault
+        routes::UpdateAnswer, routes::UploadAnswer, crate::api::saved::Durability,
+        crate::host::store::StoreHealth, crate::host::store::Problem, routes::Fault
     )),
     modifiers(&BearerAuth),
     tags((name = "missions"), (name = "vehicles"), (name = "frames"), (name = "system"))

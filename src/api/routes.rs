@@ -6,9 +6,11 @@
 
 use super::body::{parse, JsonBody};
 use super::error::{ApiError, ErrorBody};
+use super::saved::{changes_saved, Durability};
 use super::ApiState;
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
 use crate::host::runtime::BehaviorInfo;
+use crate::host::store::StoreHealth;
 use crate::host::HostError;
 use crate::host::{Command, DroneStatus};
 use crate::mission::{Mission, MissionUpdate};
@@ -38,6 +40,10 @@ pub struct Health {
     pub drones: Vec<String>,
     pub uptime_s: f64,
     pub simulated: bool,
+    /// The state directory (absent without one): saves failing and retried, files quarantined
+    /// at start.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub storage: Option<StoreHealth>,
 }
 
 #[derive(Debug, Serialize, utoipa::ToSchema)]
@@ -55,6 +61,7 @@ pub async fn health(State(s): State<ApiState>) -> Json<Health> {
         drones: s.host.info.drones.clone(),
         uptime_s: s.started.elapsed().as_secs_f64(),
         simulated: s.host.info.simulated,
+        storage: s.store.as_ref().map(|st| st.health()),
     })
 }
 
@@ -92,13 +99,14 @@ pub async fn missions(
 
 #[utoipa::path(post, path = "/api/missions", tag = "missions", security(("bearer" = [])),
     params(UploadQuery), request_body = Mission,
-    responses((status = 201, body = Uploaded), (status = 422, body = ErrorBody),
-        (status = 413, body = ErrorBody)))]
+    responses((status = 201, body = UploadAnswer,
+        description = "loaded; `durable`: saved (file and directory synced) before this answer"),
+        (status = 422, body = ErrorBody), (status = 413, body = ErrorBody)))]
 pub async fn upload(
     State(s): State<ApiState>,
     Query(q): Query<UploadQuery>,
     JsonBody(mission): JsonBody<Value>,
-) -> Result<(StatusCode, Json<Uploaded>), ApiError> {
+) -> Result<(StatusCode, Json<UploadAnswer>), ApiError> {
     let up = s
         .host
         .call(|reply| Command::Upload {
@@ -107,7 +115,17 @@ pub async fn upload(
             reply,
         })
         .await?;
-    Ok((StatusCode::CREATED, Json(up)))
+    let saved = changes_saved(&s).await;
+    Ok((StatusCode::CREATED, Json(UploadAnswer { up, saved })))
+}
+
+/// An upload's answer: the mission's id and whether it is saved.
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct UploadAnswer {
+    #[serde(flatten)]
+    pub up: Uploaded,
+    #[serde(flatten)]
+    pub saved: Durability,
 }
 
 #[utoipa::path(get, path = "/api/missions/{id}", tag = "missions", security(("bearer" = [])),
@@ -144,6 +162,8 @@ pub async fn delete_mission(
             reply,
         })
         .await?;
+    // 204 has no body to say "not saved"; the health does (a failed save is retried).
+    changes_saved(&s).await;
     Ok(StatusCode::NO_CONTENT)
 }
 
@@ -153,14 +173,19 @@ pub struct UpdateAnswer {
     pub accepted: bool,
     #[serde(flatten)]
     pub updated: Updated,
+    #[serde(flatten)]
+    pub saved: Durability,
 }
 
-/// Applies a MissionUpdate; the JSON form of Aerostack2's message, accepted as is.
-pub async fn apply_update(s: &ApiState, bytes: &[u8]) -> Result<Updated, ApiError> {
+/// Applies a MissionUpdate (the JSON form of Aerostack2's message, accepted as is) and waits
+/// for what it changed to be saved.
+pub async fn apply_update(s: &ApiState, bytes: &[u8]) -> Result<(Updated, Durability), ApiError> {
     let update: MissionUpdate = parse(bytes)?;
-    Ok(s.host
+    let updated = s
+        .host
         .call(|reply| Command::Update { update, reply })
-        .await?)
+        .await?;
+    Ok((updated, changes_saved(s).await))
 }
 
 #[utoipa::path(post, path = "/api/mission_update", tag = "missions", security(("bearer" = [])),
@@ -173,9 +198,10 @@ pub async fn mission_update(
 ) -> Response {
     let bytes = body.to_string();
     match apply_update(&s, bytes.as_bytes()).await {
-        Ok(updated) => Json(UpdateAnswer {
+        Ok((updated, saved)) => Json(UpdateAnswer {
             accepted: true,
             updated,
+            saved,
         })
         .into_response(),
         Err(e) => e.as_rejection(),
@@ -184,7 +210,7 @@ pub async fn mission_update(
 
 #[utoipa::path(post, path = "/api/frames", tag = "frames", security(("bearer" = [])),
     request_body = FrameRegistration,
-    responses((status = 200, description = "{\"frame_id\": ..}"), (status = 422, body = ErrorBody)))]
+    responses((status = 200, description = "{\"frame_id\": .., \"durable\": ..}"), (status = 422, body = ErrorBody)))]
 pub async fn set_frame(
     State(s): State<ApiState>,
     JsonBody(frame): JsonBody<FrameRegistration>,
@@ -193,7 +219,10 @@ pub async fn set_frame(
     s.host
         .call(|reply| Command::SetFrame { frame, reply })
         .await?;
-    Ok(Json(json!({ "frame_id": id })))
+    let saved = changes_saved(&s).await;
+    Ok(Json(
+        json!({ "frame_id": id, "durable": saved.durable, "not_durable": saved.not_durable }),
+    ))
 }
 
 #[utoipa::path(get, path = "/api/frames", tag = "frames", security(("bearer" = [])),

@@ -153,7 +153,7 @@ async fn client_message(s: &ApiState, text: &str) -> (Value, Option<f64>) {
             }
             let result = apply_update(s, fields.to_string().as_bytes())
                 .await
-                .map(|u| json!({"drone": u.drone, "status": u.status}))
+                .map(|(u, saved)| json!({"drone": u.drone, "status": u.status, "durable": saved.durable}))
                 .map_err(|e| e.message());
             (reply(request_id, result), None)
         }

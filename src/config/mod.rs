@@ -118,6 +118,17 @@ pub struct ApiSection {
     pub max_body_bytes: usize,
     /// Most WebSocket clients served at once.
     pub max_ws_clients: usize,
+    /// Most TCP connections open at once, WebSockets included (1..=65 536). Further clients
+    /// wait in the listen backlog until one closes, so the descriptors the state directory
+    /// needs are never taken (systemd's `LimitNOFILE` is 8192).
+    pub max_connections: usize,
+    /// A request's head must arrive within this long (s, 0.1..=300) of the connection opening
+    /// or of the previous answer: closes idle and slowly-typing (slowloris) connections.
+    pub header_read_timeout_s: f64,
+    /// A connection with nothing read or written for this long is closed (s, 1..=3600), whatever
+    /// it waits for: a stalled body, an answer not read, a silent WebSocket. Keep it above the
+    /// 30 s request timeout.
+    pub idle_timeout_s: f64,
 }
 
 impl Default for ApiSection {
@@ -129,6 +140,9 @@ impl Default for ApiSection {
             cors_origins: Vec::new(),
             max_body_bytes: 1 << 20,
             max_ws_clients: 256,
+            max_connections: 512,
+            header_read_timeout_s: 10.0,
+            idle_timeout_s: 120.0,
         }
     }
 }
@@ -359,6 +373,21 @@ impl Config {
             (1024, 64 << 20),
         )?;
         count("api.max_ws_clients", self.api.max_ws_clients, (1, 10_000))?;
+        count("api.max_connections", self.api.max_connections, (1, 65_536))?;
+        within(
+            "api.header_read_timeout_s",
+            self.api.header_read_timeout_s,
+            (0.1, 300.0),
+            false,
+            "s",
+        )?;
+        within(
+            "api.idle_timeout_s",
+            self.api.idle_timeout_s,
+            (1.0, 3600.0),
+            false,
+            "s",
+        )?;
         self.map.validate()?;
         non_negative(
             "safety.min_separation_m",
@@ -498,6 +527,12 @@ mod tests {
             ("[mission]\nswitch_hold_s = nan\n", "mission.switch_hold_s"),
             ("[geofence]\nradius_m = -5.0\n", "geofence.radius_m"),
             ("[api]\nmax_ws_clients = 0\n", "api.max_ws_clients"),
+            ("[api]\nmax_connections = 0\n", "api.max_connections"),
+            (
+                "[api]\nheader_read_timeout_s = 0.0\n",
+                "api.header_read_timeout_s",
+            ),
+            ("[api]\nidle_timeout_s = inf\n", "api.idle_timeout_s"),
         ] {
             let e = Config::parse(text, "test").unwrap_err().to_string();
             assert!(e.contains(key), "{text}: {e}");

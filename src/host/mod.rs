@@ -18,6 +18,7 @@ pub mod scans;
 pub mod scenario;
 pub mod sim;
 pub mod status;
+pub mod store;
 pub mod vehicle;
 
 pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};

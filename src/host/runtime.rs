@@ -3,19 +3,18 @@
 //! In: commands (bounded `mpsc`, one-shot replies), a pace (real time, a speed-up factor, or as
 //! fast as possible), a shutdown signal. Out: the latest [`HostSnapshot`] (`watch`, at most
 //! every `publish_period` and on every mission change), events (`broadcast`: a slow reader
-//! lags and skips, the loop never waits), the persisted state (written by another task), and
-//! systemd READY / WATCHDOG notifications.
+//! lags and skips, the loop never waits), and systemd READY / WATCHDOG notifications. What is
+//! saved leaves through the host's store (`host::store`), written on a thread of its own.
 //!
 //! The loop runs in its own single-threaded tokio runtime on a dedicated thread, so WebSocket
 //! clients and HTTP handlers on the main runtime cannot delay a control tick.
 
-use super::engine::{Command, Host, HostError, PersistedState, Reply};
+use super::engine::{Command, Host, HostError, Reply};
 use super::status::{HostSnapshot, SharedEvent};
+use super::store::Saved;
 use crate::mission::methods::methods;
-use crate::mission::store;
 use crate::planning::worker::Delivery;
 use serde::Serialize;
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
@@ -36,8 +35,6 @@ pub type StopWhen = Box<dyn FnMut(&Host) -> bool + Send>;
 
 pub struct RuntimeOptions {
     pub pace: Pace,
-    /// Where loaded missions are kept; `None` = not kept.
-    pub state_file: Option<PathBuf>,
     pub command_capacity: usize,
     pub event_capacity: usize,
     /// Shortest wall-clock time between two published snapshots.
@@ -50,7 +47,6 @@ impl RuntimeOptions {
     pub fn new(pace: Pace) -> Self {
         Self {
             pace,
-            state_file: None,
             command_capacity: 64,
             event_capacity: 1024,
             publish_period: Duration::from_millis(20),
@@ -216,6 +212,9 @@ pub fn spawn(
 /// A plan not done within this wall-clock time fails (its behavior fails with a timeout).
 const PLAN_DEADLINE: Duration = Duration::from_secs(2);
 
+/// How long stopping waits for the last changes to reach the disk.
+const SHUTDOWN_SAVE_WAIT: Duration = Duration::from_secs(5);
+
 /// Most simulated ticks run in one wake-up when the loop is late.
 const MAX_CATCH_UP: u32 = 50;
 /// Ticks per batch at `Pace::Max` before other work (commands, publishing) gets a turn.
@@ -226,8 +225,6 @@ struct Publisher {
     events: broadcast::Sender<SharedEvent>,
     period: Duration,
     last: Option<Instant>,
-    persist_tx: Option<watch::Sender<Option<PersistedState>>>,
-    persisted_revision: Option<u64>,
     log_flushed: Instant,
     map_sent: Option<Instant>,
 }
@@ -252,38 +249,11 @@ impl Publisher {
             // No subscriber is not an error: nobody is watching.
             let _ = self.events.send(Arc::new(e));
         }
-        if let Some(tx) = &self.persist_tx {
-            let revision = host.revision();
-            if self.persisted_revision != Some(revision) {
-                self.persisted_revision = Some(revision);
-                tx.send_replace(Some(host.persisted()));
-            }
-        }
         if self.log_flushed.elapsed() >= Duration::from_millis(200) {
             host.flush_log();
             self.log_flushed = Instant::now();
         }
     }
-}
-
-/// Writes the latest persisted state whenever it changes, off the control loop.
-fn spawn_persister(path: PathBuf) -> watch::Sender<Option<PersistedState>> {
-    let (tx, mut rx) = watch::channel::<Option<PersistedState>>(None);
-    tokio::spawn(async move {
-        while rx.changed().await.is_ok() {
-            let Some(state) = rx.borrow_and_update().clone() else {
-                continue;
-            };
-            let path = path.clone();
-            let saved = tokio::task::spawn_blocking(move || store::save(&path, &state)).await;
-            match saved {
-                Ok(Err(e)) => tracing::error!("saving missions: {e}"),
-                Err(e) => tracing::error!("saving missions: {e}"),
-                Ok(Ok(())) => {}
-            }
-        }
-    });
-    tx
 }
 
 struct Watchdog {
@@ -334,8 +304,6 @@ async fn control_loop(
         events,
         period: options.publish_period,
         last: None,
-        persist_tx: options.state_file.clone().map(spawn_persister),
-        persisted_revision: None,
         log_flushed: Instant::now(),
         map_sent: None,
     };
@@ -410,9 +378,12 @@ async fn control_loop(
     let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Stopping]);
     publisher.publish(&mut host);
     host.flush_log();
-    if let Some(path) = &options.state_file {
-        if let Err(e) = store::save(path, &host.persisted()) {
-            tracing::error!("saving missions: {e}");
+    host.commit();
+    if let Some(store) = host.store() {
+        match store.saved(SHUTDOWN_SAVE_WAIT).await {
+            Saved::Durable => {}
+            Saved::Failed(e) => tracing::error!("stopping with the state not saved: {e}"),
+            Saved::Pending => tracing::error!("stopping with the state not saved yet"),
         }
     }
     host

@@ -8,7 +8,6 @@ pub mod executor;
 pub mod methods;
 pub mod model;
 pub mod schema;
-pub mod store;
 pub mod validate;
 
 pub use executor::{ActionError, MissionExecutor, Request};

@@ -523,6 +523,13 @@ impl Host {
             .map_err(HostError::NotSupported)
     }
 
+    /// Answers a command that may have changed what is saved: the change is handed to the
+    /// store first, so by the time the API has the answer, `Sink::saved` covers it.
+    fn answer<T>(&mut self, reply: Reply<T>, answer: Result<T, HostError>) {
+        self.commit();
+        let _ = reply.send(answer);
+    }
+
     /// Carries out one command and answers it.
     pub fn handle(&mut self, command: Command) {
         // A client that gave up waiting dropped its receiver; nothing to answer then.
@@ -532,17 +539,20 @@ impl Host {
                 mission_id,
                 reply,
             } => {
-                let _ = reply.send(self.upload(&mission, mission_id));
+                let answer = self.upload(&mission, mission_id);
+                self.answer(reply, answer);
             }
             Command::Update { update, reply } => {
-                let _ = reply.send(self.update(&update));
+                let answer = self.update(&update);
+                self.answer(reply, answer);
             }
             Command::Delete {
                 drone,
                 mission_id,
                 reply,
             } => {
-                let _ = reply.send(self.delete(drone.as_deref(), mission_id));
+                let answer = self.delete(drone.as_deref(), mission_id);
+                self.answer(reply, answer);
             }
             Command::Missions { drone, reply } => {
                 let _ = reply.send(self.views(drone.as_deref(), false));
@@ -555,7 +565,8 @@ impl Host {
                 let _ = reply.send(self.mission_view(drone.as_deref(), mission_id));
             }
             Command::SetFrame { frame, reply } => {
-                let _ = reply.send(self.set_frame(frame));
+                let answer = self.set_frame(frame);
+                self.answer(reply, answer);
             }
             Command::Frames { reply } => {
                 let _ = reply.send(Ok(self.frames.clone()));
@@ -585,10 +596,12 @@ impl Host {
                 args,
                 reply,
             } => {
-                let _ = reply.send(self.start_exploration(&drones, &args));
+                let answer = self.start_exploration(&drones, &args);
+                self.answer(reply, answer);
             }
             Command::ExplorationStop { drones, reply } => {
-                let _ = reply.send(self.stop_exploration(&drones));
+                let answer = self.stop_exploration(&drones);
+                self.answer(reply, answer);
             }
             Command::ExplorationReport { reply } => {
                 let _ = reply.send(self.exploration_report());

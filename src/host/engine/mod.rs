@@ -2,7 +2,8 @@
 //! registered over the API and the flight log, stepped one tick at a time.
 //!
 //! In: [`Command`]s (each with a one-shot reply) and ticks. Out: replies, the published
-//! [`HostSnapshot`], [`HostEvent`]s and a [`PersistedState`]. It never reads the clock: the
+//! [`HostSnapshot`], [`HostEvent`]s, the changes to save (handed to the store after every tick
+//! and before a command's answer) and a [`PersistedState`]. It never reads the clock: the
 //! runtime (`host::runtime`) decides when to step, in real or simulated time.
 
 mod commands;
@@ -15,6 +16,7 @@ pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 
 use super::fleet::Fleet;
 use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use super::store::{Change, Sink};
 use crate::behavior::fleet::{FleetInput, FleetView};
 use crate::behavior::services::{ExploreJob, ServiceAnswer};
 use crate::behavior::RunState;
@@ -107,6 +109,12 @@ pub struct Host {
     explore_jobs: Vec<(usize, ExploreJob)>,
     /// The exploration started over the API (`POST /api/exploration/start`), the last one.
     exploration: Option<ExplorationRun>,
+    /// Where changes to save go (`None`: nothing is kept).
+    store: Option<Sink>,
+    /// Each executor's revision when its state was last handed to the store.
+    committed: Vec<u64>,
+    /// `revision` (frames) when last handed to the store.
+    frames_committed: u64,
 }
 
 impl Host {
@@ -138,6 +146,53 @@ impl Host {
             frontiers: FrontierService::new(),
             explore_jobs: Vec::new(),
             exploration: None,
+            store: None,
+            committed: vec![0; n],
+            frames_committed: 0,
+        }
+    }
+
+    /// Keeps what changes from now on in the state directory behind `store`.
+    pub fn set_store(&mut self, store: Sink) {
+        self.store = Some(store);
+    }
+
+    pub fn store(&self) -> Option<&Sink> {
+        self.store.as_ref()
+    }
+
+    /// Hands what changed since the last call to the store: the missions that changed (copied
+    /// one by one, never all of them), an executor's small state, the frames. No I/O here.
+    pub fn commit(&mut self) {
+        let mut changes = Vec::new();
+        for ((core, ex), committed) in self
+            .cores
+            .iter()
+            .zip(self.executors.iter_mut())
+            .zip(self.committed.iter_mut())
+        {
+            let drone = core.drone_id();
+            for (id, loaded) in ex.take_changed() {
+                changes.push(Change::Mission {
+                    drone: drone.to_string(),
+                    id,
+                    loaded: loaded.map(Box::new),
+                });
+            }
+            if *committed != ex.revision() {
+                *committed = ex.revision();
+                changes.push(Change::Meta {
+                    drone: drone.to_string(),
+                    meta: ex.meta(),
+                });
+            }
+        }
+        if self.frames_committed != self.revision {
+            self.frames_committed = self.revision;
+            changes.push(Change::Frames(self.frames.clone()));
+        }
+        if let Some(store) = &self.store {
+            store.push(changes);
         }
     }
 
@@ -245,11 +300,6 @@ impl Host {
                 .collect(),
             frames: self.frames.clone(),
         }
-    }
-
-    /// Changes whenever something worth persisting changed.
-    pub fn revision(&self) -> u64 {
-        self.revision + self.executors.iter().map(|e| e.revision()).sum::<u64>()
     }
 
     pub fn snapshot(&self) -> HostSnapshot {
@@ -413,6 +463,7 @@ impl Host {
         }
         self.answer_explore_jobs(now);
         self.record_exploration(now);
+        self.commit();
         self.fleet.advance(now, self.tick);
         for (i, message) in self.fleet.take_alerts() {
             if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {

@@ -167,6 +167,8 @@ impl MissionExecutor {
                 }
             }
         }
+        // Whatever the action did, it did it to mission `id`.
+        self.mark(id);
         self.touch();
         Ok(self.status(core))
     }

@@ -21,12 +21,22 @@ use super::model::{DoneResult, ExecState, ItemResult, MissionStatus, OnFailure, 
 use crate::behavior::{BehaviorEvent, BehaviorId, BehaviorResult, FailureCode};
 use crate::core::{BehaviorCommand, DroneCore};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 
 /// Most missions loaded on one drone at once; one more is refused (delete one, or load under
 /// the id of an idle one to replace it).
 pub const MAX_MISSIONS: usize = 64;
+
+/// What the executor keeps besides its missions: small, saved whole on every change.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ExecutorMeta {
+    /// The mission that was running or paused when it was taken.
+    pub running: Option<u32>,
+    pub shown: Option<u32>,
+    pub next_id: u32,
+    pub last_error: Option<String>,
+}
 
 /// A loaded mission and how far it got.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -92,6 +102,8 @@ pub struct MissionExecutor {
     last_error_code: Option<FailureCode>,
     next_id: u32,
     revision: u64,
+    /// Missions changed (or unloaded) since the last [`MissionExecutor::take_changed`].
+    changed: BTreeSet<u32>,
     config: ExecutorConfig,
 }
 
@@ -105,6 +117,7 @@ impl MissionExecutor {
             last_error_code: None,
             next_id: 1,
             revision: 0,
+            changed: BTreeSet::new(),
             config,
         }
     }
@@ -125,6 +138,7 @@ impl MissionExecutor {
             last_error_code: None,
             next_id: snapshot.next_id.max(1),
             revision: 1,
+            changed: BTreeSet::new(),
             config,
         }
     }
@@ -137,6 +151,30 @@ impl MissionExecutor {
             next_id: self.next_id,
             last_error: self.last_error.clone(),
         }
+    }
+
+    /// Everything but the missions, as [`ExecutorSnapshot`] has it.
+    pub fn meta(&self) -> ExecutorMeta {
+        ExecutorMeta {
+            running: self.running_id(),
+            shown: self.shown,
+            next_id: self.next_id,
+            last_error: self.last_error.clone(),
+        }
+    }
+
+    /// The missions changed since the last call: a copy of each (`None`: unloaded). Only those
+    /// are copied, so saving after a change costs one mission, not all of them.
+    pub fn take_changed(&mut self) -> Vec<(u32, Option<Loaded>)> {
+        std::mem::take(&mut self.changed)
+            .into_iter()
+            .map(|id| (id, self.missions.get(&id).cloned()))
+            .collect()
+    }
+
+    /// Notes that mission `id` changed (or went), for [`MissionExecutor::take_changed`].
+    fn mark(&mut self, id: u32) {
+        self.changed.insert(id);
     }
 
     /// Changes whenever the status or a loaded mission changes (not on feedback alone).
@@ -164,10 +202,15 @@ impl MissionExecutor {
         if let Some(l) = self.missions.get_mut(&id) {
             f(&mut l.progress);
         }
+        self.mark(id);
     }
 
+    /// Every change passes here: the running mission's progress may have moved with it.
     fn touch(&mut self) {
         self.revision += 1;
+        if let Some(id) = self.running_id() {
+            self.mark(id);
+        }
     }
 
     /// Loads a mission under a new id, as `POST /api/missions` does.
@@ -214,6 +257,7 @@ impl MissionExecutor {
         if self.run.is_none() {
             self.shown = Some(id);
         }
+        self.mark(id);
         self.touch();
     }
 
@@ -231,6 +275,7 @@ impl MissionExecutor {
         if self.shown == Some(id) {
             self.shown = None;
         }
+        self.mark(id);
         self.touch();
         Ok(())
     }
@@ -322,6 +367,7 @@ impl MissionExecutor {
                 code,
             });
         }
+        self.mark(id);
         self.touch();
     }
 
@@ -353,6 +399,7 @@ impl MissionExecutor {
 
     /// Marks still-running parallel items as stopped.
     fn close_parallel(&mut self, run: &Run, reason: &str) {
+        self.mark(run.mission_id);
         if let Some(l) = self.missions.get_mut(&run.mission_id) {
             for p in &run.parallel {
                 if let Some(d) = l.progress.done.get_mut(p.slot) {
