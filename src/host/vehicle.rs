@@ -1,18 +1,21 @@
 //! A host flying real vehicles: one core per [`Platform`] (a MAVLink autopilot), ticked in
 //! real time. `kestrel run` builds its core and platform, then serves this host.
 //!
-//! In: cores and their platforms, the config. Out: a [`Host`] over `Vec<Box<dyn Platform>>`.
+//! In: cores and their platforms, the config. Out: a [`Host`] over `Vec<Box<dyn Platform>>`,
+//! with the fleet's merged map on the `[map]` section's grid (the one the cores map on), so the
+//! frontier allocator of exploration and the map routes work as in the simulator.
 
 use super::engine::{Host, HostConfig};
 use crate::config::Config;
 use crate::core::DroneCore;
+use crate::mapping::merged::FleetMap;
 use crate::platform::Platform;
 use std::time::Duration;
 
 /// `vehicles`: each core with the platform it flies, in order.
 pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Config) -> Host {
     let (cores, platforms): (Vec<DroneCore>, Vec<Box<dyn Platform>>) = vehicles.into_iter().unzip();
-    Host::new(
+    let mut host = Host::new(
         cores,
         Box::new(platforms),
         HostConfig {
@@ -20,7 +23,19 @@ pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Conf
             executor: config.executor_config(),
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },
-    )
+    );
+    // No world to frame it on: the section's extent, centred on the `earth` origin unless it
+    // says where (the cores' own maps are built from the same section).
+    match config
+        .map
+        .config(None)
+        .map(|m| m.map(|m| FleetMap::new(&m)))
+    {
+        Ok(Some(Ok(map))) => host.set_map(map),
+        Ok(None) => {}
+        Ok(Some(Err(e))) | Err(e) => tracing::error!("no merged map: {e}"),
+    }
+    host
 }
 
 /// The state directory: `--state-dir`, else `$STATE_DIRECTORY` (set by systemd), else the
@@ -63,6 +78,42 @@ mod tests {
         host.step_at(Duration::from_millis(10));
         assert_eq!(host.drone_ids(), ["drone_0"]);
         assert!(!host.is_simulated());
+    }
+
+    /// `kestrel run`'s host keeps the merged map the frontier allocator answers on: a scan
+    /// the vehicle's core maps reaches it, on the same grid.
+    #[test]
+    fn a_vehicle_host_merges_its_drone_map() {
+        let mut config = Config::default();
+        config.map.size_m = Some([12.0, 12.0]);
+        let mut core_config = CoreConfig::new("drone_0");
+        core_config.map = config.map.config(None).unwrap();
+        let vehicle = SimVehicle::new(Vec3::zeros(), 0.0, MultirotorParams::default());
+        let core = DroneCore::new(
+            core_config,
+            vehicle.capabilities(),
+            Registry::with_motion_behaviors(),
+        );
+        let mut host = vehicle_host(vec![(core, Box::new(vehicle))], &config);
+        let spec = *host.map().unwrap().merged().spec();
+        assert_eq!(spec.origin_enu_m, nalgebra::Vector2::new(-6.0, -6.0));
+        assert_eq!(spec.width_cells, 120);
+        let scan = crate::mapping::scan::from_multiranger(
+            Vec3::new(0.0, 0.0, 1.0),
+            0.0,
+            [Some(2.0), None, None, None],
+            0.05,
+            4.0,
+        );
+        host.queue_scans(None, vec![scan]).unwrap();
+        host.step_at(Duration::from_millis(10));
+        let known =
+            |g: &crate::mapping::grid::OccupancyGrid| g.data().iter().filter(|&&v| v >= 0).count();
+        let merged = known(host.map().unwrap().merged());
+        assert!(merged > 100, "{merged} known cells");
+        let own = host.cores()[0].map().unwrap().grid();
+        assert_eq!(own.spec(), &spec);
+        assert_eq!(known(own), merged);
     }
 
     #[test]
