@@ -34,8 +34,9 @@ impl FlightLog {
         }
     }
 
+    /// Writes to a new file at `path`; an existing file is never overwritten.
     pub fn create(path: &std::path::Path) -> std::io::Result<Self> {
-        let file = std::fs::File::create(path)?;
+        let file = crate::host::logfiles::create_at(path, false)?;
         Ok(Self::new(Box::new(std::io::BufWriter::new(file)), 10.0))
     }
 
