@@ -103,6 +103,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         .world
         .file_stem()
         .map_or("world".into(), |s| s.to_string_lossy().into_owned());
+    let start = std::time::SystemTime::now();
     let (file, log_path) = match &args.log {
         Some(path) => (
             logfiles::create_at(path, args.log_overwrite)
@@ -112,7 +113,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         None => {
             let kind = format!("kestrel-explore-{stem}-{}-{}", args.drones, args.seed);
             let dir = config.drone.log_dir.clone().unwrap_or_default();
-            let (file, path) = logfiles::create(&dir, &kind, std::time::SystemTime::now())
+            let (file, path) = logfiles::create(&dir, &kind, start)
                 .with_context(|| format!("creating a flight log in {}", dir.display()))?;
             logfiles::prune(&dir, &kind, config.drone.log_keep, &path)
                 .context("pruning old flight logs")?;
@@ -128,10 +129,19 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     if host.map().is_none() {
         bail!("exploration needs mapping: the config's [map] plugin is \"none\"");
     }
-    host.set_log(FlightLog::new(
-        Box::new(std::io::BufWriter::new(file)),
-        20.0,
-    ));
+    let mut log = FlightLog::new(Box::new(std::io::BufWriter::new(file)), 20.0);
+    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+        command: "explore",
+        config: &config,
+        seed: Some(args.seed),
+        world: Some(&args.world),
+        scenario: None,
+        mission: None,
+        geo_origin: host.cores().first().map(|c| c.geo_origin().0),
+        drones: host.drone_ids(),
+        start,
+    }));
+    host.set_log(log);
     host.step();
     let mut flights = Vec::new();
     let mut explore_args = match &args.explore_args {

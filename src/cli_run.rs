@@ -276,15 +276,30 @@ async fn serve_vehicle(
     } else {
         Some(crate::cli_serve::bind(listen, token.as_deref())?)
     };
+    let start = std::time::SystemTime::now();
     let (writer, log_file) = crate::cli_serve::open_log(&crate::cli_serve::LogChoice {
         explicit: args.log.clone(),
         overwrite: args.log_overwrite,
         dir: config.drone.log_dir.clone().unwrap_or_default(),
         kind: "kestrel-run".into(),
         keep: config.drone.log_keep,
+        start,
     })?;
     let log_path = log_file.path.clone();
-    host.set_log(FlightLog::new(Box::new(writer), 10.0));
+    let mut log = FlightLog::new(Box::new(writer), 10.0);
+    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+        command: "run",
+        config,
+        seed: None,
+        world: None,
+        scenario: None,
+        mission: args.mission.as_deref(),
+        // From the config only: otherwise the autopilot's home, not known yet.
+        geo_origin: config.drone.geodetic_origin,
+        drones: host.drone_ids(),
+        start,
+    }));
+    host.set_log(log);
     let dir = state_dir(args.state_dir.clone(), config);
     crate::cli_serve::open_state(&mut host, &dir)?;
     let flights = match &args.mission {

@@ -144,6 +144,39 @@ pub struct LogChoice {
     pub kind: String,
     /// Logs of this kind kept in `dir` (the oldest beyond are deleted).
     pub keep: usize,
+    /// Wall-clock start of the run: the log's name and its header's `start_time`.
+    pub start: std::time::SystemTime,
+}
+
+/// What the flight log's header says about the run (see `kestrel::flightlog`).
+pub struct RunInfo<'a> {
+    /// `sim`, `run` or `explore`.
+    pub command: &'a str,
+    pub config: &'a kestrel::config::Config,
+    pub seed: Option<u64>,
+    pub world: Option<&'a Path>,
+    pub scenario: Option<&'a Path>,
+    pub mission: Option<&'a Path>,
+    /// The ENU origin on Earth; `None` until the autopilot gives one.
+    pub geo_origin: Option<kestrel::types::GeoPoint>,
+    pub drones: Vec<String>,
+    pub start: std::time::SystemTime,
+}
+
+/// The flight log's first record.
+pub fn header(info: &RunInfo) -> serde_json::Value {
+    serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "command": info.command,
+        "start_time": logfiles::rfc3339(info.start),
+        "drones": info.drones,
+        "seed": info.seed,
+        "world": info.world.map(|p| p.display().to_string()),
+        "scenario": info.scenario.map(|p| p.display().to_string()),
+        "mission": info.mission.map(|p| p.display().to_string()),
+        "geo_origin": info.geo_origin,
+        "config": info.config,
+    })
 }
 
 /// Creates this run's flight log (never opening an existing file unless told to) and prunes
@@ -156,11 +189,8 @@ pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile
             (file, path.clone())
         }
         None => {
-            let (file, path) =
-                logfiles::create(&choice.dir, &choice.kind, std::time::SystemTime::now())
-                    .with_context(|| {
-                        format!("creating a flight log in {}", choice.dir.display())
-                    })?;
+            let (file, path) = logfiles::create(&choice.dir, &choice.kind, choice.start)
+                .with_context(|| format!("creating a flight log in {}", choice.dir.display()))?;
             match logfiles::prune(&choice.dir, &choice.kind, choice.keep, &path) {
                 Ok(deleted) if !deleted.is_empty() => println!(
                     "deleted {} old flight log(s) (keeping {})",

@@ -174,19 +174,33 @@ pub fn run(args: SimArgs) -> Result<()> {
     let (mut host, demos) = build(&args, &config, scenario.as_ref())?;
     let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
     let listener = cli_serve::bind(listen, token.as_deref())?;
+    let start = std::time::SystemTime::now();
     let (writer, log_file) = cli_serve::open_log(&LogChoice {
         explicit: args.log.clone(),
         overwrite: args.log_overwrite,
         dir: config.drone.log_dir.clone().unwrap_or_default(),
         kind: "kestrel-sim".into(),
         keep: config.drone.log_keep,
+        start,
     })?;
     let log_path = log_file.path.clone();
-    host.set_log(FlightLog::new(Box::new(writer), 10.0));
     let mission_file = args
         .mission
         .clone()
         .or_else(|| scenario.as_ref().and_then(|s| s.mission.clone()));
+    let mut log = FlightLog::new(Box::new(writer), 10.0);
+    log.header(cli_serve::header(&cli_serve::RunInfo {
+        command: "sim",
+        config: &config,
+        seed: Some(args.seed),
+        world: args.world.as_deref(),
+        scenario: args.scenario.as_deref(),
+        mission: mission_file.as_deref(),
+        geo_origin: host.cores().first().map(|c| c.geo_origin().0),
+        drones: host.drone_ids(),
+        start,
+    }));
+    host.set_log(log);
     let flights = if args.no_demo {
         Vec::new()
     } else if let Some(file) = &mission_file {

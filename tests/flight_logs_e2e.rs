@@ -195,3 +195,66 @@ async fn a_restarted_run_leaves_the_earlier_log_intact() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--log-overwrite"));
     assert_eq!(std::fs::read(&earlier).unwrap(), before);
 }
+
+#[test]
+fn the_log_says_what_ran_and_poses_name_the_motion_behavior() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/missions/scenarios/solar_park.json"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_kestrel"))
+        .current_dir(dir.path())
+        .env_remove("KESTREL_API_TOKEN")
+        .args(["sim", "--scenario", scenario, "--speedup", "max"])
+        .args(["--exit-when-done", "--listen", "127.0.0.1:0", "--seed", "7"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let files = logs(dir.path(), "kestrel-sim-");
+    let records = intact(&std::fs::read_to_string(&files[0]).unwrap());
+
+    let h = &records[0];
+    assert_eq!(h["type"], "header", "{h}");
+    assert_eq!(h["version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(h["seed"], 7);
+    assert!(h["scenario"].as_str().unwrap().ends_with("solar_park.json"));
+    assert!(h["start_time"].as_str().unwrap().ends_with('Z'));
+    assert!(h["geo_origin"]["lat_deg"].is_f64(), "{h}");
+    assert!(h["config"]["drone"]["log_keep"].is_u64(), "{h}");
+
+    let poses: Vec<&Value> = records.iter().filter(|r| r["type"] == "pose").collect();
+    assert!(poses.len() > 100);
+    for p in &poses {
+        for key in [
+            "t",
+            "drone",
+            "x",
+            "y",
+            "z",
+            "yaw",
+            "mode",
+            "setpoint",
+            "battery_v",
+        ] {
+            assert!(p.get(key).is_some(), "{key} missing in {p}");
+        }
+        // The gimbal points while the drone follows its path: the pose names the motion.
+        assert_ne!(p["behavior"], "point_gimbal", "{p}");
+    }
+    assert!(poses.iter().any(|p| p["behavior"] == "follow_path"));
+    assert!(poses.iter().any(|p| p["setpoint"]["kind"].is_string()));
+
+    let flown = records
+        .iter()
+        .find(|r| r["type"] == "command" && r["fields"]["mission"]["plan"].is_array());
+    assert!(flown.is_some(), "no command record carries the mission");
+    let in_mission = records
+        .iter()
+        .filter(|r| r["type"] == "behavior" && r["mission"]["item"]["behavior"].is_string())
+        .count();
+    assert!(
+        in_mission > 3,
+        "behavior records without their mission item"
+    );
+}
