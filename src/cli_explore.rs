@@ -16,6 +16,7 @@ use clap::Args;
 use kestrel::exploration::allocation::AllocatorKind;
 use kestrel::exploration::evaluate::{self, EvalParams};
 use kestrel::flightlog::FlightLog;
+use kestrel::host::logfiles;
 use kestrel::host::runtime::Pace;
 use kestrel::host::sim::{sim_world, simulated_host_in};
 use kestrel::host::Host;
@@ -39,9 +40,13 @@ pub struct ExploreArgs {
     /// Seed for sensor noise; the same seed gives the same run.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Flight log (JSON lines). Default: kestrel-explore-<world>-<N>-<seed>.jsonl.
+    /// Flight log (JSON lines) at this path, which must not exist yet (see --log-overwrite).
+    /// Default: a new kestrel-explore-<world>-<N>-<seed>-<UTC start time>.jsonl.
     #[arg(long)]
     log: Option<PathBuf>,
+    /// With --log: replace the file if it exists.
+    #[arg(long, requires = "log")]
+    log_overwrite: bool,
     /// Report (JSON) with every metric. Default: the log's name with `.report.json`.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -98,12 +103,23 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         .world
         .file_stem()
         .map_or("world".into(), |s| s.to_string_lossy().into_owned());
-    let log_path = args.log.clone().unwrap_or_else(|| {
-        PathBuf::from(format!(
-            "kestrel-explore-{stem}-{}-{}.jsonl",
-            args.drones, args.seed
-        ))
-    });
+    let start = std::time::SystemTime::now();
+    let (file, log_path) = match &args.log {
+        Some(path) => (
+            logfiles::create_at(path, args.log_overwrite)
+                .with_context(|| format!("creating flight log {}", path.display()))?,
+            path.clone(),
+        ),
+        None => {
+            let kind = format!("kestrel-explore-{stem}-{}-{}", args.drones, args.seed);
+            let dir = config.drone.log_dir.clone().unwrap_or_default();
+            let (file, path) = logfiles::create(&dir, &kind, start)
+                .with_context(|| format!("creating a flight log in {}", dir.display()))?;
+            logfiles::prune(&dir, &kind, config.drone.log_keep, &path)
+                .context("pruning old flight logs")?;
+            (file, path)
+        }
+    };
     let report_path = args
         .report
         .clone()
@@ -113,12 +129,19 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     if host.map().is_none() {
         bail!("exploration needs mapping: the config's [map] plugin is \"none\"");
     }
-    let file = std::fs::File::create(&log_path)
-        .with_context(|| format!("creating flight log {}", log_path.display()))?;
-    host.set_log(FlightLog::new(
-        Box::new(std::io::BufWriter::new(file)),
-        20.0,
-    ));
+    let mut log = FlightLog::new(Box::new(std::io::BufWriter::new(file)), 20.0);
+    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+        command: "explore",
+        config: &config,
+        seed: Some(args.seed),
+        world: Some(&args.world),
+        scenario: None,
+        mission: None,
+        geo_origin: host.cores().first().map(|c| c.geo_origin().0),
+        drones: host.drone_ids(),
+        start,
+    }));
+    host.set_log(log);
     host.step();
     let mut flights = Vec::new();
     let mut explore_args = match &args.explore_args {

@@ -53,6 +53,9 @@ pub struct RunArgs {
     /// Flight log (JSON lines).
     #[arg(long)]
     log: Option<PathBuf>,
+    /// With --log: replace the file if it exists.
+    #[arg(long, requires = "log")]
+    log_overwrite: bool,
     /// Serve the API meanwhile on ADDR:PORT (default: any free loopback port).
     #[arg(long, default_value = "127.0.0.1:0")]
     listen: String,
@@ -79,6 +82,7 @@ pub fn run(command: MissionCommand) -> Result<()> {
             speedup: a.speedup,
             seed: 0,
             log: a.log,
+            log_overwrite: a.log_overwrite,
             exit_when_done: true,
             config: a.config,
             sensor: None,
@@ -142,6 +146,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
         speedup: "max".into(),
         seed: 0,
         log: None,
+        log_overwrite: false,
         exit_when_done: true,
         config: None,
         sensor: None,

@@ -20,7 +20,6 @@ use kestrel::core::{CoreConfig, DroneCore};
 use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
-use kestrel::host::logwriter;
 use kestrel::host::runtime::Pace;
 use kestrel::host::vehicle::{state_dir, vehicle_host};
 use kestrel::platform::mavlink::{LinkConfig, MavlinkPlatform, Profile};
@@ -52,9 +51,13 @@ pub struct RunArgs {
     /// Exit when the plan is over: 0 if it succeeded, non-zero with the reason if not.
     #[arg(long)]
     exit_when_done: bool,
-    /// Flight log (JSON lines). Default: kestrel-run.jsonl in `drone.log_dir` or here.
+    /// Flight log (JSON lines) at this path, which must not exist yet (see --log-overwrite).
+    /// Default: a new kestrel-run-<UTC start time>.jsonl in `drone.log_dir` or here.
     #[arg(long)]
     log: Option<PathBuf>,
+    /// With --log: replace the file if it exists.
+    #[arg(long, requires = "log")]
+    log_overwrite: bool,
     /// With `--exit-when-done` or `--no-api`: stop after this many seconds whatever happens.
     #[arg(long, default_value_t = 900.0)]
     max_time_s: f64,
@@ -267,17 +270,36 @@ async fn serve_vehicle(
     ready_timeout: Duration,
 ) -> Result<()> {
     let mut host = vehicle_host(vec![(core, platform)], config);
-    let log_path = args.log.clone().unwrap_or_else(|| {
-        config
-            .drone
-            .log_dir
-            .clone()
-            .unwrap_or_default()
-            .join("kestrel-run.jsonl")
-    });
-    let (writer, log_file) = logwriter::open(&log_path)
-        .with_context(|| format!("creating flight log {}", log_path.display()))?;
-    host.set_log(FlightLog::new(Box::new(writer), 10.0));
+    let (listen, token) = crate::cli_serve::listen_and_token(args.listen.as_deref(), config)?;
+    let listener = if args.no_api {
+        None
+    } else {
+        Some(crate::cli_serve::bind(listen, token.as_deref())?)
+    };
+    let start = std::time::SystemTime::now();
+    let (writer, log_file) = crate::cli_serve::open_log(&crate::cli_serve::LogChoice {
+        explicit: args.log.clone(),
+        overwrite: args.log_overwrite,
+        dir: config.drone.log_dir.clone().unwrap_or_default(),
+        kind: "kestrel-run".into(),
+        keep: config.drone.log_keep,
+        start,
+    })?;
+    let log_path = log_file.path.clone();
+    let mut log = FlightLog::new(Box::new(writer), 10.0);
+    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+        command: "run",
+        config,
+        seed: None,
+        world: None,
+        scenario: None,
+        mission: args.mission.as_deref(),
+        // From the config only: otherwise the autopilot's home, not known yet.
+        geo_origin: config.drone.geodetic_origin,
+        drones: host.drone_ids(),
+        start,
+    }));
+    host.set_log(log);
     let dir = state_dir(args.state_dir.clone(), config);
     crate::cli_serve::open_state(&mut host, &dir)?;
     let flights = match &args.mission {
@@ -292,10 +314,8 @@ async fn serve_vehicle(
         None => Vec::new(),
     };
     println!("flight log {}", log_path.display());
-    let (listen, token) = crate::cli_serve::listen_and_token(args.listen.as_deref(), config)?;
     let options = ServeOptions {
-        listen: (!args.no_api).then_some(listen),
-        listen_is_default: false,
+        listener,
         token,
         api: config.api.clone(),
         pace: Pace::RealTime,

@@ -5,20 +5,19 @@ use crate::cli_flights::{self, Flights};
 use anyhow::{Context, Result};
 use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
-use kestrel::host::logwriter::LogFile;
+use kestrel::host::logfiles;
+use kestrel::host::logwriter::{self, LogFile};
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
 use kestrel::host::status::{EventBody, HostEvent};
 use kestrel::host::{store, Host};
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
 pub struct ServeOptions {
-    /// Where to serve the API; `None`: no API (`kestrel run --no-api`).
-    pub listen: Option<SocketAddr>,
-    /// `listen` is only the default: when it is taken, any free port of the same address does.
-    pub listen_is_default: bool,
+    /// The API's socket (from [`bind`]); `None`: no API (`kestrel run --no-api`).
+    pub listener: Option<std::net::TcpListener>,
     pub token: Option<String>,
     pub api: ApiSection,
     pub pace: Pace,
@@ -113,19 +112,99 @@ pub fn open_state(host: &mut Host, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Binds the API's port; the default address falls back to a free port when taken.
-async fn bind(listen: SocketAddr, options: &ServeOptions) -> Result<tokio::net::TcpListener> {
-    api::auth::check_listen(listen, options.token.as_deref())?;
-    match tokio::net::TcpListener::bind(listen).await {
-        Ok(l) => Ok(l),
-        Err(e) if options.listen_is_default && e.kind() == std::io::ErrorKind::AddrInUse => {
-            println!("{listen} is taken; serving the API on a free port instead");
-            tokio::net::TcpListener::bind(SocketAddr::new(listen.ip(), 0))
-                .await
-                .with_context(|| format!("cannot listen on {}", listen.ip()))
+/// Binds the API's port, before anything else starts (a flight log included). A taken port is
+/// an error: a second instance must not quietly serve somewhere else while its operator talks
+/// to the first one.
+pub fn bind(listen: SocketAddr, token: Option<&str>) -> Result<std::net::TcpListener> {
+    api::auth::check_listen(listen, token)?;
+    let listener = match std::net::TcpListener::bind(listen) {
+        Ok(l) => l,
+        Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => anyhow::bail!(
+            "cannot serve the API on {listen}: the port is taken (another kestrel running?). \
+             Stop it, or pass --listen {}:PORT for another port ({}:0 for any free one)",
+            listen.ip(),
+            listen.ip()
+        ),
+        Err(e) => return Err(e).with_context(|| format!("cannot listen on {listen}")),
+    };
+    listener
+        .set_nonblocking(true)
+        .with_context(|| format!("cannot listen on {listen}"))?;
+    Ok(listener)
+}
+
+/// Where this run's flight log goes.
+pub struct LogChoice {
+    /// `--log FILE`: exactly there.
+    pub explicit: Option<PathBuf>,
+    /// `--log-overwrite`: an existing `--log FILE` is replaced.
+    pub overwrite: bool,
+    /// Otherwise a new file in this directory, named `<kind>-<start time>.jsonl`.
+    pub dir: PathBuf,
+    pub kind: String,
+    /// Logs of this kind kept in `dir` (the oldest beyond are deleted).
+    pub keep: usize,
+    /// Wall-clock start of the run: the log's name and its header's `start_time`.
+    pub start: std::time::SystemTime,
+}
+
+/// What the flight log's header says about the run (see `kestrel::flightlog`).
+pub struct RunInfo<'a> {
+    /// `sim`, `run` or `explore`.
+    pub command: &'a str,
+    pub config: &'a kestrel::config::Config,
+    pub seed: Option<u64>,
+    pub world: Option<&'a Path>,
+    pub scenario: Option<&'a Path>,
+    pub mission: Option<&'a Path>,
+    /// The ENU origin on Earth; `None` until the autopilot gives one.
+    pub geo_origin: Option<kestrel::types::GeoPoint>,
+    pub drones: Vec<String>,
+    pub start: std::time::SystemTime,
+}
+
+/// The flight log's first record.
+pub fn header(info: &RunInfo) -> serde_json::Value {
+    serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "command": info.command,
+        "start_time": logfiles::rfc3339(info.start),
+        "drones": info.drones,
+        "seed": info.seed,
+        "world": info.world.map(|p| p.display().to_string()),
+        "scenario": info.scenario.map(|p| p.display().to_string()),
+        "mission": info.mission.map(|p| p.display().to_string()),
+        "geo_origin": info.geo_origin,
+        "config": info.config,
+    })
+}
+
+/// Creates this run's flight log (never opening an existing file unless told to) and prunes
+/// old logs of its kind.
+pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile)> {
+    let (file, path) = match &choice.explicit {
+        Some(path) => {
+            let file = logfiles::create_at(path, choice.overwrite)
+                .with_context(|| format!("creating flight log {}", path.display()))?;
+            (file, path.clone())
         }
-        Err(e) => Err(e).with_context(|| format!("cannot listen on {listen}")),
-    }
+        None => {
+            let (file, path) = logfiles::create(&choice.dir, &choice.kind, choice.start)
+                .with_context(|| format!("creating a flight log in {}", choice.dir.display()))?;
+            match logfiles::prune(&choice.dir, &choice.kind, choice.keep, &path) {
+                Ok(deleted) if !deleted.is_empty() => println!(
+                    "deleted {} old flight log(s) (keeping {})",
+                    deleted.len(),
+                    choice.keep
+                ),
+                Ok(_) => {}
+                Err(e) => tracing::warn!("pruning old flight logs: {e}"),
+            }
+            (file, path)
+        }
+    };
+    logwriter::open(file, &path)
+        .with_context(|| format!("starting the writer of {}", path.display()))
 }
 
 /// How the flights at start ended; `None` for a drone still flying.
@@ -192,9 +271,9 @@ fn print_event(e: &HostEvent) {
 
 /// Runs the host and the API until interrupted (or, with `exit_when_done`, until every
 /// flight ended).
-pub async fn serve(host: Host, options: ServeOptions) -> Result<Outcome> {
-    let listener = match options.listen {
-        Some(listen) => Some(bind(listen, &options).await?),
+pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
+    let listener = match options.listener.take() {
+        Some(l) => Some(tokio::net::TcpListener::from_std(l).context("serving the API")?),
         None => None,
     };
     let flights = options.flights.clone();

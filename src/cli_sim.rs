@@ -3,13 +3,12 @@
 //! its frames and flies its mission, `--no-demo` waits for the API.
 
 use crate::cli_flights::Flights;
-use crate::cli_serve::{self, ServeOptions};
+use crate::cli_serve::{self, LogChoice, ServeOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::demo::demo_missions;
-use kestrel::host::logwriter;
 use kestrel::host::runtime::Pace;
 use kestrel::host::scenario::Scenario;
 use kestrel::host::sim::{sim_world, simulated_host_in};
@@ -34,9 +33,14 @@ pub struct SimArgs {
     /// Seed for noise and sensors; the same seed gives the same flight.
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
-    /// Flight log (JSON lines). Default: kestrel-sim-<seed>.jsonl in the current directory.
+    /// Flight log (JSON lines) at this path, which must not exist yet (see --log-overwrite).
+    /// Default: a new kestrel-sim-<UTC start time>.jsonl in the config's `drone.log_dir` or
+    /// the current directory.
     #[arg(long)]
     pub(crate) log: Option<PathBuf>,
+    /// With --log: replace the file if it exists.
+    #[arg(long, requires = "log")]
+    pub(crate) log_overwrite: bool,
     /// Exit when the flight is over: 0 if it succeeded, non-zero with the reason if not.
     #[arg(long)]
     pub(crate) exit_when_done: bool,
@@ -168,17 +172,35 @@ pub fn run(args: SimArgs) -> Result<()> {
     let config = load_config(args.config.as_deref())?;
     let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
     let (mut host, demos) = build(&args, &config, scenario.as_ref())?;
-    let log_path = args
-        .log
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("kestrel-sim-{}.jsonl", args.seed)));
-    let (writer, log_file) = logwriter::open(&log_path)
-        .with_context(|| format!("creating flight log {}", log_path.display()))?;
-    host.set_log(FlightLog::new(Box::new(writer), 10.0));
+    let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
+    let listener = cli_serve::bind(listen, token.as_deref())?;
+    let start = std::time::SystemTime::now();
+    let (writer, log_file) = cli_serve::open_log(&LogChoice {
+        explicit: args.log.clone(),
+        overwrite: args.log_overwrite,
+        dir: config.drone.log_dir.clone().unwrap_or_default(),
+        kind: "kestrel-sim".into(),
+        keep: config.drone.log_keep,
+        start,
+    })?;
+    let log_path = log_file.path.clone();
     let mission_file = args
         .mission
         .clone()
         .or_else(|| scenario.as_ref().and_then(|s| s.mission.clone()));
+    let mut log = FlightLog::new(Box::new(writer), 10.0);
+    log.header(cli_serve::header(&cli_serve::RunInfo {
+        command: "sim",
+        config: &config,
+        seed: Some(args.seed),
+        world: args.world.as_deref(),
+        scenario: args.scenario.as_deref(),
+        mission: mission_file.as_deref(),
+        geo_origin: host.cores().first().map(|c| c.geo_origin().0),
+        drones: host.drone_ids(),
+        start,
+    }));
+    host.set_log(log);
     let flights = if args.no_demo {
         Vec::new()
     } else if let Some(file) = &mission_file {
@@ -195,11 +217,8 @@ pub fn run(args: SimArgs) -> Result<()> {
         host.drone_ids().len(),
         log_path.display()
     );
-    let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
     let options = ServeOptions {
-        listen: Some(listen),
-        listen_is_default: args.listen.is_none()
-            && config.api.listen == kestrel::config::ApiSection::default().listen,
+        listener: Some(listener),
         token,
         api: config.api.clone(),
         pace,

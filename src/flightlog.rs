@@ -1,17 +1,25 @@
 //! Flight log: one JSON object per line, written for every flight (real or simulated).
 //!
 //! Every record has `t` (seconds since the start of the run), `drone` and `type`:
+//! - `header`: the first record (`drone` null): `version`, `command` (sim / run / explore),
+//!   `start_time` (wall clock, RFC 3339 UTC), `drones`, `seed`, `world`, `scenario`, `mission`,
+//!   `geo_origin` (`lat_deg`, `lon_deg`, `alt_m` of the ENU origin) and the whole `config`.
 //! - `pose`: `x`, `y`, `z` (ENU m), `yaw` (rad), `vx`, `vy`, `vz` (m/s), `armed`, `flight`,
-//!   `behavior` (the active motion behavior or null); at `pose_rate_hz` (default 10 Hz).
+//!   `behavior` (the active motion behavior or null: never a gimbal or camera behavior),
+//!   `mode`, `link`, `battery_v`, `battery_fraction` (null when unknown) and `setpoint` (what
+//!   the controller sent the vehicle this tick: `kind` velocity / position with its fields, for
+//!   tracking error; null when none); at `pose_rate_hz` (default 10 Hz).
 //! - `behavior`: a behavior event (`event` = started / paused / resumed / modified / finished,
-//!   `id`, `behavior`, and `goal` or `result`).
-//! - `command`: a command received from outside (`command` and its fields).
+//!   `id`, `behavior`, and `goal` or `result`), with `mission` (`mission_id`, `item_index`,
+//!   `item`: the mission item running when it happened) or null outside missions.
+//! - `command`: a command received from outside (`command` and its `fields`; uploads and
+//!   MissionUpdates carry the mission itself in `fields.mission`).
 //! - `collision` / `error`: what ended or disturbed the flight (`reason`).
 //!
 //! Outside tools read it line by line; later records never change earlier ones.
 
 use crate::behavior::BehaviorEvent;
-use crate::types::VehicleState;
+use crate::types::{Setpoint, VehicleState};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::io::Write;
@@ -34,8 +42,9 @@ impl FlightLog {
         }
     }
 
+    /// Writes to a new file at `path`; an existing file is never overwritten.
     pub fn create(path: &std::path::Path) -> std::io::Result<Self> {
-        let file = std::fs::File::create(path)?;
+        let file = crate::host::logfiles::create_at(path, false)?;
         Ok(Self::new(Box::new(std::io::BufWriter::new(file)), 10.0))
     }
 
@@ -59,8 +68,23 @@ impl FlightLog {
         self.next_pose.get(drone).is_none_or(|next| t >= *next)
     }
 
+    /// The first record: what this run is (see the module doc); `fields` is an object.
+    pub fn header(&mut self, fields: Value) {
+        let mut record = json!({ "t": 0.0, "drone": null, "type": "header" });
+        if let (Value::Object(map), Value::Object(extra)) = (&mut record, fields) {
+            map.extend(extra);
+        }
+        self.write(record);
+    }
+
     /// Writes a pose record if one is due for this drone.
-    pub fn pose(&mut self, t: Duration, state: &VehicleState, behavior: Option<&str>) {
+    pub fn pose(
+        &mut self,
+        t: Duration,
+        state: &VehicleState,
+        behavior: Option<&str>,
+        setpoint: Option<&Setpoint>,
+    ) {
         if !self.pose_due(t, &state.drone) {
             return;
         }
@@ -73,12 +97,24 @@ impl FlightLog {
             "x": p.x, "y": p.y, "z": p.z, "yaw": state.estimate.pose.yaw_rad(),
             "vx": v.x, "vy": v.y, "vz": v.z,
             "armed": state.platform.armed, "flight": state.platform.flight, "behavior": behavior,
+            "mode": state.platform.mode, "link": state.platform.link,
+            "battery_v": state.platform.battery.map(|b| b.voltage_v),
+            "battery_fraction": state.platform.battery.and_then(|b| b.remaining_fraction),
+            "setpoint": setpoint,
         }));
     }
 
-    pub fn behavior(&mut self, t: Duration, drone: &str, event: &BehaviorEvent) {
+    /// A behavior event, with the mission item it belongs to (`mission`, null outside missions).
+    pub fn behavior(
+        &mut self,
+        t: Duration,
+        drone: &str,
+        event: &BehaviorEvent,
+        mission: Option<&Value>,
+    ) {
         let mut record = serde_json::to_value(event).unwrap_or(Value::Null);
         if let Value::Object(map) = &mut record {
+            map.insert("mission".into(), mission.cloned().unwrap_or(Value::Null));
             map.insert("t".into(), json!(t.as_secs_f64()));
             map.insert("drone".into(), json!(drone));
             map.insert("type".into(), json!("behavior"));

@@ -174,6 +174,7 @@ async fn requests_without_the_token_are_refused() {
         ("POST", "/api/frames"),
         ("GET", "/api/frames"),
         ("GET", "/api/log"),
+        ("GET", "/api/logs"),
         ("POST", "/api/sim/fault"),
         ("GET", "/api/ws"),
     ];
@@ -765,6 +766,7 @@ async fn missions_are_listed_fetched_and_deleted_and_behaviors_listed() {
         "/api/behaviors",
         "/api/frames",
         "/api/log",
+        "/api/logs",
         "/api/sim/fault",
     ] {
         assert!(

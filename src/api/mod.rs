@@ -106,6 +106,7 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         .route("/api/mission_update", post(routes::mission_update))
         .route("/api/frames", get(routes::frames).post(routes::set_frame))
         .route("/api/log", get(routes::log))
+        .route("/api/logs", get(routes::logs))
         .route("/api/sim/fault", post(routes::sim_fault))
         .route("/api/ws", get(ws::upgrade))
         .merge(map_routes())

@@ -31,14 +31,15 @@ impl Modify for BearerAuth {
     paths(
         routes::health, routes::status, routes::behaviors, routes::missions, routes::upload,
         routes::mission, routes::delete_mission, routes::mission_update, routes::set_frame,
-        routes::frames, routes::log, routes::sim_fault
+        routes::frames, routes::log, routes::logs, routes::sim_fault
     ),
     components(schemas(
         ErrorBody, ValidationError, Mission, MissionItem, MissionUpdate, MissionStatus,
         DoneResult, ItemResult, DroneStatus, BatteryStatus, GeoStatus, FrameRegistration,
         MissionView, Uploaded, Updated, BehaviorInfo, routes::Health, routes::StatusAnswer,
         routes::UpdateAnswer, routes::UploadAnswer, crate::api::saved::Durability,
-        crate::host::store::StoreHealth, crate::host::store::Problem, routes::Fault
+        crate::host::store::StoreHealth, crate::host::store::Problem, routes::Fault,
+        crate::host::logfiles::LogEntry
     )),
     modifiers(&BearerAuth),
     tags((name = "missions"), (name = "vehicles"), (name = "frames"), (name = "system"))

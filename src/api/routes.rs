@@ -1,4 +1,4 @@
-//! REST handlers: health, status, behaviors, missions, MissionUpdate, frames, flight log and
+//! REST handlers: health, status, behaviors, missions, MissionUpdate, frames, flight logs and
 //! simulator faults. Each one asks the host (commands) or reads its latest published state.
 //!
 //! In: HTTP requests (JSON bodies, `?drone=` queries). Out: JSON answers as `docs/API.md`
@@ -9,6 +9,7 @@ use super::error::{ApiError, ErrorBody};
 use super::saved::{changes_saved, Durability};
 use super::ApiState;
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
+use crate::host::logfiles::{self, LogEntry};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::store::StoreHealth;
 use crate::host::HostError;
@@ -273,6 +274,27 @@ pub async fn log(
         }
     };
     Ok(([(header::CONTENT_TYPE, "application/x-ndjson")], body).into_response())
+}
+
+#[utoipa::path(get, path = "/api/logs", tag = "system", security(("bearer" = [])),
+    responses((status = 200, body = Vec<LogEntry>,
+        description = "the flight logs beside the current one (one per run, named by its UTC \
+            start time), newest first")))]
+pub async fn logs(State(s): State<ApiState>) -> Result<Json<Vec<LogEntry>>, ApiError> {
+    let file = s
+        .log
+        .clone()
+        .ok_or_else(|| ApiError::NotFound("no flight log is being written".into()))?;
+    let dir = file
+        .path
+        .parent()
+        .map(std::path::Path::to_path_buf)
+        .unwrap_or_default();
+    let listed = tokio::task::spawn_blocking(move || logfiles::list(&dir, Some(&file.path)))
+        .await
+        .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?
+        .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?;
+    Ok(Json(listed))
 }
 
 #[derive(Debug, Deserialize, utoipa::ToSchema)]

@@ -59,8 +59,12 @@ pub struct DroneSection {
     pub control_rate_hz: f64,
     /// Geographic origin of the `earth` frame; absent = the autopilot's home (or a default in sim).
     pub geodetic_origin: Option<GeoPoint>,
-    /// Where the flight logs go.
+    /// Where the flight logs go (default: the current directory). Each run writes a new log
+    /// named by its start time.
     pub log_dir: Option<PathBuf>,
+    /// Logs of one kind (`kestrel-run`, `kestrel-sim`, ...) kept in `log_dir`: at each start the
+    /// oldest beyond this many are deleted (never the current one). 1 to 100000.
+    pub log_keep: usize,
 }
 
 impl Default for DroneSection {
@@ -70,6 +74,7 @@ impl Default for DroneSection {
             control_rate_hz: 100.0,
             geodetic_origin: None,
             log_dir: None,
+            log_keep: crate::host::logfiles::DEFAULT_KEEP,
         }
     }
 }
@@ -304,6 +309,7 @@ impl Config {
             false,
             "Hz",
         )?;
+        count("drone.log_keep", self.drone.log_keep, (1, 100_000))?;
         if let Some(o) = &self.drone.geodetic_origin {
             o.validate()
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;

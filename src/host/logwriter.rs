@@ -33,9 +33,8 @@ impl LogFile {
     }
 }
 
-/// Creates the file and its writer thread.
-pub fn open(path: &Path) -> std::io::Result<(ChannelWriter, LogFile)> {
-    let file = std::fs::File::create(path)?;
+/// Starts the writer thread of `file` (opened by `logfiles`), found at `path`.
+pub fn open(file: std::fs::File, path: &Path) -> std::io::Result<(ChannelWriter, LogFile)> {
     let (tx, rx) = sync_channel::<Vec<u8>>(QUEUE);
     let dropped = Arc::new(AtomicU64::new(0));
     std::thread::Builder::new()

@@ -313,7 +313,7 @@ impl Host {
                 id
             }
         };
-        self.log_command(i, "upload", json!({ "mission_id": id }));
+        self.log_command(i, "upload", json!({ "mission_id": id, "mission": mission }));
         Ok(Uploaded {
             drone: target,
             mission_id: id,
@@ -332,7 +332,7 @@ impl Host {
         self.log_command(
             i,
             "mission_update",
-            json!({ "action": update.action, "mission_id": update.mission_id, "item_id": update.item_id, "accepted": accepted, "reason": reason }),
+            json!({ "action": update.action, "mission_id": update.mission_id, "item_id": update.item_id, "accepted": accepted, "reason": reason, "mission": update.mission }),
         );
         self.event(
             i,

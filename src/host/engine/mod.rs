@@ -19,7 +19,6 @@ use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::{Change, Sink};
 use crate::behavior::fleet::{FleetInput, FleetView};
 use crate::behavior::services::{ExploreJob, ServiceAnswer};
-use crate::behavior::RunState;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
@@ -385,20 +384,30 @@ impl Host {
             if let Some(map) = self.map.as_mut() {
                 merge_into(map, core, &feedback.scans);
             }
+            // The mission item each behavior event belongs to: the one running when it happened.
+            let item = match (&self.log, self.executors.get(i)) {
+                (Some(_), Some(ex)) if !out.events.is_empty() => {
+                    let st = ex.status(core);
+                    (st.state != crate::mission::ExecState::Idle).then(|| {
+                        serde_json::json!({
+                            "mission_id": st.mission_id,
+                            "item_index": st.item_index,
+                            "item": st.current_item,
+                        })
+                    })
+                }
+                _ => None,
+            };
             if let Some(ex) = self.executors.get_mut(i) {
                 ex.update(now, core, &out.events);
             }
             let status = feedback.status;
             if let Some(log) = self.log.as_mut() {
                 let state = core.vehicle_state();
-                let active = core.server().active();
-                let motion = active
-                    .iter()
-                    .find(|a| a.state == RunState::Running || a.state == RunState::Paused)
-                    .map(|a| a.behavior.as_str());
-                log.pose(now, &state, motion);
+                let motion = core.server().motion().map(|(name, _)| name);
+                log.pose(now, &state, motion, out.setpoint.as_ref());
                 for e in &out.events {
-                    log.behavior(now, core.drone_id(), e);
+                    log.behavior(now, core.drone_id(), e, item.as_ref());
                 }
             }
             for e in out.events {
