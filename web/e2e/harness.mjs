@@ -44,9 +44,10 @@ const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 /**
  * Starts `kestrel sim --no-demo` (or `--scenario FILE`, which flies its mission) and waits for its
- * health route; returns a handle.
+ * health route; returns a handle. With `autopilotPort`, `kestrel run` instead, waiting for an
+ * autopilot there.
  */
-export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null } = {}) {
+export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null, autopilotPort = null } = {}) {
   if (!process.env.KESTREL_BIN) throw new Error('KESTREL_BIN must name the kestrel binary to test');
   const bin = path.resolve(process.env.KESTREL_BIN);
   const port = await freePort();
@@ -56,6 +57,8 @@ export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, sce
   const log = fs.openSync(logPath, 'w');
   const flightLog = path.join(ARTIFACTS, `flight-${port}.jsonl`);
   const args = ['sim', '--no-demo', '--drones', String(drones), '--speedup', String(speedup), '--listen', `127.0.0.1:${port}`, '--log', flightLog];
+  // `kestrel run` waiting for an autopilot at a UDP port where nothing answers.
+  if (autopilotPort) args.splice(0, 6, 'run', '--platform', 'px4', '--connection', `udpin:127.0.0.1:${autopilotPort}`);
   if (scenario) args.splice(args.indexOf('--no-demo'), 1, '--scenario', path.resolve(HERE, '../..', scenario));
   // A scratch working directory: nothing kestrel writes lands in the repository.
   const cwd = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-run-'));

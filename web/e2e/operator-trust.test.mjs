@@ -40,6 +40,33 @@ describe('a base64 token', { timeout: 120_000 }, () => {
   });
 });
 
+describe('kestrel run with no autopilot connected', { timeout: 120_000 }, () => {
+  let kestrel;
+  let browser;
+
+  before(async () => {
+    kestrel = await startKestrel({ autopilotPort: 14000 + Math.floor(Math.random() * 1000) });
+    browser = await openBrowser(kestrel.base);
+  });
+
+  after(async () => {
+    await browser?.close();
+    await kestrel?.stop();
+  });
+
+  test('shows no position and no marker, only a drone waiting for its autopilot', async () => {
+    const { page } = browser;
+    await browser.login();
+    await page.locator('.card[data-link="connecting"]').waitFor({ timeout: 20_000 });
+    await page.waitForTimeout(1500);
+    assert.equal(await page.locator('.card [data-position="none"]').textContent(), 'no position');
+    assert.equal(await page.locator('.drone-glyph').count(), 0, 'no made-up marker on the map');
+    assert.equal(await page.locator('#alt-view .alt-drone').count(), 0, 'nor in the altitude view');
+    assert.match(await page.locator('.card .badge.link').textContent(), /HEARTBEAT/);
+    await browser.shot('19-no-autopilot');
+  });
+});
+
 describe('wind turbine: control of the selected drone, confirmations, altitude view', { timeout: 300_000 }, () => {
   let kestrel;
   let browser;
