@@ -42,8 +42,12 @@ function freePort() {
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-/** Starts `kestrel sim --no-demo` and waits for its health route; returns a handle. */
-export async function startKestrel({ drones = 2, speedup = 5 } = {}) {
+/**
+ * Starts `kestrel sim --no-demo` (or `--scenario FILE`, which flies its mission) and waits for its
+ * health route; returns a handle. With `autopilotPort`, `kestrel run` instead, waiting for an
+ * autopilot there.
+ */
+export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null, autopilotPort = null } = {}) {
   if (!process.env.KESTREL_BIN) throw new Error('KESTREL_BIN must name the kestrel binary to test');
   const bin = path.resolve(process.env.KESTREL_BIN);
   const port = await freePort();
@@ -53,11 +57,14 @@ export async function startKestrel({ drones = 2, speedup = 5 } = {}) {
   const log = fs.openSync(logPath, 'w');
   const flightLog = path.join(ARTIFACTS, `flight-${port}.jsonl`);
   const args = ['sim', '--no-demo', '--drones', String(drones), '--speedup', String(speedup), '--listen', `127.0.0.1:${port}`, '--log', flightLog];
+  // `kestrel run` waiting for an autopilot at a UDP port where nothing answers.
+  if (autopilotPort) args.splice(0, 6, 'run', '--platform', 'px4', '--connection', `udpin:127.0.0.1:${autopilotPort}`);
+  if (scenario) args.splice(args.indexOf('--no-demo'), 1, '--scenario', path.resolve(HERE, '../..', scenario));
   // A scratch working directory: nothing kestrel writes lands in the repository.
   const cwd = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-run-'));
   const child = spawn(bin, args, {
     cwd,
-    env: { ...process.env, KESTREL_API_TOKEN: TOKEN },
+    env: { ...process.env, KESTREL_API_TOKEN: token },
     stdio: ['ignore', log, log],
   });
   let exited = null;
@@ -89,7 +96,7 @@ export async function startKestrel({ drones = 2, speedup = 5 } = {}) {
     async api(method, route, body) {
       const res = await fetch(`${base}${route}`, {
         method,
-        headers: { Authorization: `Bearer ${TOKEN}`, 'Content-Type': 'application/json' },
+        headers: { Authorization: `Bearer ${token}`, 'Content-Type': 'application/json' },
         body: body === undefined ? undefined : JSON.stringify(body),
       });
       const text = await res.text();
@@ -135,8 +142,8 @@ export async function openBrowser(base, { width = 1400, height = 900 } = {}) {
     page,
     blocked,
     pageErrors,
-    async login() {
-      await page.locator('#token-input').fill(TOKEN);
+    async login(token = TOKEN) {
+      await page.locator('#token-input').fill(token);
       await page.locator('#token-ok').click();
       await page.locator('#conn-status.ok').waitFor({ timeout: 20_000 });
     },

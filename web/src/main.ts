@@ -6,17 +6,18 @@ import { ApiError } from './lib/api';
 import { behaviorColor } from './lib/colors';
 import { originFrom, type GeoOrigin } from './lib/geo';
 import { mergePatch, readGrid, type Grid } from './lib/grid';
-import { feedbackPaths } from './lib/fleet';
+import { feedbackPaths, hasPosition } from './lib/fleet';
 import { SHORTCUT_HELP, shortcutFor } from './lib/keyboard';
 import { plannedPath } from './lib/mission';
 import type { Vec2, Vec3 } from './lib/types';
+import { AltitudeView } from './ui/altitudeView';
 import { App } from './ui/app';
 import { ControlView } from './ui/controlView';
 import { byId, h, setOptions } from './ui/dom';
 import { ExplorationPanel } from './ui/explorationView';
 import { act, onRejected, toast } from './ui/feedback';
 import { FleetView, restoreInstances } from './ui/fleetView';
-import { describeError } from './ui/instance';
+import { disconnectReason } from './ui/instance';
 import { droneColor, MapView, type Tool } from './ui/mapView';
 import { MonitorView } from './ui/monitorView';
 import { PlanView } from './ui/planView';
@@ -33,6 +34,7 @@ const exploration = new ExplorationPanel(app);
 const monitor = new MonitorView(app);
 const timeline = new TimelineView(app);
 let mapView: MapView;
+const altitude = new AltitudeView(byId('alt-view'));
 let grid: Grid | null = null;
 
 onRejected((text) => app.log({ t: null, drone: null, kind: 'rejected', level: 'error', text }));
@@ -54,7 +56,6 @@ function askToken(error: string | null): Promise<string> {
 
 async function connect(): Promise<void> {
   let token = sessionStorage.getItem(TOKEN_KEY) ?? '';
-  let error: string | null = null;
   for (;;) {
     try {
       await app.addInstance(location.host || 'local', '', token);
@@ -65,8 +66,7 @@ async function connect(): Promise<void> {
         token = await askToken(token ? 'That token was refused (401).' : null);
         continue;
       }
-      error = describeError(e);
-      byId('conn-status').textContent = `cannot reach kestrel: ${error}; retrying`;
+      byId('conn-status').textContent = `${disconnectReason(e)}; retrying`;
       await new Promise((r) => setTimeout(r, 2000));
     }
   }
@@ -77,7 +77,7 @@ async function connect(): Promise<void> {
 function geoOrigin(): GeoOrigin | null {
   for (const ref of app.drones()) {
     const s = app.view(ref).status;
-    const o = s && originFrom(s.position_enu_m, s.geo);
+    const o = hasPosition(s) && originFrom(s.position_enu_m, s.geo);
     if (o) return o;
   }
   return null;
@@ -102,6 +102,10 @@ function makeMap(origin: GeoOrigin | null): void {
       frameClicked: (f) => {
         control.selectFrame(f);
         showTab('control');
+      },
+      cursor: ([x, y], latLon) => {
+        const geo = latLon ? ` · ${latLon[0].toFixed(6)}°, ${latLon[1].toFixed(6)}°` : '';
+        byId('cursor-readout').textContent = `cursor: east ${x.toFixed(1)} m, north ${y.toFixed(1)} m${geo}`;
       },
     },
     origin,
@@ -230,7 +234,13 @@ function wireHeader(): void {
   hold.addEventListener('click', () => act(hold, 'HOLD', null, () => app.forAll(selected(), (r) => app.hold(r))));
   holdAll.addEventListener('click', () => act(holdAll, 'HOLD ALL', null, () => app.forAll(app.drones(), (r) => app.hold(r))));
   land.addEventListener('click', () => act(land, 'LAND', null, () => app.forAll(selected(), (r) => app.land(r))));
-  landAll.addEventListener('click', () => act(landAll, 'LAND ALL', null, () => app.forAll(app.drones(), (r) => app.land(r))));
+  landAll.addEventListener('click', () =>
+    act(landAll, 'LAND ALL', null, async () => {
+      const refs = app.drones();
+      if (!window.confirm(`LAND ALL drones (${refs.map((r) => r.name).join(', ')}) now?`)) return { ok: false, text: 'not sent: LAND ALL cancelled' };
+      return app.forAll(refs, (r) => app.land(r));
+    }),
+  );
   document.addEventListener('keydown', (e) => {
     const t = e.target as HTMLElement | null;
     const sc = shortcutFor({ key: e.key, ctrlKey: e.ctrlKey, metaKey: e.metaKey, altKey: e.altKey, targetTag: t?.tagName, targetEditable: t?.isContentEditable });
@@ -255,6 +265,7 @@ function wireHeader(): void {
     for (const inst of app.instances) for (const v of inst.state.drones.values()) v.trail = [];
     mapView.clearTrails();
   });
+  byId('btn-fit').addEventListener('click', fitFleet);
   byId('btn-geo').addEventListener('click', () => {
     if (mapView.origin) return makeMap(null);
     const o = geoOrigin();
@@ -295,7 +306,15 @@ function renderLegend(): void {
 
 function drawDrones(): void {
   const now = Date.now();
-  mapView.renderDrones(app.drones().map((ref, i) => ({ key: ref.key, name: ref.name, view: app.view(ref), link: app.link(ref, now), color: droneColor(i) })));
+  const drones = app.drones().map((ref, i) => ({ key: ref.key, name: ref.name, view: app.view(ref), link: app.link(ref, now), color: droneColor(i) }));
+  mapView.renderDrones(drones);
+  altitude.render(drones);
+}
+
+/** Zooms the map to every drone that has a position (home when none has). */
+function fitFleet(): void {
+  const placed = app.drones().map((r) => app.view(r).status).filter(hasPosition);
+  mapView.fitTo(placed.length ? placed.map((s): Vec2 => [s.position_enu_m[0], s.position_enu_m[1]]) : [[0, 0]]);
 }
 
 function choicesChanged(): void {
@@ -339,8 +358,7 @@ async function main(): Promise<void> {
   await restoreInstances(app);
   choicesChanged();
   void refreshGrid();
-  const first = app.drones().map((r) => app.view(r).status?.position_enu_m).filter((p): p is Vec3 => !!p);
-  mapView.fitTo(first.length ? first.map(([x, y]) => [x, y]) : [[0, 0]]);
+  fitFleet();
   // Render at 4 Hz; the link staleness check needs the clock even when no message arrives.
   setInterval(() => {
     if (app.drones().length !== byId<HTMLSelectElement>('drone-select').options.length) choicesChanged();

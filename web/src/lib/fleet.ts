@@ -115,8 +115,8 @@ export function linkView(
   if (age > staleAfterMs) {
     return { state: 'lost', reason: `no telemetry for ${(age / 1000).toFixed(0)} s` };
   }
-  if (v.status.link === 'lost') return { state: 'lost', reason: 'autopilot link lost' };
-  if (v.status.link === 'connecting') return { state: 'connecting', reason: 'autopilot connecting' };
+  if (v.status.link === 'lost' || v.status.stale) return { state: 'lost', reason: 'autopilot link lost' };
+  if (v.status.link === 'connecting') return { state: 'connecting', reason: 'waiting for the autopilot (HEARTBEAT)' };
   return { state: 'ok', reason: 'live' };
 }
 
@@ -187,4 +187,10 @@ export function feedbackPaths(status: DroneStatus | null): { behavior: string; p
     }
   }
   return out;
+}
+
+/** Whether the status carries a position the autopilot gave (never one made up before it spoke). */
+export function hasPosition(s: DroneStatus | null): s is DroneStatus {
+  if (!s) return false;
+  return s.has_position ?? s.link !== 'connecting';
 }

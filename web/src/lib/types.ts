@@ -61,6 +61,12 @@ export interface DroneStatus {
   battery: { voltage_v: number; remaining_fraction: number } | null;
   last_error: string | null;
   position_enu_m: Vec3;
+  /** False until the autopilot has reported a position (older servers omit it). */
+  has_position?: boolean;
+  /** Seconds since the autopilot last reported (older servers omit it). */
+  age_s?: number | null;
+  /** True when the data is older than the link timeout (older servers omit it). */
+  stale?: boolean;
   yaw_rad: number;
   velocity_enu_mps: Vec3;
   geo: { lat_deg: number; lon_deg: number; alt_m: number } | null;

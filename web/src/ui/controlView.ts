@@ -1,5 +1,6 @@
-// Control panel: MissionUpdate buttons for one drone or all, with the executor's answer, and the
-// on-demand task (inspect a registered frame now) sent to the drone the operator picks.
+// Control panel: MissionUpdate buttons for the page's selected drone (or, chosen explicitly, all
+// drones: STOP and RESET then ask first), with the executor's answer, and the on-demand task
+// (inspect a registered frame now) sent to the drone the operator picks.
 
 import { CONTROL_ACTIONS, inspectMission } from '../lib/missionUpdate';
 import type { ActionName } from '../lib/types';
@@ -10,6 +11,8 @@ import { describeError } from './instance';
 import type { PlanView } from './planView';
 
 const ALL = '*';
+/** Fleet-wide actions that end or discard what every drone is doing: asked before sending. */
+const CONFIRM_FLEET: ActionName[] = ['STOP', 'RESET'];
 
 export class ControlView {
   private drone = h('select', { id: 'ctl-drone', 'aria-label': 'drone to command' });
@@ -24,6 +27,9 @@ export class ControlView {
     private readonly app: App,
     private readonly plan: PlanView,
   ) {
+    this.drone.addEventListener('change', () => {
+      if (this.drone.value !== ALL) this.app.select(this.drone.value);
+    });
     const buttons = CONTROL_ACTIONS.map((a) => {
       const b = h('button', { 'data-action': a, className: a === 'START' ? 'primary' : a === 'PAUSE' ? 'hold' : '' }, a.replace('_', ' '));
       b.addEventListener('click', () => act(b, a, this.answer, () => this.run(a)));
@@ -86,8 +92,12 @@ export class ControlView {
 
   refreshChoices(): void {
     const drones = this.app.drones().map((d) => ({ value: d.key, label: d.name }));
+    const fleetWide = this.drone.value === ALL;
     setOptions(this.drone, [...drones, { value: ALL, label: 'all drones' }]);
     setOptions(this.odDrone, drones);
+    // The page's selected drone unless the operator chose "all drones" here.
+    const selected = this.app.selected()?.key;
+    if (!fleetWide && selected) this.drone.value = selected;
     const frames = this.app.instances.flatMap((i) => i.frames.filter((f) => f.frame_id !== 'earth').map((f) => f.frame_id));
     setOptions(this.odFrame, [...new Set(frames)].map((f) => ({ value: f, label: f })));
   }
@@ -108,11 +118,16 @@ export class ControlView {
     return r ? [r] : [];
   }
 
-  private run(action: ActionName): Promise<Outcome> {
+  private async run(action: ActionName): Promise<Outcome> {
+    const targets = this.targets();
+    if (this.drone.value === ALL && CONFIRM_FLEET.includes(action) && targets.length > 0) {
+      const names = targets.map((r) => r.name).join(', ');
+      if (!window.confirm(`${action} on ALL drones (${names})?`)) return { ok: false, text: `not sent: ${action} on all drones cancelled` };
+    }
     const num = (el: HTMLInputElement) => (el.value.trim() === '' ? null : Number(el.value));
     const missionId = num(this.missionId);
     const itemId = num(this.itemId);
-    return this.app.forAll(this.targets(), async (ref) => {
+    return this.app.forAll(targets, async (ref) => {
       if (action === 'LOAD') {
         try {
           const r = await this.app.upload(ref, this.plan.draft);

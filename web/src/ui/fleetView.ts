@@ -1,7 +1,7 @@
 // Fleet panel: one card per drone (link, armed, mode, flight, battery, position, behavior, mission
 // progress, hold/land), and the list of Kestrel instances with a form to add one.
 
-import { missionProgress, missionStateName, motionBehavior } from '../lib/fleet';
+import { hasPosition, missionProgress, missionStateName, motionBehavior } from '../lib/fleet';
 import { behaviorColor } from '../lib/colors';
 import type { App, DroneRef } from './app';
 import { byId, fmt, h } from './dom';
@@ -115,14 +115,17 @@ export class FleetView {
       fields.armed.textContent = s ? (s.armed ? 'ARMED' : 'disarmed') : '—';
       fields.armed.className = s?.armed ? 'armed' : '';
       fields.mode.textContent = s ? `${s.mode}${s.offboard ? ' (offboard)' : ''}` : '—';
-      fields.flight.textContent = s ? `${s.flight}${s.last_error ? ` — ${s.last_error}` : ''}` : '—';
+      // A stale status does not claim the drone is still flying: it was, when last heard.
+      const flight = s && link.state === 'lost' ? `stale (last: ${s.flight}${s.age_s != null ? `, ${s.age_s.toFixed(0)} s ago` : ''})` : s?.flight;
+      fields.flight.textContent = s ? `${flight}${s.last_error ? ` — ${s.last_error}` : ''}` : '—';
       const b = s?.battery;
       fields.battery.textContent = b ? `${Math.round(b.remaining_fraction * 100)} % (${fmt(b.voltage_v)} V)` : '—';
       fields.battery.className = b && b.remaining_fraction < 0.25 ? 'warn' : '';
-      const p = s?.position_enu_m;
+      const p = hasPosition(s) ? s.position_enu_m : null;
       fields.position.textContent = p
-        ? `${link.state === 'lost' ? 'last known ' : ''}x ${fmt(p[0])} y ${fmt(p[1])} z ${fmt(p[2])} m`
-        : '—';
+        ? `${link.state === 'lost' ? 'stale, last known ' : ''}x ${fmt(p[0])} y ${fmt(p[1])} z ${fmt(p[2])} m`
+        : 'no position';
+      fields.position.dataset.position = p ? 'yes' : 'none';
       const behavior = motionBehavior(s);
       const others = (s?.active_behaviors ?? []).map((a) => a.behavior).filter((n) => n !== behavior);
       fields.behavior.replaceChildren(

@@ -69,16 +69,29 @@ export class Instance {
       this.listener(this, msg);
     };
     ws.onclose = () => {
-      const wasOpen = this.socketOpen;
       this.socketOpen = false;
       this.ws = null;
-      if (wasOpen || this.problem === 'connecting') this.problem = 'WebSocket closed; reconnecting';
+      this.problem = 'WebSocket closed; finding out why';
       this.listener(this, null);
-      if (!this.closed) {
+      if (this.closed) return;
+      // A browser does not tell why a WebSocket failed: an HTTP request to the same server does.
+      void this.whyClosed().then((why) => {
+        this.problem = `${why}; retrying`;
+        this.listener(this, null);
         setTimeout(() => this.connect(), this.retryMs);
         this.retryMs = Math.min(this.retryMs * 2, 5000);
-      }
+      });
     };
+  }
+
+  /** Why the WebSocket is not open, from a status request: token refused, server unreachable, ... */
+  private async whyClosed(): Promise<string> {
+    try {
+      await this.client.status();
+      return 'WebSocket closed (the server answers HTTP)';
+    } catch (e) {
+      return disconnectReason(e);
+    }
   }
 
   behaviorNames(): Set<string> {
@@ -89,6 +102,13 @@ export class Instance {
     this.closed = true;
     this.ws?.close();
   }
+}
+
+/** The operator's words for a failed request: a refused token, an unreachable server, ... */
+export function disconnectReason(e: unknown): string {
+  if (e instanceof ApiError && e.status === 401) return 'token refused (401): reload and enter the right token';
+  if (e instanceof ApiError && e.status === 0) return 'kestrel unreachable (not running, or the network is down)';
+  return `kestrel error: ${describeError(e)}`;
 }
 
 export function describeError(e: unknown): string {

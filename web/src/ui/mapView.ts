@@ -6,7 +6,7 @@
 import L from 'leaflet';
 import 'leaflet/dist/leaflet.css';
 import { behaviorColor, trailRuns } from '../lib/colors';
-import type { DroneView, LinkView } from '../lib/fleet';
+import { hasPosition, type DroneView, type LinkView } from '../lib/fleet';
 import { enuToGeo, geoToEnu, type GeoOrigin } from '../lib/geo';
 import { gridBounds, gridPixels, type Grid } from '../lib/grid';
 import type { FrameInfo, FrontierView, Vec2, Vec3 } from '../lib/types';
@@ -18,6 +18,8 @@ export interface MapCallbacks {
   finish(tool: 'path' | 'polygon', points: Vec2[]): void;
   drawingChanged(tool: Tool, points: Vec2[]): void;
   frameClicked(frameId: string): void;
+  /** The pointer moved over the map: ENU metres, and latitude/longitude in geographic mode. */
+  cursor?(enu: Vec2, latLon: [number, number] | null): void;
 }
 
 export interface DroneDraw {
@@ -88,6 +90,7 @@ export class MapView {
     this.map.setView(this.ll(0, 0), geo ? 19 : 3);
     this.map.on('click', (e: L.LeafletMouseEvent) => this.onClick(e.latlng));
     this.map.on('dblclick', () => this.finishDrawing());
+    this.map.on('mousemove', (e: L.LeafletMouseEvent) => this.cb.cursor?.(this.enu(e.latlng), this.origin ? [e.latlng.lat, e.latlng.lng] : null));
   }
 
   /** ENU metres to the map's coordinates. */
@@ -171,7 +174,8 @@ export class MapView {
     const seen = new Set<string>();
     for (const d of drones) {
       const s = d.view.status;
-      if (!s) continue;
+      // No marker until the autopilot has given a position: the fleet card says "no position".
+      if (!hasPosition(s)) continue;
       seen.add(d.key);
       const [x, y, z] = s.position_enu_m;
       const ll = s.geo && this.origin ? L.latLng(s.geo.lat_deg, s.geo.lon_deg) : this.ll(x, y);
@@ -196,7 +200,7 @@ export class MapView {
         el.classList.toggle('lost', d.link.state !== 'ok');
         el.querySelector('svg')?.setAttribute('style', `transform: rotate(${(-s.yaw_rad * 180) / Math.PI}deg)`);
         const label = el.querySelector('.drone-label');
-        if (label) label.textContent = `${d.name}${d.link.state === 'lost' ? ' LOST' : ''} ${z.toFixed(1)} m`;
+        if (label) label.textContent = `${d.name}${d.link.state === 'lost' ? ' STALE' : ''} ${z.toFixed(1)} m`;
       }
     }
     for (const [key, m] of this.markers) {
