@@ -259,12 +259,13 @@ describe('ground station against kestrel sim', { timeout: 600_000 }, () => {
   });
 
   test('explores with a chosen drone: frontiers, its goal and the growing area on the map, a report, a confirmed stop', async () => {
-    // One selected drone for the whole page: earlier tests selected drone_1 (in Control), which
-    // the Explore panel ticked then; the drone selected now is ticked too.
+    // One selected drone for the whole page (earlier tests selected drone_1 in Control): until
+    // the operator ticks here, the Explore panel ticks the selected drone only.
     await page.locator('#drone-select').selectOption({ label: 'drone_0' });
     await tab('explore');
     await until(page, () => document.querySelectorAll('#exp-drones input[type=checkbox]').length === 2, null, 10_000);
     assert.equal(await page.locator('#exp-drones input[data-drone="drone_0"]').isChecked(), true);
+    assert.equal(await page.locator('#exp-drones input[data-drone="drone_1"]').isChecked(), false);
     await page.locator('#exp-drones input[data-drone="drone_0"]').uncheck();
     await page.locator('#exp-drones input[data-drone="drone_1"]').check();
     await page.locator('#btn-exp-start').click();

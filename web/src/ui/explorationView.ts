@@ -20,6 +20,8 @@ export class ExplorationPanel {
   readonly views = new Map<number, View>();
   onView: () => void = () => {};
   private chosen: Set<string> | null = null;
+  /** Whether the operator ticked or unticked a drone here (then the header selection only adds). */
+  private edited = false;
   private readonly checks = h('div', { id: 'exp-drones', className: 'row', role: 'group', 'aria-label': 'drones to explore with' });
   private readonly height = h('input', { id: 'exp-height', type: 'number', step: '0.1', placeholder: '1.0', 'aria-label': 'exploration height (m)' });
   private readonly speed = h('input', { id: 'exp-speed', type: 'number', step: '0.05', placeholder: '0.75', 'aria-label': 'exploration speed (m/s)' });
@@ -72,6 +74,7 @@ export class ExplorationPanel {
         const box = h('input', { type: 'checkbox', value: r.key, 'data-drone': r.drone, 'aria-label': `explore with ${r.name}` });
         box.checked = this.chosen?.has(r.key) ?? false;
         box.addEventListener('change', () => {
+          this.edited = true;
           this.chosen ??= new Set();
           if (box.checked) this.chosen.add(r.key);
           else this.chosen.delete(r.key);
@@ -81,12 +84,15 @@ export class ExplorationPanel {
     );
   }
 
-  /** The operator picked another drone in the header: that one is ticked (others stay). */
+  /** The operator picked another drone in the header: until ticks were edited here, the ticks
+   *  follow the selection (that drone only); after, that one is ticked too. */
   selectDrone(key: string): void {
     if (this.chosen === null) return;
+    if (!this.edited) this.chosen.clear();
     this.chosen.add(key);
-    const box = this.checks.querySelector<HTMLInputElement>(`input[value="${CSS.escape(key)}"]`);
-    if (box) box.checked = true;
+    for (const box of this.checks.querySelectorAll<HTMLInputElement>('input[type=checkbox]')) {
+      box.checked = this.chosen.has(box.value);
+    }
   }
 
   private picked(): DroneRef[] {
