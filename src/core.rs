@@ -101,6 +101,8 @@ pub struct DroneCore {
     home_enu_m: Option<Vec3>,
     last_tick: Option<Duration>,
     now: Duration,
+    /// When the estimate last had a valid position; `None` before the first.
+    position_at: Option<Duration>,
 }
 
 impl DroneCore {
@@ -120,6 +122,7 @@ impl DroneCore {
             home_enu_m: None,
             last_tick: None,
             now: Duration::ZERO,
+            position_at: None,
             config,
         }
     }
@@ -134,6 +137,12 @@ impl DroneCore {
             estimate: self.state,
             platform: self.platform.clone(),
         }
+    }
+
+    /// How old the last valid position is (core time); `None` before the first: until then
+    /// the position is a placeholder, not the vehicle's.
+    pub fn position_age(&self) -> Option<Duration> {
+        self.position_at.map(|at| self.now.saturating_sub(at))
     }
 
     /// What the platform reported at the last tick.
@@ -258,6 +267,9 @@ impl DroneCore {
         let previous_link = self.platform.link;
         self.platform = feedback.status.clone();
         self.state = self.estimator.update(now, &feedback.measurements);
+        if self.state.valid.position {
+            self.position_at = Some(now);
+        }
         self.frames.set_base_link(self.state.pose, now);
         if let Some(map) = self.map.as_mut() {
             map.insert(now, &feedback.scans);

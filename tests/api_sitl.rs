@@ -198,9 +198,15 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     let base = format!("http://127.0.0.1:{api_port}");
     let http = reqwest::Client::new();
     wait_healthy(&base).await;
+    // Nothing connected: no made-up vehicle.
+    let before = status(&http, &base).await;
+    let d = &before["drones"][0];
+    assert_eq!(d["link"], "connecting", "{d}");
+    assert_eq!(d["has_position"], false, "{d}");
+    assert!(d["age_s"].is_null(), "{d}");
     let id = upload_and_start(&http, &base).await;
     // The autopilot starts only now: the takeoff has to wait for it to become ready.
-    let _fake = fake_px4(kestrel_port);
+    let fake = fake_px4(kestrel_port);
     let deadline = Instant::now() + Duration::from_secs(90);
     let last = loop {
         let s = status(&http, &base).await;
@@ -217,6 +223,21 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     let p = &d["position_enu_m"];
     assert!((p[1].as_f64().unwrap() - 5.0).abs() < 0.5, "landed at {p}");
     assert_eq!(d["armed"], false, "{d}");
+    assert_eq!(d["has_position"], true, "{d}");
+    assert_eq!(d["stale"], false, "{d}");
+    // The autopilot falls silent: what is shown is the last known, and says so.
+    drop(fake);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let lost = loop {
+        let s = status(&http, &base).await;
+        if s["drones"][0]["link"] == "lost" {
+            break s["drones"][0].clone();
+        }
+        assert!(Instant::now() < deadline, "link never lost: {s}");
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    };
+    assert_eq!(lost["stale"], true, "{lost}");
+    assert!(lost["age_s"].as_f64().unwrap() >= 1.0, "{lost}");
     let log = std::fs::read_to_string(state.path().join("flight.jsonl")).unwrap();
     let started: Vec<String> = log
         .lines()

@@ -42,6 +42,13 @@ pub struct DroneStatus {
     pub boot_counter: u32,
     pub battery: Option<BatteryStatus>,
     pub last_error: Option<String>,
+    /// Whether the autopilot (or simulator) has given a position: until it has, position,
+    /// yaw, velocity and geo are placeholders and no position is to be shown.
+    pub has_position: bool,
+    /// The link is lost: everything below is the last known, `age_s` old.
+    pub stale: bool,
+    /// Seconds since the last valid position; absent before the first.
+    pub age_s: Option<f64>,
     pub position_enu_m: [f64; 3],
     pub yaw_rad: f64,
     pub velocity_enu_mps: [f64; 3],
@@ -73,6 +80,9 @@ impl DroneStatus {
                 remaining_fraction: b.remaining_fraction,
             }),
             last_error: s.platform.last_error,
+            has_position: core.position_age().is_some(),
+            stale: s.platform.link == LinkHealth::Lost,
+            age_s: core.position_age().map(|a| a.as_secs_f64()),
             position_enu_m: [p.x, p.y, p.z],
             yaw_rad: s.estimate.pose.yaw_rad(),
             velocity_enu_mps: [v.x, v.y, v.z],

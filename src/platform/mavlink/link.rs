@@ -152,6 +152,7 @@ pub async fn connection_task(
             }
         };
         backoff = RECONNECT_MIN;
+        tracing::info!(target: "mavlink", "{address} open: waiting for HEARTBEAT");
         let _ = transport.send(TransportEvent::Connected).await;
         let mut reader = tokio::spawn(read_loop(conn.clone(), inbound.clone(), router.clone()));
         let reason = loop {
@@ -220,7 +221,7 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
                         tracing::warn!(target: "mavlink", "connection: {e}");
                         session.note_transport_error(e);
                     }
-                    Some(TransportEvent::Connected) => tracing::info!(target: "mavlink", "connected"),
+                    Some(TransportEvent::Connected) => {}
                     None => return,
                 }
                 false
