@@ -818,3 +818,116 @@ async fn mission_run_flies_a_file_on_a_running_kestrel_and_validate_reports_erro
         .unwrap();
     assert!(out.status.success());
 }
+
+/// What the router refuses on its own (a path or query that does not parse, a wrong method, no
+/// route, a body that is not JSON) answers the project's JSON error body, not axum's plain text.
+#[tokio::test]
+async fn router_rejections_answer_json_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = start(dir.path(), &[]).await;
+    let c = client();
+    let check = |status: u16, code: &'static str, r: reqwest::Response| async move {
+        let got = r.status().as_u16();
+        let allow = r.headers().get("allow").cloned();
+        let text = r.text().await.unwrap();
+        let body: Value =
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("not JSON ({e}): {got} {text}"));
+        assert_eq!(
+            (got, body["error"]["code"].as_str()),
+            (status, Some(code)),
+            "{body}"
+        );
+        assert!(body["error"]["message"]
+            .as_str()
+            .is_some_and(|m| !m.is_empty()));
+        allow
+    };
+    let get = |path: &str| c.get(format!("{}{path}", k.base)).bearer_auth(TOKEN).send();
+    // `Invalid URL: Cannot parse ...` from the path extractor.
+    check(400, "bad_request", get("/api/missions/abc").await.unwrap()).await;
+    check(404, "not_found", get("/api/nothing_here").await.unwrap()).await;
+    let allow = check(
+        405,
+        "method_not_allowed",
+        c.put(format!("{}/api/missions", k.base))
+            .bearer_auth(TOKEN)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert!(allow.is_some(), "405 keeps its Allow header");
+    let post_to = |path: &str, body: &'static str, mime: &'static str| {
+        c.post(format!("{}{path}", k.base))
+            .bearer_auth(TOKEN)
+            .header("Content-Type", mime)
+            .body(body)
+            .send()
+    };
+    let post = |body: &'static str, mime: &'static str| post_to("/api/missions", body, mime);
+    check(
+        400,
+        "bad_request",
+        post_to("/api/missions?mission_id=abc", "{}", "application/json")
+            .await
+            .unwrap(),
+    )
+    .await;
+    check(
+        400,
+        "bad_json",
+        post("{", "application/json").await.unwrap(),
+    )
+    .await;
+    check(
+        415,
+        "unsupported_media_type",
+        post("{}", "text/plain").await.unwrap(),
+    )
+    .await;
+}
+
+/// A coverage plan that outlives `[api] request_timeout_s` answers 408 with the JSON error body
+/// and stops computing: the process goes back to idle at once, it does not plan on.
+#[tokio::test]
+async fn a_coverage_plan_past_the_request_timeout_answers_408_and_stops() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("kestrel.toml");
+    std::fs::write(&config, "[api]\nrequest_timeout_s = 1.0\n").unwrap();
+    let k = start(dir.path(), &["--config", config.to_str().unwrap()]).await;
+    // 20 000 vertices and 100 000 streets: minutes of work for a debug build.
+    let polygon: Vec<[f64; 2]> = (0..20_000)
+        .map(|i| {
+            let a = i as f64 / 20_000.0 * std::f64::consts::TAU;
+            [400.0 * a.cos(), 400.0 * a.sin()]
+        })
+        .collect();
+    let request = json!({"polygon_enu_m": polygon, "street_spacing_m": 0.008,
+        "drones": ["drone_0"], "height_m": 3.0, "angle_deg": 0.0});
+    let t = Instant::now();
+    let (code, body) = k.post("/api/coverage", &request).await;
+    assert_eq!(
+        (code, body["error"]["code"].as_str()),
+        (408, Some("request_timeout")),
+        "{body}"
+    );
+    assert!(t.elapsed() < Duration::from_secs(5), "{:?}", t.elapsed());
+    // CPU time of the process over the next second: a sim at 20x, not a planner running on.
+    let cpu_ticks = || {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", k.process.0.id())).unwrap();
+        let after_name = stat.rsplit_once(')').unwrap().1;
+        let fields: Vec<u64> = after_name
+            .split_whitespace()
+            .skip(11)
+            .take(2)
+            .map(|f| f.parse().unwrap())
+            .collect();
+        fields.iter().sum::<u64>()
+    };
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let before = cpu_ticks();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let used = cpu_ticks() - before;
+    // Clock ticks are 1/100 s: a planner still running would use about 200 in 2 s.
+    assert!(used < 120, "{used} CPU ticks in 2 s after the 408");
+}

@@ -17,6 +17,8 @@ use axum::Json;
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 #[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -61,6 +63,15 @@ fn pointer_of(e: &CoverageError) -> &'static str {
         CoverageError::NotFinite => "/height_m",
         CoverageError::NoDrones => "/drones",
         _ => "/polygon_enu_m",
+    }
+}
+
+/// Sets its flag when dropped: with the handler's future, when the request times out.
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
     }
 }
 
@@ -111,9 +122,12 @@ pub async fn plan(
         .collect();
     let angle = req.angle_deg.map(f64::to_radians);
     let (spacing, height) = (req.street_spacing_m, req.height_m);
-    // Large polygons with fine spacing take a while: keep the API's threads free.
+    // Large polygons with fine spacing take a while: keep the API's threads free, and stop
+    // when the request is dropped (its 408, or the client gone).
+    let cancel = CancelOnDrop(Arc::new(AtomicBool::new(false)));
+    let flag = cancel.0.clone();
     let plan = tokio::task::spawn_blocking(move || {
-        coverage::plan(&polygon, spacing, angle, &starts, height)
+        coverage::plan(&polygon, spacing, angle, &starts, height, &flag)
     })
     .await
     .map_err(|e| ApiError::BadRequest(format!("coverage planner stopped: {e}")))?

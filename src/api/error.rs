@@ -1,12 +1,16 @@
 //! The one place where errors become HTTP answers: a status and a stable snake_case code.
 //!
 //! In: [`HostError`]s and request problems. Out: `{"error": {"code", "message", "details"}}`,
-//! or, for MissionUpdate answers, `{"accepted": false, "reason", "code", "details"}`.
+//! or, for MissionUpdate answers, `{"accepted": false, "reason", "code", "details"}`. What axum
+//! and tower answer on their own under `/api` (a path or query that does not parse, a wrong
+//! method, a timeout) gets the same body ([`json_errors`]).
 
 use crate::behavior::ServerError;
 use crate::host::HostError;
 use crate::mission::{ActionError, ValidationError};
-use axum::http::StatusCode;
+use axum::extract::Request;
+use axum::http::{header, StatusCode};
+use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
@@ -33,6 +37,9 @@ pub enum ApiError {
     Invalid(Vec<ValidationError>),
     #[error("send the body as JSON with Content-Type: application/json (got {0})")]
     UnsupportedMediaType(String),
+    /// Refused before a handler ran (axum's path, query and method checks) or timed out.
+    #[error("{message}")]
+    Refused { status: StatusCode, message: String },
     #[error("requests from the web page at {0} are refused: this Kestrel has no API token, so only its own pages and [api] cors_origins may call it")]
     ForeignOrigin(String),
 }
@@ -85,6 +92,7 @@ impl ApiError {
                 (StatusCode::UNSUPPORTED_MEDIA_TYPE, "unsupported_media_type")
             }
             ApiError::ForeignOrigin(_) => (StatusCode::FORBIDDEN, "foreign_origin"),
+            ApiError::Refused { status, .. } => (*status, refused_code(*status)),
         }
     }
 
@@ -133,6 +141,59 @@ impl IntoResponse for ApiError {
         });
         (status, Json(body)).into_response()
     }
+}
+
+/// The stable code of an answer axum or tower gave on their own.
+fn refused_code(status: StatusCode) -> &'static str {
+    match status {
+        StatusCode::BAD_REQUEST => "bad_request",
+        StatusCode::NOT_FOUND => "not_found",
+        StatusCode::METHOD_NOT_ALLOWED => "method_not_allowed",
+        StatusCode::REQUEST_TIMEOUT => "request_timeout",
+        StatusCode::PAYLOAD_TOO_LARGE => "payload_too_large",
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => "unsupported_media_type",
+        StatusCode::UNPROCESSABLE_ENTITY => "invalid_request",
+        s if s.is_server_error() => "internal_error",
+        _ => "refused",
+    }
+}
+
+/// Longest plain-text rejection kept as the message (axum's are one line).
+const MAX_REJECTION_TEXT: usize = 4096;
+
+/// Middleware: an error answer under `/api` that is not JSON (axum's plain-text rejections such
+/// as `Invalid URL: Cannot parse ...`, an empty 405 or 408) becomes the JSON error body, with
+/// the same status and its `Allow` header kept.
+pub async fn json_errors(request: Request, next: Next) -> Response {
+    let api = request.uri().path().starts_with("/api");
+    let response = next.run(request).await;
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    if !api || is_json || !(status.is_client_error() || status.is_server_error()) {
+        return response;
+    }
+    let (parts, body) = response.into_parts();
+    let text = axum::body::to_bytes(body, MAX_REJECTION_TEXT)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+        .unwrap_or_default();
+    let message = if text.is_empty() {
+        status
+            .canonical_reason()
+            .unwrap_or("refused")
+            .to_lowercase()
+    } else {
+        text
+    };
+    let mut answer = ApiError::Refused { status, message }.into_response();
+    if let Some(allow) = parts.headers.get(header::ALLOW) {
+        answer.headers_mut().insert(header::ALLOW, allow.clone());
+    }
+    answer
 }
 
 #[cfg(test)]

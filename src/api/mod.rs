@@ -131,8 +131,9 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         ))
         .layer(tower_http::timeout::TimeoutLayer::with_status_code(
             axum::http::StatusCode::REQUEST_TIMEOUT,
-            Duration::from_secs(30),
+            Duration::from_secs_f64(api.request_timeout_s),
         ))
+        .layer(middleware::from_fn(error::json_errors))
         .layer(tower_http::trace::TraceLayer::new_for_http());
     let origins: Vec<HeaderValue> = api
         .cors_origins

@@ -131,9 +131,12 @@ pub struct ApiSection {
     /// or of the previous answer: closes idle and slowly-typing (slowloris) connections.
     pub header_read_timeout_s: f64,
     /// A connection with nothing read or written for this long is closed (s, 1..=3600), whatever
-    /// it waits for: a stalled body, an answer not read, a silent WebSocket. Keep it above the
-    /// 30 s request timeout.
+    /// it waits for: a stalled body, an answer not read, a silent WebSocket. Keep it above
+    /// `request_timeout_s`.
     pub idle_timeout_s: f64,
+    /// A request not answered within this long gets `408 request_timeout` (s, 1..=600); work it
+    /// started (a coverage plan) stops.
+    pub request_timeout_s: f64,
 }
 
 impl Default for ApiSection {
@@ -148,6 +151,7 @@ impl Default for ApiSection {
             max_connections: 512,
             header_read_timeout_s: 10.0,
             idle_timeout_s: 120.0,
+            request_timeout_s: 30.0,
         }
     }
 }
@@ -391,6 +395,13 @@ impl Config {
             "api.idle_timeout_s",
             self.api.idle_timeout_s,
             (1.0, 3600.0),
+            false,
+            "s",
+        )?;
+        within(
+            "api.request_timeout_s",
+            self.api.request_timeout_s,
+            (1.0, 600.0),
             false,
             "s",
         )?;

@@ -5,11 +5,12 @@
 //! In: the polygon (ENU m), street spacing (m), sweep angle (rad, `None` = across the narrowest
 //! direction), each drone's start (ENU m) and the flight height (m). Out: a [`FleetCoverage`].
 
+use crate::planning::coverage::plan_coverage_until;
 use crate::planning::coverage_ends::{length_m, separate_piece_ends};
-use crate::planning::plan_coverage;
 pub use crate::planning::CoverageError;
 use crate::types::Vec3;
 use nalgebra::Vector2;
+use std::sync::atomic::AtomicBool;
 
 /// Pieces of one sweep meet at their cuts; their ends are kept this far apart (m).
 pub const PIECE_END_SEPARATION_M: f64 = 2.0;
@@ -26,15 +27,17 @@ pub struct FleetCoverage {
     pub street_spacing_m: f64,
 }
 
-/// Plans the sweep; synchronous and CPU-bound (run it off the control loop and the API's threads).
+/// Plans the sweep; synchronous and CPU-bound (run it off the control loop and the API's
+/// threads). Gives up with `CoverageError::Cancelled` soon after `cancel` is set.
 pub fn plan(
     polygon: &[Vector2<f64>],
     spacing_m: f64,
     angle_rad: Option<f64>,
     starts: &[Vector2<f64>],
     height_m: f64,
+    cancel: &AtomicBool,
 ) -> Result<FleetCoverage, CoverageError> {
-    let plan = plan_coverage(polygon, spacing_m, angle_rad, starts, height_m)?;
+    let plan = plan_coverage_until(polygon, spacing_m, angle_rad, starts, height_m, cancel)?;
     let mut pieces = plan.per_drone;
     separate_piece_ends(&mut pieces, PIECE_END_SEPARATION_M);
     Ok(FleetCoverage {

@@ -7,7 +7,11 @@
 //! saved leaves through the host's store (`host::store`), written on a thread of its own.
 //!
 //! The loop runs in its own single-threaded tokio runtime on a dedicated thread, so WebSocket
-//! clients and HTTP handlers on the main runtime cannot delay a control tick.
+//! clients and HTTP handlers on the main runtime cannot delay a control tick. Within the loop
+//! the tick timer comes before commands, and between two ticks at most
+//! [`MAX_COMMANDS_PER_TICK`] commands (or half a period of work) are carried out, so a stream
+//! of commands cannot delay a tick either; the loop counts how regularly it ticked
+//! ([`LoopStats`], `HostHandle::loop_stats`).
 
 use super::engine::{Command, Host, HostError, Reply};
 use super::status::{HostSnapshot, SharedEvent};
@@ -15,6 +19,7 @@ use super::store::Saved;
 use crate::mission::methods::methods;
 use crate::planning::worker::Delivery;
 use serde::Serialize;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
@@ -82,6 +87,7 @@ pub struct HostHandle {
     commands: mpsc::Sender<Command>,
     state: watch::Receiver<Arc<HostSnapshot>>,
     events: broadcast::Sender<SharedEvent>,
+    stats: Arc<LoopStats>,
     pub info: Arc<HostInfo>,
 }
 
@@ -122,6 +128,11 @@ impl HostHandle {
 
     pub fn watch_state(&self) -> watch::Receiver<Arc<HostSnapshot>> {
         self.state.clone()
+    }
+
+    /// How regularly the control loop has ticked so far.
+    pub fn loop_stats(&self) -> LoopStatsView {
+        self.stats.view()
     }
 
     pub fn subscribe_events(&self) -> broadcast::Receiver<SharedEvent> {
@@ -182,10 +193,12 @@ pub fn spawn(
     let (commands, rx) = mpsc::channel(options.command_capacity.max(1));
     let (state_tx, state) = watch::channel(Arc::new(host.snapshot()));
     let (events, first_events) = broadcast::channel(options.event_capacity.max(16));
+    let stats = Arc::new(LoopStats::default());
     let handle = HostHandle {
         commands,
         state,
         events: events.clone(),
+        stats: stats.clone(),
         info: Arc::new(host_info(&host)),
     };
     let thread = std::thread::Builder::new()
@@ -195,7 +208,9 @@ pub fn spawn(
                 .enable_all()
                 .build();
             match runtime {
-                Ok(rt) => rt.block_on(control_loop(host, rx, state_tx, events, options, shutdown)),
+                Ok(rt) => rt.block_on(control_loop(
+                    host, rx, state_tx, events, stats, options, shutdown,
+                )),
                 Err(e) => {
                     tracing::error!("cannot start the control loop: {e}");
                     host
@@ -219,6 +234,98 @@ const SHUTDOWN_SAVE_WAIT: Duration = Duration::from_secs(5);
 const MAX_CATCH_UP: u32 = 50;
 /// Ticks per batch at `Pace::Max` before other work (commands, publishing) gets a turn.
 const MAX_BATCH: u32 = 100;
+/// Most commands carried out between two ticks (or two batches at `Pace::Max`).
+pub const MAX_COMMANDS_PER_TICK: u32 = 16;
+
+/// The commands one tick period may still take: a count and half the period's wall-clock time,
+/// so a burst of expensive commands (large uploads) waits for the next period instead of
+/// pushing the tick back.
+struct CommandBudget {
+    left: u32,
+    since: Instant,
+    time: Duration,
+}
+
+impl CommandBudget {
+    fn new(wake: Duration) -> Self {
+        Self {
+            left: MAX_COMMANDS_PER_TICK,
+            since: Instant::now(),
+            time: wake / 2,
+        }
+    }
+
+    fn open(&self) -> bool {
+        self.left > 0 && self.since.elapsed() < self.time
+    }
+
+    fn spend(&mut self) {
+        self.left = self.left.saturating_sub(1);
+    }
+
+    fn refill(&mut self) {
+        self.left = MAX_COMMANDS_PER_TICK;
+        self.since = Instant::now();
+    }
+}
+
+/// The loop's own timing, counted as it runs: how regularly the tick timer woke it.
+#[derive(Debug, Default)]
+pub struct LoopStats {
+    wakes: AtomicU64,
+    late: AtomicU64,
+    missed: AtomicU64,
+    max_interval_us: AtomicU64,
+    commands: AtomicU64,
+    last: std::sync::Mutex<Option<Instant>>,
+}
+
+/// A copy of [`LoopStats`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct LoopStatsView {
+    /// Times the tick timer woke the loop (each runs one tick or a batch of ticks).
+    pub wakes: u64,
+    /// Wakes more than 1.5 periods after the previous one.
+    pub late: u64,
+    /// Periods that passed without a wake (an interval of n periods misses n - 1).
+    pub missed: u64,
+    /// Longest interval between two wakes (µs).
+    pub max_interval_us: u64,
+    /// Commands carried out.
+    pub commands: u64,
+}
+
+impl LoopStats {
+    fn woke(&self, now: Instant, period: Duration) {
+        self.wakes.fetch_add(1, Ordering::Relaxed);
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(previous) = last.replace(now) {
+            let interval = now.duration_since(previous);
+            let us = u64::try_from(interval.as_micros()).unwrap_or(u64::MAX);
+            self.max_interval_us.fetch_max(us, Ordering::Relaxed);
+            let periods = interval.as_secs_f64() / period.as_secs_f64().max(1e-9);
+            if periods > 1.5 {
+                self.late.fetch_add(1, Ordering::Relaxed);
+                self.missed
+                    .fetch_add(periods.round() as u64 - 1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    fn command(&self) {
+        self.commands.fetch_add(1, Ordering::Relaxed);
+    }
+
+    pub fn view(&self) -> LoopStatsView {
+        LoopStatsView {
+            wakes: self.wakes.load(Ordering::Relaxed),
+            late: self.late.load(Ordering::Relaxed),
+            missed: self.missed.load(Ordering::Relaxed),
+            max_interval_us: self.max_interval_us.load(Ordering::Relaxed),
+            commands: self.commands.load(Ordering::Relaxed),
+        }
+    }
+}
 
 struct Publisher {
     state_tx: watch::Sender<Arc<HostSnapshot>>,
@@ -288,6 +395,7 @@ async fn control_loop(
     mut rx: mpsc::Receiver<Command>,
     state_tx: watch::Sender<Arc<HostSnapshot>>,
     events: broadcast::Sender<SharedEvent>,
+    stats: Arc<LoopStats>,
     mut options: RuntimeOptions,
     mut shutdown: watch::Receiver<bool>,
 ) -> Host {
@@ -311,11 +419,15 @@ async fn control_loop(
     let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
     let mut wall_start = Instant::now();
     let mut sim_start = host.now();
+    let mut budget = CommandBudget::new(wake);
     loop {
         // As fast as possible only while something flies: once every flight is over, simulated
         // time goes on at the wall clock's pace (an idle `--speedup max` would fill the disk
         // with flight log at thousands of seconds a second).
         let fast = options.pace == Pace::Max && !host.is_idle();
+        // The tick timer comes first: a stream of commands cannot hold back a tick, and
+        // between two ticks at most `MAX_COMMANDS_PER_TICK` commands (or half a period of
+        // work) are taken; the rest wait in the bounded queue for the next tick.
         tokio::select! {
             biased;
             changed = shutdown.changed() => {
@@ -324,17 +436,21 @@ async fn control_loop(
                 }
                 continue;
             }
-            command = rx.recv() => {
+            _ = ticker.tick(), if !fast => {}
+            command = rx.recv(), if budget.open() => {
                 match command {
                     Some(c) => host.handle(c),
                     None => break,
                 }
+                budget.spend();
+                stats.command();
                 publisher.publish(&mut host);
                 continue;
             }
-            _ = ticker.tick(), if !fast => {}
             _ = tokio::task::yield_now(), if fast => {}
         }
+        stats.woke(Instant::now(), wake);
+        budget.refill();
         let stop = match options.pace {
             Pace::RealTime => {
                 host.step_at(sim_start + wall_start.elapsed());

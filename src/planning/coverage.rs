@@ -25,6 +25,7 @@
 
 use nalgebra::{Rotation2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Most streets a plan may have (guards against a tiny spacing on a huge polygon).
 pub const MAX_STREETS: usize = 100_000;
@@ -60,6 +61,8 @@ pub enum CoverageError {
     NoDrones,
     #[error("{0} streets exceed the limit of {MAX_STREETS}")]
     TooManyStreets(usize),
+    #[error("the coverage plan was cancelled")]
+    Cancelled,
 }
 
 /// Plans a balanced multi-drone sweep (see the module docs).
@@ -70,6 +73,28 @@ pub fn plan_coverage(
     drone_starts: &[Vector2<f64>],
     height_m: f64,
 ) -> Result<CoveragePlan, CoverageError> {
+    let never = AtomicBool::new(false);
+    plan_coverage_until(
+        polygon_enu,
+        street_spacing_m,
+        angle,
+        drone_starts,
+        height_m,
+        &never,
+    )
+}
+
+/// [`plan_coverage`] that gives up with [`CoverageError::Cancelled`] soon after `cancel` is
+/// set (checked for every street and every candidate sweep).
+pub fn plan_coverage_until(
+    polygon_enu: &[Vector2<f64>],
+    street_spacing_m: f64,
+    angle: Option<f64>,
+    drone_starts: &[Vector2<f64>],
+    height_m: f64,
+    cancel: &AtomicBool,
+) -> Result<CoveragePlan, CoverageError> {
+    let cancelled = || cancel.load(Ordering::Relaxed);
     let finite = |p: &Vector2<f64>| p.x.is_finite() && p.y.is_finite();
     if polygon_enu.len() < 3 || !polygon_enu.iter().all(finite) {
         return Err(CoverageError::InvalidPolygon);
@@ -107,17 +132,23 @@ pub fn plan_coverage(
     }
     let n_streets = n_streets as usize;
     let spacing = height / n_streets as f64;
-    let streets: Vec<(f64, f64, f64)> = (0..n_streets)
-        .filter_map(|k| {
-            let lo = y_min + spacing * k as f64;
-            let (x0, x1) = band_x_extent(&poly, lo, lo + spacing)?;
-            Some((x0, x1, lo + spacing / 2.0))
-        })
-        .collect();
+    let mut streets: Vec<(f64, f64, f64)> = Vec::new();
+    for k in 0..n_streets {
+        if cancelled() {
+            return Err(CoverageError::Cancelled);
+        }
+        let lo = y_min + spacing * k as f64;
+        if let Some((x0, x1)) = band_x_extent(&poly, lo, lo + spacing) {
+            streets.push((x0, x1, lo + spacing / 2.0));
+        }
+    }
 
     let starts_street: Vec<Vector2<f64>> = drone_starts.iter().map(|p| to_street * p).collect();
     let mut best: Option<(f64, Vec<Vec<Vector2<f64>>>)> = None;
     for (bottom_first, left_first) in [(true, true), (true, false), (false, true), (false, false)] {
+        if cancelled() {
+            return Err(CoverageError::Cancelled);
+        }
         let sweep = boustrophedon(&streets, bottom_first, left_first);
         let pieces = split_equal(&sweep, drone_starts.len());
         let (cost, assigned) = assign(pieces, &starts_street);

@@ -374,7 +374,14 @@ impl Host {
         }
     }
 
-    fn views(&self, drone: Option<&str>, with_plan: bool) -> Result<Vec<MissionView>, HostError> {
+    /// The missions of `drone` (or of all drones), only mission `only` when given; the plan
+    /// (a copy of every item) only with `with_plan`, so a list stays cheap on the loop.
+    fn views(
+        &self,
+        drone: Option<&str>,
+        only: Option<u32>,
+        with_plan: bool,
+    ) -> Result<Vec<MissionView>, HostError> {
         let indices: Vec<usize> = match drone {
             Some(d) => vec![self.route(Some(d))?],
             None => (0..self.cores.len()).collect(),
@@ -385,6 +392,9 @@ impl Host {
                 continue;
             };
             for (id, loaded) in ex.missions() {
+                if only.is_some_and(|o| o != *id) {
+                    continue;
+                }
                 let state = if ex.running_id() == Some(*id) {
                     ex.state()
                 } else {
@@ -408,9 +418,7 @@ impl Host {
     }
 
     fn mission_view(&self, drone: Option<&str>, id: u32) -> Result<MissionView, HostError> {
-        let views = self.views(drone, true)?;
-        let mut matching: Vec<MissionView> =
-            views.into_iter().filter(|v| v.mission_id == id).collect();
+        let mut matching = self.views(drone, Some(id), true)?;
         match matching.len() {
             0 => Err(ActionError::UnknownMission(id).into()),
             1 => Ok(matching.remove(0)),
@@ -555,7 +563,7 @@ impl Host {
                 self.answer(reply, answer);
             }
             Command::Missions { drone, reply } => {
-                let _ = reply.send(self.views(drone.as_deref(), false));
+                let _ = reply.send(self.views(drone.as_deref(), None, false));
             }
             Command::Mission {
                 drone,

@@ -1,0 +1,75 @@
+//! The control loop under API traffic: commands flooding the queue must not delay a tick. The
+//! loop counts its own late and missed ticks; the test reads those counts, not its own clock.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use kestrel::config::Config;
+use kestrel::host::engine::Command;
+use kestrel::host::runtime::{self, Pace, RuntimeOptions, MAX_COMMANDS_PER_TICK};
+use kestrel::host::sim::simulated_host;
+use kestrel::sim::world::World;
+use std::time::Duration;
+
+/// Tasks sending commands back to back, more than the queue holds.
+const FLOODERS: usize = 96;
+
+#[test]
+fn a_flood_of_commands_does_not_delay_the_ticks() {
+    let host = simulated_host(World::empty(), 2, 1, &Config::default());
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let (stop, stop_rx) = tokio::sync::watch::channel(false);
+    let spawned = runtime::spawn(host, RuntimeOptions::new(Pace::RealTime), stop_rx).unwrap();
+    let handle = spawned.handle.clone();
+    let (quiet, flooded) = rt.block_on(async {
+        // Settle, then count a quiet second and a flooded second.
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let before = handle.loop_stats();
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        let quiet = handle.loop_stats();
+        let (done_tx, done_rx) = tokio::sync::watch::channel(false);
+        let mut tasks = Vec::new();
+        for k in 0..FLOODERS {
+            let h = handle.clone();
+            let done = done_rx.clone();
+            tasks.push(tokio::spawn(async move {
+                while !*done.borrow() {
+                    let drone = Some(format!("drone_{}", k % 2));
+                    let _ = h.call(|reply| Command::Missions { drone, reply }).await;
+                }
+            }));
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let start = handle.loop_stats();
+        tokio::time::sleep(Duration::from_secs(2)).await;
+        let end = handle.loop_stats();
+        done_tx.send_replace(true);
+        for t in tasks {
+            t.await.unwrap();
+        }
+        let diff = |a: runtime::LoopStatsView, b: runtime::LoopStatsView| {
+            (
+                b.wakes - a.wakes,
+                b.late - a.late,
+                b.missed - a.missed,
+                b.commands - a.commands,
+            )
+        };
+        (diff(before, quiet), diff(start, end))
+    });
+    stop.send_replace(true);
+    spawned.thread.join().unwrap();
+    let (wakes, late, missed, commands) = flooded;
+    println!("quiet second (wakes, late, missed, commands): {quiet:?}");
+    println!("flooded 2 s: {flooded:?}");
+    // The flood really flooded: far more commands than ticks, and at most the per-tick budget
+    // between two ticks.
+    assert!(commands > 2 * wakes, "{commands} commands in {wakes} ticks");
+    assert!(commands <= (wakes + 1) * u64::from(MAX_COMMANDS_PER_TICK));
+    // 2 s at 100 Hz: about 200 ticks, almost none late (a shared test machine may delay a few).
+    assert!(wakes >= 180, "{wakes} ticks in 2 s at 100 Hz");
+    assert!(late * 20 <= wakes, "{late} late of {wakes}");
+    assert!(missed * 20 <= wakes, "{missed} missed, {wakes} ticks");
+}
