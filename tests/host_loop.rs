@@ -68,8 +68,15 @@ fn a_flood_of_commands_does_not_delay_the_ticks() {
     // between two ticks.
     assert!(commands > 2 * wakes, "{commands} commands in {wakes} ticks");
     assert!(commands <= (wakes + 1) * u64::from(MAX_COMMANDS_PER_TICK));
-    // 2 s at 100 Hz: about 200 ticks, almost none late (a shared test machine may delay a few).
-    assert!(wakes >= 180, "{wakes} ticks in 2 s at 100 Hz");
-    assert!(late * 20 <= wakes, "{late} late of {wakes}");
-    assert!(missed * 20 <= wakes, "{missed} missed, {wakes} ticks");
+    // 2 s at 100 Hz: about 200 ticks. A loaded machine delays some ticks with or without
+    // commands, so the flood is judged against the quiet second of the same run (twice as long,
+    // so twice its count, doubled again, and 10 more): the command-first loop had 41 late or
+    // missed against none.
+    let (_, quiet_late, quiet_missed, _) = quiet;
+    assert!(wakes >= 150, "{wakes} ticks in 2 s at 100 Hz");
+    let allowed = 4 * (quiet_late + quiet_missed) + 10;
+    assert!(
+        late + missed <= allowed,
+        "flooded: {late} late and {missed} missed of {wakes} (quiet second: {quiet:?})"
+    );
 }
