@@ -7,6 +7,7 @@
 # from fuzz/corpus/TARGET, writes AFL's state to fuzz/out/TARGET (not committed), then prints
 # the executions done and exits 1 if AFL saved any crash or hang. Limits per input: 1 GiB of
 # memory (-m), 2 s of time (-t). Runs under `nice -n 19` (FUZZ_NICE to change).
+# FUZZ_RESUME=1 continues from fuzz/out/TARGET instead: its queue, and AFL's counts go on.
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -41,13 +42,18 @@ export AFL_NO_UI=1 AFL_QUIET=1
 status=0
 for t in "${chosen[@]}"; do
     out="out/$t"
-    rm -rf "$out"
+    input="corpus/$t"
+    if [ "${FUZZ_RESUME:-0}" = 1 ] && [ -f "$out/default/fuzzer_stats" ]; then
+        input=-
+    else
+        rm -rf "$out" "out/$t.log"
+    fi
     mkdir -p out
-    echo "== fuzz $t for ${seconds}s (corpus: fuzz/corpus/$t, state: fuzz/$out)"
+    echo "== fuzz $t for ${seconds}s (input: $input, state: fuzz/$out)"
     dict=()
     if [ -f "dict/$t.dict" ]; then dict=(-x "dict/$t.dict"); fi
-    nice -n "${FUZZ_NICE:-19}" cargo afl fuzz -i "corpus/$t" -o "$out" "${dict[@]}" -m 1024 \
-        -t 2000 -V "$seconds" "target/release/$t" >"out/$t.log" 2>&1 || {
+    nice -n "${FUZZ_NICE:-19}" cargo afl fuzz -i "$input" -o "$out" "${dict[@]}" -m 1024 \
+        -t 2000 -V "$seconds" "target/release/$t" >>"out/$t.log" 2>&1 || {
         tail -30 "out/$t.log" >&2
         status=1
         continue
