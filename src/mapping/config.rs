@@ -18,6 +18,10 @@ use super::grid::{GridSpec, InsertParams, OccupancyGrid};
 use super::layers::FuseRule;
 use super::MapError;
 
+/// Bounds of `[map] update_rate_hz` (Hz).
+const MIN_UPDATE_RATE_HZ: f64 = 0.01;
+const MAX_UPDATE_RATE_HZ: f64 = 100.0;
+
 /// Which mapping plugin builds the grid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -59,7 +63,7 @@ pub struct MapSection {
     pub graph: Option<PathBuf>,
     /// How drones' layers fuse into the merged map.
     pub fuse: FuseRule,
-    /// Most `map_update` WebSocket messages per second (Hz, > 0).
+    /// Most `map_update` WebSocket messages per second (Hz, 0.01..=100).
     pub update_rate_hz: f64,
     /// Files named above, loaded by [`MapSection::load_files`].
     #[serde(skip)]
@@ -139,8 +143,15 @@ impl MapSection {
                 "sets the grid geometry: remove size_m and origin_enu_m".into(),
             ));
         }
-        if !(self.update_rate_hz.is_finite() && self.update_rate_hz > 0.0) {
-            return Err(field("update_rate_hz", "must be > 0 (Hz)".into()));
+        // Bounded below too: its period becomes a `Duration`, which 1 / 1e-300 s overflows.
+        if !(MIN_UPDATE_RATE_HZ..=MAX_UPDATE_RATE_HZ).contains(&self.update_rate_hz) {
+            return Err(field(
+                "update_rate_hz",
+                format!(
+                    "must be within {MIN_UPDATE_RATE_HZ}..={MAX_UPDATE_RATE_HZ} (Hz), got {}",
+                    self.update_rate_hz
+                ),
+            ));
         }
         Ok(())
     }
@@ -259,6 +270,28 @@ mod tests {
     use crate::mapping::graph::{GraphEdge, GraphNode};
     use crate::mapping::Cell;
     use nalgebra::Vector3;
+
+    #[test]
+    fn update_rates_whose_period_overflows_a_duration_are_refused() {
+        // Found writing the config fuzz target (fuzz/corpus/config/map_update_rate_tiny.toml):
+        // validation passed, then `config` panicked in Duration::from_secs_f64(1e300).
+        for rate in [1e-300, 0.001, 0.0, -1.0, f64::NAN, f64::INFINITY, 1e6] {
+            let s = MapSection {
+                update_rate_hz: rate,
+                ..MapSection::default()
+            };
+            let (field, _) = s.validate().unwrap_err();
+            assert_eq!(field, "map.update_rate_hz", "{rate}");
+        }
+        for rate in [0.01, 2.0, 100.0] {
+            let s = MapSection {
+                update_rate_hz: rate,
+                ..MapSection::default()
+            };
+            s.validate().unwrap();
+            assert!(s.config(None).unwrap().is_some());
+        }
+    }
 
     #[test]
     fn the_extent_follows_the_world_unless_the_section_gives_one() {
