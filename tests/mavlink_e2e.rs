@@ -8,19 +8,12 @@ mod support;
 
 use mavlink_support::{
     closest_approaches, demo_mission, demo_targets, free_tcp_port, serial, Api, Fake, Kestrel,
-    Personality,
+    Personality, DEMO,
 };
 use serde_json::{json, Value};
 use std::time::Duration;
 
 const FLIGHT_TIMEOUT: Duration = Duration::from_secs(120);
-const DEMO: &[&str] = &[
-    "--mission-demo",
-    "--no-api",
-    "--exit-when-done",
-    "--max-time-s",
-    "110",
-];
 
 /// Flies the demo and checks every target; returns the fake, kestrel and the fake's setpoint
 /// statistics up to the end of the takeoff (they are reset then: the rest of the flight is

@@ -10,20 +10,12 @@ use mavlink::dialects::ardupilotmega::{
     MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA,
 };
 use mavlink::{MavHeader, MavlinkVersion};
-use mavlink_support::{closest_approaches, demo_targets, serial, Fake, Kestrel, Personality};
+use mavlink_support::{closest_approaches, demo_targets, serial, Fake, Kestrel, Personality, DEMO};
 use serde_json::json;
 use std::net::UdpSocket;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
-
-const DEMO: &[&str] = &[
-    "--mission-demo",
-    "--no-api",
-    "--exit-when-done",
-    "--max-time-s",
-    "110",
-];
 
 /// A HEARTBEAT that says it is the fake's autopilot (system 1, component 1), armed.
 fn spoofed_heartbeat(sequence: u8) -> Vec<u8> {

@@ -344,6 +344,15 @@ impl Drop for Kestrel {
 /// The demo plan's targets in the autopilot's local ENU frame, in order, for a vehicle that
 /// starts at the origin facing east (the fake's default): the takeoff point, every go_to and
 /// follow_path point, and the touchdown below the last one.
+/// `kestrel run` flags that fly the demo mission without the API and exit when it ends.
+pub const DEMO: &[&str] = &[
+    "--mission-demo",
+    "--no-api",
+    "--exit-when-done",
+    "--max-time-s",
+    "110",
+];
+
 pub fn demo_targets() -> Vec<[f64; 3]> {
     let mut targets = Vec::new();
     let mut last = [0.0, 0.0, 0.0];
