@@ -176,16 +176,18 @@ fn write_forever(inner: &Inner, progress: &watch::Sender<Progress>) {
             }
             Err(e) => {
                 tracing::error!("saving the state: {e}; trying again in {retry:?}");
-                progress.send_modify(|p| {
-                    p.attempted = number;
-                    p.error = Some(e.to_string());
-                    p.failed_attempts += 1;
-                });
+                // Back in the queue before the failure is published, so whoever sees the
+                // failure also sees what waits to be written.
                 let mut queue = lock(&inner.queue);
                 for (file, change) in batch {
                     queue.pending.entry(file).or_insert(change);
                 }
                 drop(queue);
+                progress.send_modify(|p| {
+                    p.attempted = number;
+                    p.error = Some(e.to_string());
+                    p.failed_attempts += 1;
+                });
                 std::thread::sleep(retry);
                 retry = (retry * 2).min(RETRY_MAX);
             }
