@@ -264,7 +264,7 @@ fn print_event(e: &HostEvent) {
     {
         println!(
             "[{t:8.2} s] {drone}: {}",
-            serde_json::to_string(b).unwrap_or_default()
+            crate::cli_console::behavior_line(b)
         );
     }
 }

@@ -11,10 +11,12 @@ use kestrel::flightlog::FlightLog;
 use kestrel::host::demo::demo_missions;
 use kestrel::host::runtime::Pace;
 use kestrel::host::scenario::Scenario;
+use kestrel::host::scenario_coverage::fleet_missions;
 use kestrel::host::sim::{sim_world, simulated_host_in};
 use kestrel::host::Host;
 use kestrel::mission::{Action, MissionUpdate};
 use kestrel::sim::world::{SensorConfig, World};
+use kestrel::types::Vec3;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -184,10 +186,16 @@ pub fn run(args: SimArgs) -> Result<()> {
         start,
     })?;
     let log_path = log_file.path.clone();
-    let mission_file = args
-        .mission
-        .clone()
-        .or_else(|| scenario.as_ref().and_then(|s| s.mission.clone()));
+    let split = scenario
+        .as_ref()
+        .filter(|_| args.mission.is_none())
+        .and_then(|s| s.split_coverage(host.drone_ids().len()));
+    let mission_file = args.mission.clone().or_else(|| {
+        scenario
+            .as_ref()
+            .filter(|_| split.is_none())
+            .and_then(|s| s.mission.clone())
+    });
     let mut log = FlightLog::new(Box::new(writer), 10.0);
     log.header(cli_serve::header(&cli_serve::RunInfo {
         command: "sim",
@@ -203,6 +211,19 @@ pub fn run(args: SimArgs) -> Result<()> {
     host.set_log(log);
     let flights = if args.no_demo {
         Vec::new()
+    } else if let Some(spec) = split {
+        let drones: Vec<(String, Vec3)> = host
+            .cores()
+            .iter()
+            .map(|c| (c.drone_id().to_string(), c.estimate().pose.position_m))
+            .collect();
+        let frames = host.cores().first().map(|c| c.frames().clone());
+        let missions = fleet_missions(spec, &frames.unwrap_or_default(), &drones)
+            .context("splitting the scenario's coverage among the drones")?;
+        missions
+            .into_iter()
+            .map(|mission| execute(&mut host, mission))
+            .collect::<Result<Vec<_>>>()?
     } else if let Some(file) = &mission_file {
         vec![execute(&mut host, read_json(file)?)
             .with_context(|| format!("flying {}", file.display()))?]

@@ -78,6 +78,8 @@ pub enum BehaviorCommand {
     Pause(BehaviorId),
     Resume(BehaviorId),
     Stop(BehaviorId),
+    /// End a behavior as done (a mission item's `run_for_s` is over): it finishes succeeded.
+    Complete(BehaviorId),
     Modify {
         id: BehaviorId,
         goal: serde_json::Value,
@@ -243,6 +245,7 @@ impl DroneCore {
             BehaviorCommand::Pause(id) => self.server.pause(id, &ctx).map(|_| None),
             BehaviorCommand::Resume(id) => self.server.resume(id, &ctx).map(|_| None),
             BehaviorCommand::Stop(id) => self.server.stop(id, &ctx).map(|_| None),
+            BehaviorCommand::Complete(id) => self.server.complete(id, &ctx).map(|_| None),
             BehaviorCommand::Modify { id, goal } => {
                 self.server.modify(id, &goal, &ctx).map(|_| None)
             }

@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_console;
 mod cli_evaluate;
 mod cli_explore;
 mod cli_flights;
@@ -54,12 +55,7 @@ enum Command {
 }
 
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_target(false)
-        .init();
+    cli_console::init_logging();
     let cli = Cli::parse();
     match cli.command {
         Command::Sim(args) => cli_sim::run(args),

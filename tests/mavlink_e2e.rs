@@ -7,8 +7,8 @@ mod mavlink_support;
 mod support;
 
 use mavlink_support::{
-    closest_approaches, demo_mission, demo_targets, free_tcp_port, serial, Api, Fake, Kestrel,
-    Personality, DEMO,
+    alongside, closest_approaches, demo_mission, demo_targets, free_tcp_port, serial, Api, Fake,
+    Kestrel, Personality, DEMO,
 };
 use serde_json::{json, Value};
 use std::time::Duration;
@@ -22,10 +22,7 @@ fn demo_flight(p: Personality, fake_args: &[&str], config: &str) -> (Fake, Kestr
     let fake = Fake::start(p, fake_args);
     let poller = fake.poll_states();
     let mut kestrel = Kestrel::run(p, &fake.connection, config, DEMO);
-    kestrel.wait_line(
-        "\"finished\",\"id\":1,\"behavior\":\"takeoff\"",
-        Duration::from_secs(60),
-    );
+    kestrel.wait_line("takeoff #1 succeeded", Duration::from_secs(60));
     let takeoff = fake.cmd(json!({"cmd": "setpoint_stats", "reset": true}));
     let status = kestrel.wait(FLIGHT_TIMEOUT);
     let samples = poller.finish();
@@ -91,7 +88,7 @@ fn ardupilot_demo_flight_reaches_every_target() {
 /// gets an EKF origin: Kestrel sends the configured one with SET_GPS_GLOBAL_ORIGIN.
 #[test]
 fn ardupilot_without_gps_flies_once_given_the_configured_ekf_origin() {
-    let _one = serial();
+    let _one = alongside();
     let config =
         "[mavlink]\nekf_origin = { lat_deg = 40.4405, lon_deg = -3.68982, alt_m = 100.0 }\n";
     demo_flight(Personality::Ardupilot, &["--no-gps"], config);
@@ -99,7 +96,7 @@ fn ardupilot_without_gps_flies_once_given_the_configured_ekf_origin() {
 
 #[test]
 fn px4_flight_completes_with_ten_percent_packet_loss() {
-    let _one = serial();
+    let _one = alongside();
     let p = Personality::Px4;
     let (fake, _k, _) = demo_flight(p, &["--packet-loss", "0.1"], "");
     let rest = fake.cmd(json!({"cmd": "setpoint_stats"}));
@@ -109,12 +106,12 @@ fn px4_flight_completes_with_ten_percent_packet_loss() {
 
 #[test]
 fn ardupilot_flight_completes_with_ten_percent_packet_loss() {
-    let _one = serial();
+    let _one = alongside();
     demo_flight(Personality::Ardupilot, &["--packet-loss", "0.1"], "");
 }
 
 fn arming_denied(p: Personality, expected: &str) {
-    let _one = serial();
+    let _one = alongside();
     let fake = Fake::start(p, &["--deny-arm", "Throttle too high"]);
     let mut kestrel = Kestrel::run(p, &fake.connection, "", DEMO);
     let status = kestrel.wait(FLIGHT_TIMEOUT);
@@ -143,10 +140,7 @@ fn ardupilot_arming_denied_surfaces_the_statustext() {
 
 /// Drops the link for 3 s once `behavior` has flown for a while; returns when the drop began.
 fn drop_link_during(fake: &Fake, kestrel: &Kestrel, behavior: &str) -> std::time::Instant {
-    kestrel.wait_line(
-        &format!("\"started\",\"id\":2,\"behavior\":\"{behavior}\""),
-        Duration::from_secs(60),
-    );
+    kestrel.wait_line(&format!("{behavior} #2 started"), Duration::from_secs(60));
     std::thread::sleep(Duration::from_millis(1500));
     let dropped_at = std::time::Instant::now();
     fake.cmd(json!({"cmd": "link_drop", "duration_s": 3.0}));
@@ -184,7 +178,7 @@ fn kestrel_with_api(p: Personality, fake: &Fake, config: &str) -> (Kestrel, Api)
 /// On the API path: the demo uploaded and started over REST, the link cut for 3 s during its
 /// go_to; with `resume` the interrupted go_to starts again and the mission finishes.
 fn link_drop_resumes_the_mission(p: Personality) {
-    let _one = serial();
+    let _one = alongside();
     let fake = Fake::start(p, &[]);
     let poller = fake.poll_states();
     let config = "[mission]\non_link_regained = \"resume\"\n";
@@ -206,9 +200,7 @@ fn link_drop_resumes_the_mission(p: Personality) {
     assert_eq!(lost.len(), 1, "{mission}");
     let back = kestrel.line_after("link: ok", dropped_at_line(&kestrel));
     assert!(
-        back.is_some_and(|t| kestrel
-            .line_after("\"started\",\"id\":3,\"behavior\":\"go_to\"", t)
-            .is_some()),
+        back.is_some_and(|t| kestrel.line_after("go_to #3 started", t).is_some()),
         "the interrupted go_to must start again once the link is back:\n{out}"
     );
     // The autopilot's failsafe acted during the outage; the resumed plan still reaches what
@@ -229,7 +221,7 @@ fn link_drop_resumes_the_mission(p: Personality) {
 
 /// The same with `land`: the mission ends with `link_lost` and the vehicle lands where it is.
 fn link_drop_lands(p: Personality) {
-    let _one = serial();
+    let _one = alongside();
     let fake = Fake::start(p, &[]);
     let config = "[mission]\non_link_regained = \"land\"\n";
     let (kestrel, api) = kestrel_with_api(p, &fake, config);
@@ -273,7 +265,7 @@ fn ardupilot_link_drop_mid_flight_lands_when_configured() {
 
 #[test]
 fn px4_reboot_is_detected_and_the_link_comes_back() {
-    let _one = serial();
+    let _one = alongside();
     let p = Personality::Px4;
     let fake = Fake::start(p, &[]);
     let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--no-api", "--max-time-s", "9"]);
@@ -294,7 +286,7 @@ fn px4_reboot_is_detected_and_the_link_comes_back() {
 /// The autopilot process goes away and comes back on the same port: Kestrel reconnects (TCP:
 /// a new connection; UDP: the new peer is answered) and sees a fresh boot.
 fn reconnects_after_the_autopilot_restarts(p: Personality) {
-    let _one = serial();
+    let _one = alongside();
     let mut fake = Fake::start(p, &[]);
     let mut kestrel = Kestrel::run(p, &fake.connection, "", &["--no-api", "--max-time-s", "14"]);
     kestrel.wait_line("ready to fly: true", Duration::from_secs(10));
@@ -330,7 +322,7 @@ fn ardupilot_reconnects_after_the_autopilot_restarts() {
 fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
     use mavlink::dialects::ardupilotmega::{MavCmd, MavMessage, COMMAND_LONG_DATA};
     use mavlink::{MavHeader, MavlinkReader};
-    let _one = serial();
+    let _one = alongside();
     let p = Personality::Px4;
     let fake = Fake::start(p, &[]);
     let gcs = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -399,7 +391,7 @@ fn ground_station_endpoint_gets_the_stream_and_its_commands_through() {
 /// `platforms/sim.toml`: the same `kestrel run` loop over the built-in simulator in real time.
 #[test]
 fn run_flies_the_demo_on_the_simulator_platform() {
-    let _one = serial();
+    let _one = alongside();
     let mut kestrel = Kestrel::run_with_platform("platforms/sim.toml", "udpin:0.0.0.0:0", "", DEMO);
     let status = kestrel.wait(FLIGHT_TIMEOUT);
     assert!(status.success(), "{}", kestrel.output());
@@ -421,13 +413,10 @@ fn setpoint_jitter_at_50_hz() {
     let p = Personality::Px4;
     let fake = Fake::start(p, &[]);
     let mut kestrel = Kestrel::run(p, &fake.connection, "", DEMO);
-    let takeoff = "\"finished\",\"id\":1,\"behavior\":\"takeoff\"";
+    let takeoff = "takeoff #1 succeeded";
     kestrel.wait_line(takeoff, Duration::from_secs(60));
     fake.cmd(json!({"cmd": "setpoint_stats", "reset": true}));
-    kestrel.wait_line(
-        "\"started\",\"id\":4,\"behavior\":\"land\"",
-        Duration::from_secs(60),
-    );
+    kestrel.wait_line("land #4 started", Duration::from_secs(60));
     let stats = fake.cmd(json!({"cmd": "setpoint_stats"}));
     println!("setpoint stream at 50 Hz seen by the fake during go_to + follow_path: {stats}");
     assert!(

@@ -770,6 +770,10 @@ fn run_for_s_ends_a_behavior_that_never_ends_by_itself() {
     assert!(rig.run_until(30.0, |r| r.at_item(2)));
     assert!((rig.t() - t0 - 4.0).abs() < 0.1, "{}", rig.t() - t0);
     assert!(rig.run_until(30.0, |r| r.is_idle()));
+    let s = rig.status();
+    // Its time being up is how the item was meant to end: done, not "aborted: stopped".
+    assert_eq!(s.done_results[1].result, ItemResult::Succeeded, "{s:?}");
+    assert_eq!(s.last_error, None);
 }
 
 #[test]

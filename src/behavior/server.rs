@@ -368,6 +368,14 @@ impl BehaviorServer {
         Ok(())
     }
 
+    /// Ends a behavior as done although it would go on (its time is up): it finishes
+    /// succeeded and the vehicle holds where it is.
+    pub fn complete(&mut self, id: BehaviorId, ctx: &BehaviorContext) -> Result<(), ServerError> {
+        self.find(id)?;
+        self.finish(id, BehaviorResult::Succeeded, ctx);
+        Ok(())
+    }
+
     /// Stops everything (link loss, emergency); each ends aborted with `reason`.
     pub fn stop_all(&mut self, reason: Failure, ctx: &BehaviorContext) {
         self.end_all(&BehaviorResult::aborted(reason), ctx);
@@ -656,6 +664,21 @@ mod tests {
                 BehaviorResult::aborted(Failure::new(FailureCode::Stopped, "stopped"))
             )]
         );
+    }
+
+    #[test]
+    fn a_completed_behavior_finishes_succeeded() {
+        let w = World::flying();
+        let mut s = server();
+        let id = s
+            .start("count", &json!({ "ticks": 100 }), &w.ctx(0))
+            .unwrap();
+        s.complete(id, &w.ctx(1)).unwrap();
+        assert_eq!(
+            results(&s.drain_events()),
+            [(id, BehaviorResult::Succeeded)]
+        );
+        assert_eq!(s.complete(id, &w.ctx(2)), Err(ServerError::NotActive(id)));
     }
 
     #[test]

@@ -17,6 +17,7 @@ pub mod payload;
 pub mod runtime;
 pub mod scans;
 pub mod scenario;
+pub mod scenario_coverage;
 pub mod sim;
 pub mod status;
 pub mod store;

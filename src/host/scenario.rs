@@ -2,7 +2,9 @@
 //! --scenario` and `kestrel mission validate|run --scenario`.
 //!
 //! In: a JSON file `{"description", "frames": [FrameRegistration..], "mission": "file.json",
-//! "drones": N}` (the mission path is relative to the scenario file). Out: [`Scenario`].
+//! "drones": N, "coverage": {..}}` (the mission path is relative to the scenario file). Out:
+//! [`Scenario`]. One drone flies `mission`; several split `coverage` among them
+//! ([`super::scenario_coverage`]).
 
 use super::engine::FrameRegistration;
 use serde::Deserialize;
@@ -21,6 +23,19 @@ pub struct Scenario {
     /// Drones the scenario needs (at least).
     #[serde(default)]
     pub drones: Option<usize>,
+    /// An area to sweep: with several drones (or no `mission`) it is split among them.
+    #[serde(default)]
+    pub coverage: Option<super::scenario_coverage::CoverageSpec>,
+}
+
+impl Scenario {
+    /// The coverage to split among `drones` drones, when this scenario flies that way: it has
+    /// a `coverage` section and either several drones or no single-drone `mission`.
+    pub fn split_coverage(&self, drones: usize) -> Option<&super::scenario_coverage::CoverageSpec> {
+        self.coverage
+            .as_ref()
+            .filter(|_| drones > 1 || self.mission.is_none())
+    }
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -256,10 +256,11 @@ impl<'de> Deserialize<'de> for ExecState {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ItemResult {
+    /// Done, or ran its `run_for_s`.
     Succeeded,
     Failed,
     Aborted,
-    /// Left by NEXT_ITEM or JUMP_TO, or ended by `run_for_s`.
+    /// Left by NEXT_ITEM or JUMP_TO.
     Stopped,
     /// A `wait: false` item whose behavior is still running in parallel.
     Started,

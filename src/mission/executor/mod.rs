@@ -327,21 +327,26 @@ impl MissionExecutor {
 
     /// Stops the current item's behavior (NEXT_ITEM, JUMP_TO) and records why.
     fn leave_current(&mut self, core: &mut DroneCore, reason: &str) {
+        self.end_current(core, ItemResult::Stopped, reason);
+    }
+
+    /// Ends the current item's behavior as `Stopped` (left) or `Succeeded` (its `run_for_s`
+    /// is over: the behavior finishes succeeded too) and records why.
+    fn end_current(&mut self, core: &mut DroneCore, result: ItemResult, reason: &str) {
         let Some(run) = self.run.as_mut() else {
             return;
         };
         let Some(current) = run.current.take() else {
             return;
         };
-        let _ = core.command(BehaviorCommand::Stop(current.id));
+        let command = if result == ItemResult::Succeeded {
+            BehaviorCommand::Complete(current.id)
+        } else {
+            BehaviorCommand::Stop(current.id)
+        };
+        let _ = core.command(command);
         let id = run.mission_id;
-        self.record(
-            id,
-            current.index,
-            ItemResult::Stopped,
-            Some(reason.into()),
-            None,
-        );
+        self.record(id, current.index, result, Some(reason.into()), None);
     }
 
     fn record(
@@ -527,7 +532,8 @@ impl MissionExecutor {
         if let Some(s) = run_for {
             if now.saturating_sub(current.started_at) >= Duration::from_secs_f64(s) {
                 let index = current.index;
-                self.leave_current(core, &format!("ran for {s} s (run_for_s)"));
+                let reason = format!("ran for {s} s (run_for_s)");
+                self.end_current(core, ItemResult::Succeeded, &reason);
                 let id = self.running_id().unwrap_or_default();
                 self.with_progress(id, |p| p.cursor = index + 1);
             }
@@ -607,13 +613,14 @@ impl MissionExecutor {
         }
     }
 
-    /// The plan ran to its end: parallel behaviors still running are stopped.
+    /// The plan ran to its end: parallel behaviors still running are ended; they did their
+    /// part, so they finish succeeded.
     fn complete(&mut self, core: &mut DroneCore) {
         let Some(run) = self.run.take() else {
             return;
         };
         for p in &run.parallel {
-            let _ = core.command(BehaviorCommand::Stop(p.id));
+            let _ = core.command(BehaviorCommand::Complete(p.id));
         }
         self.close_parallel(&run, "mission ended");
         self.with_progress(run.mission_id, |p| p.finished = true);
