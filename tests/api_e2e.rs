@@ -519,6 +519,27 @@ async fn bad_requests_are_rejected_precisely_and_nothing_moves() {
     let (code, v) = k.post("/api/missions", &json!({"target": "drone_0", "plan": [{"behavior": "go_to", "args": {"x": 0, "y": 0, "z": 300, "speed": 1}}]})).await;
     assert_eq!(code, 422);
     assert_eq!(v["error"]["details"][0]["pointer"], "/plan/0/args/z");
+    // No target: every problem of the plan is listed, the missing target too.
+    let (code, v) = k.post("/api/missions", &json!({"plan": [{"behavior": "go_to", "args": {"x": 0, "y": 0, "z": 300, "speed": 1}}]})).await;
+    assert_eq!(code, 422, "{v}");
+    let pointers: Vec<&str> = v["error"]["details"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["pointer"].as_str().unwrap())
+        .collect();
+    assert!(
+        pointers.contains(&"/target") && pointers.contains(&"/plan/0/args/z"),
+        "{v}"
+    );
+    let (code, v) = k
+        .post("/api/missions", &json!({"target": "drone_9", "plan": []}))
+        .await;
+    assert_eq!(code, 422, "{v}");
+    assert_eq!(v["error"]["details"][0]["pointer"], "/target", "{v}");
+    let (code, v) = k.get("/api/missions").await;
+    assert_eq!(code, 200);
+    assert_eq!(v.as_array().map(Vec::len), Some(0), "nothing stored: {v}");
     let (code, v) = k
         .post(
             "/api/mission_update",

@@ -8,13 +8,14 @@ use super::body::{parse, JsonBody};
 use super::error::{ApiError, ErrorBody};
 use super::saved::{changes_saved, Durability};
 use super::ApiState;
-use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
+use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded, ValidatedUpload};
 use crate::host::logfiles::{self, LogEntry};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::store::StoreHealth;
 use crate::host::HostError;
 use crate::host::{Command, DroneStatus};
-use crate::mission::{Mission, MissionUpdate};
+use crate::mission::validate::validate_value;
+use crate::mission::{ContextSnapshot, Mission, MissionUpdate, ValidMission, ValidationError};
 use axum::extract::{Path, Query, State};
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -108,16 +109,66 @@ pub async fn upload(
     Query(q): Query<UploadQuery>,
     JsonBody(mission): JsonBody<Value>,
 ) -> Result<(StatusCode, Json<UploadAnswer>), ApiError> {
-    let up = s
+    // Validated here, off the control loop (a 1000-item mission costs more than a tick);
+    // the loop only loads it.
+    let target = match mission.get("target") {
+        Some(Value::String(t)) => Some(t.clone()),
+        _ => None,
+    };
+    let (drone, snapshot) = s
         .host
-        .call(|reply| Command::Upload {
-            mission,
-            mission_id: q.mission_id,
+        .call(|reply| Command::UploadContext {
+            target: target.clone(),
             reply,
         })
         .await?;
+    let (mission, valid, snapshot) = validate_off_loop(mission, snapshot).await?;
+    let valid = valid.map_err(HostError::Invalid)?;
+    if target.is_none() {
+        return Err(HostError::Invalid(vec![ValidationError {
+            pointer: "/target".into(),
+            message: "missing target".into(),
+        }])
+        .into());
+    }
+    let upload = Box::new(ValidatedUpload {
+        drone,
+        mission,
+        valid,
+        snapshot,
+        mission_id: q.mission_id,
+    });
+    let up = s
+        .host
+        .call(|reply| Command::UploadValidated { upload, reply })
+        .await?;
     let saved = changes_saved(&s).await;
     Ok((StatusCode::CREATED, Json(UploadAnswer { up, saved })))
+}
+
+/// Uploads validated at once (each on a blocking thread): more wait their turn.
+static VALIDATIONS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
+
+type Validated = (
+    Value,
+    Result<ValidMission, Vec<ValidationError>>,
+    ContextSnapshot,
+);
+
+async fn validate_off_loop(
+    mission: Value,
+    snapshot: ContextSnapshot,
+) -> Result<Validated, ApiError> {
+    let _turn = VALIDATIONS
+        .acquire()
+        .await
+        .map_err(|_| HostError::Unavailable("validation stopped".into()))?;
+    tokio::task::spawn_blocking(move || {
+        let valid = validate_value(&mission, &snapshot.context());
+        (mission, valid, snapshot)
+    })
+    .await
+    .map_err(|_| HostError::Unavailable("validating the mission failed".into()).into())
 }
 
 /// An upload's answer: the mission's id and whether it is saved.

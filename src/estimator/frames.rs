@@ -133,6 +133,16 @@ impl FrameTree {
         Ok(())
     }
 
+    /// The same frames as `other`, the vehicle's own pose (`base_link`) aside.
+    pub fn same_frames_as(&self, other: &FrameTree) -> bool {
+        self.frames.len() == other.frames.len()
+            && self
+                .frames
+                .iter()
+                .zip(&other.frames)
+                .all(|((a, na), (b, nb))| a == b && (a == BASE_LINK || na == nb))
+    }
+
     /// Sets the vehicle pose (in `odom`), as estimated at `stamp`.
     pub fn set_base_link(&mut self, pose_in_odom: Pose, stamp: Duration) {
         if let Some(node) = self.frames.get_mut(BASE_LINK) {

@@ -15,4 +15,4 @@ pub use model::{
     Action, DoneResult, ExecState, ItemOptions, ItemResult, Mission, MissionItem, MissionStatus,
     MissionUpdate, OnFailure, PlanItem, ValidMission,
 };
-pub use validate::{Limits, ValidationContext, ValidationError};
+pub use validate::{ContextSnapshot, Limits, ValidationContext, ValidationError};

@@ -8,8 +8,8 @@ use crate::estimator::frames::{FrameMotion, BASE_LINK, EARTH, MAP, ODOM};
 use crate::host::status::EventBody;
 use crate::mission::executor::Progress;
 use crate::mission::{
-    ActionError, ExecState, Mission, MissionStatus, MissionUpdate, Request, ValidationContext,
-    ValidationError,
+    ActionError, ContextSnapshot, ExecState, Mission, MissionStatus, MissionUpdate, Request,
+    ValidationContext, ValidationError,
 };
 use crate::types::{Pose, Vec3};
 use serde::{Deserialize, Serialize};
@@ -19,6 +19,16 @@ use tokio::sync::oneshot;
 
 pub type Reply<T> = oneshot::Sender<Result<T, HostError>>;
 
+/// A mission validated off the control loop, with what it was validated against.
+#[derive(Debug)]
+pub struct ValidatedUpload {
+    pub drone: usize,
+    pub mission: Value,
+    pub valid: crate::mission::ValidMission,
+    pub snapshot: ContextSnapshot,
+    pub mission_id: Option<u32>,
+}
+
 /// A request from the API (or the CLI) to the host.
 #[derive(Debug)]
 pub enum Command {
@@ -26,6 +36,16 @@ pub enum Command {
     Upload {
         mission: Value,
         mission_id: Option<u32>,
+        reply: Reply<Uploaded>,
+    },
+    /// What an upload for `target` is validated against (see [`Host::upload_context`]).
+    UploadContext {
+        target: Option<String>,
+        reply: Reply<(usize, ContextSnapshot)>,
+    },
+    /// Load a mission validated off the loop.
+    UploadValidated {
+        upload: Box<ValidatedUpload>,
         reply: Reply<Uploaded>,
     },
     Update {
@@ -292,6 +312,61 @@ impl Host {
             }])
         })?;
         let valid = self.validate(i, mission)?;
+        self.load_valid(i, target, mission.clone(), valid, mission_id)
+    }
+
+    /// The validation context of drone `target` (the first drone when the mission names none:
+    /// the API then reports every problem along with the missing target), so that an upload
+    /// is validated off the control loop.
+    pub fn upload_context(
+        &self,
+        target: Option<&str>,
+    ) -> Result<(usize, ContextSnapshot), HostError> {
+        let i = match target {
+            None => 0,
+            Some(t) => self.route(Some(t)).map_err(|e| {
+                HostError::Invalid(vec![ValidationError {
+                    pointer: "/target".into(),
+                    message: e.to_string(),
+                }])
+            })?,
+        };
+        let ctx = self
+            .validation_context(i)
+            .ok_or_else(|| HostError::UnknownDrone(i.to_string(), self.ids()))?;
+        Ok((i, ContextSnapshot::of(&ctx)))
+    }
+
+    /// Loads a mission validated off the loop with `snapshot`; validated again here only if
+    /// the drone's frames, home or limits changed since.
+    pub fn upload_validated(&mut self, upload: ValidatedUpload) -> Result<Uploaded, HostError> {
+        let ValidatedUpload {
+            drone: i,
+            mission,
+            valid,
+            snapshot,
+            mission_id,
+        } = upload;
+        let holds = self
+            .validation_context(i)
+            .is_some_and(|ctx| snapshot.still_holds(&ctx));
+        let valid = if holds {
+            valid
+        } else {
+            self.validate(i, &mission)?
+        };
+        self.load_valid(i, snapshot.drone_id, mission, valid, mission_id)
+    }
+
+    /// Loads a validated mission for drone `i` (named `target`).
+    fn load_valid(
+        &mut self,
+        i: usize,
+        target: String,
+        mission: Value,
+        valid: crate::mission::ValidMission,
+        mission_id: Option<u32>,
+    ) -> Result<Uploaded, HostError> {
         let warnings = valid.warnings.clone();
         for w in &warnings {
             tracing::warn!("mission for {target}: {w}");
@@ -548,6 +623,13 @@ impl Host {
                 reply,
             } => {
                 let answer = self.upload(&mission, mission_id);
+                self.answer(reply, answer);
+            }
+            Command::UploadContext { target, reply } => {
+                let _ = reply.send(self.upload_context(target.as_deref()));
+            }
+            Command::UploadValidated { upload, reply } => {
+                let answer = self.upload_validated(*upload);
                 self.answer(reply, answer);
             }
             Command::Update { update, reply } => {

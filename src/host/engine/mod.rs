@@ -11,7 +11,9 @@ mod explore;
 mod maps;
 
 pub use super::map_view::MapView;
-pub use commands::{Command, FrameRegistration, MissionView, Reply, Updated, Uploaded, MAX_FRAMES};
+pub use commands::{
+    Command, FrameRegistration, MissionView, Reply, Updated, Uploaded, ValidatedUpload, MAX_FRAMES,
+};
 pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 
 use super::fleet::Fleet;
