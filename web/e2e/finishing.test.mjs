@@ -70,7 +70,8 @@ describe('ground station finishing items at 1024 x 768', { timeout: 400_000 }, (
     }, null, 10_000);
     assert.match(notice, /drone_0 is on the ground and disarmed: there is nothing to land/);
     await tab('monitor');
-    assert.match(await page.locator('#panel-monitor').textContent(), /on the ground and disarmed/, 'the refusal is in the event log too');
+    // The event log has it too (the panel redraws at 4 Hz).
+    await until(page, () => /on the ground and disarmed/.test(document.querySelector('#panel-monitor')?.textContent ?? ''), null, 5_000);
     const { status, json } = await kestrel.api('GET', '/api/missions?drone=drone_0');
     assert.equal(status, 200);
     assert.deepEqual(json, [], 'the refused LAND left no mission on drone_0');
