@@ -293,7 +293,6 @@ impl Host {
             }])
         })?;
         let valid = self.validate(i, mission)?;
-        self.refuse_landing_on_ground(i, &valid)?;
         let warnings = valid.warnings.clone();
         for w in &warnings {
             tracing::warn!("mission for {target}: {w}");
@@ -355,10 +354,9 @@ impl Host {
                 .ok_or_else(|| HostError::UnknownDrone(i.to_string(), self.ids()))?;
             Request::prepare(update, &ctx)?
         };
-        if matches!(req.action, Action::Execute | Action::Load) {
-            if let Some(m) = &req.mission {
-                self.refuse_landing_on_ground(i, m)?;
-            }
+        // EXECUTE only: a landing mission LOADed for later is not a landing now.
+        if let (Action::Execute, Some(m)) = (req.action, &req.mission) {
+            self.refuse_landing_on_ground(i, m)?;
         }
         for w in req.mission.iter().flat_map(|m| &m.warnings) {
             let drone = self.cores.get(i).map(|c| c.drone_id()).unwrap_or_default();
@@ -375,9 +373,9 @@ impl Host {
         })
     }
 
-    /// Refuses a mission whose first item is `land` for drone `i` when it is on the ground and
-    /// disarmed (with its link up: otherwise its state is not known). It could never start, and
-    /// storing it would leave a dead mission behind a LAND pressed twice.
+    /// Refuses to EXECUTE a mission whose first item is `land` (the page's LAND) on drone `i`
+    /// when it is on the ground and disarmed (with its link up: otherwise its state is not
+    /// known). It could not start, and EXECUTE would have stored it all the same.
     fn refuse_landing_on_ground(&self, i: usize, mission: &ValidMission) -> Result<(), HostError> {
         let Some(core) = self.cores.get(i) else {
             return Ok(());

@@ -56,7 +56,7 @@ pub enum HostError {
     NotSupported(String),
     #[error("{0}")]
     Unavailable(String),
-    /// A mission that starts by landing, sent to a drone on the ground and disarmed.
+    /// EXECUTE of a mission that starts by landing, for a drone on the ground and disarmed.
     #[error("{0} is on the ground and disarmed: there is nothing to land, so the mission that starts with `land` was refused and not stored")]
     AlreadyLanded(String),
     #[error(transparent)]
