@@ -72,6 +72,8 @@ describe('ground station finishing items at 1024 x 768', { timeout: 400_000 }, (
     await tab('monitor');
     // The event log has it too (the panel redraws at 4 Hz).
     await until(page, () => /on the ground and disarmed/.test(document.querySelector('#panel-monitor')?.textContent ?? ''), null, 5_000);
+    const line = await page.locator('#panel-monitor .log .ev.error .text').first().boundingBox();
+    assert.ok(line.width >= 250, `the event log's text gets the panel's width at 1024 px (${line.width} px)`);
     const { status, json } = await kestrel.api('GET', '/api/missions?drone=drone_0');
     assert.equal(status, 200);
     assert.deepEqual(json, [], 'the refused LAND left no mission on drone_0');
