@@ -71,6 +71,7 @@ impl ApiError {
                 HostError::Frame(_) => (StatusCode::UNPROCESSABLE_ENTITY, "invalid_frame"),
                 HostError::NotSupported(_) => (StatusCode::BAD_REQUEST, "not_supported"),
                 HostError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
+                HostError::AlreadyLanded(_) => (StatusCode::CONFLICT, "already_landed"),
                 HostError::Behavior(b) => match b {
                     ServerError::UnknownBehavior(_) => (StatusCode::NOT_FOUND, "unknown_behavior"),
                     ServerError::Rejected { reason, .. } => {

@@ -4,7 +4,8 @@
 import './style.css';
 import { ApiError } from './lib/api';
 import { behaviorColor } from './lib/colors';
-import { originFrom, type GeoOrigin } from './lib/geo';
+import { enuToGeo, originFrom, type GeoOrigin } from './lib/geo';
+import { formatLat, formatLon } from './lib/graticule';
 import { mergePatch, readGrid, type Grid } from './lib/grid';
 import { feedbackPaths, hasPosition } from './lib/fleet';
 import { SHORTCUT_HELP, shortcutFor } from './lib/keyboard';
@@ -93,6 +94,7 @@ function makeMap(origin: GeoOrigin | null): void {
     el,
     {
       waypoint: (p) => plan.addWaypoint(p),
+      waypointMoved: (item, sub, p) => plan.moveWaypoint(item, sub, p),
       finish: (tool, points) => {
         setTool('pan');
         if (tool === 'path') plan.addPath(points);
@@ -104,7 +106,10 @@ function makeMap(origin: GeoOrigin | null): void {
         showTab('control');
       },
       cursor: ([x, y], latLon) => {
-        const geo = latLon ? ` · ${latLon[0].toFixed(6)}°, ${latLon[1].toFixed(6)}°` : '';
+        // In the local view too, once a drone has told where the ENU origin is on Earth.
+        const o = latLon ? null : geoOrigin();
+        const ll = latLon ?? (o ? enuToGeo(o, x, y) : null);
+        const geo = ll ? ` · ${formatLat(ll[0], 6)}, ${formatLon(ll[1], 6)}` : '';
         byId('cursor-readout').textContent = `cursor: east ${x.toFixed(1)} m, north ${y.toFixed(1)} m${geo}`;
       },
     },
@@ -141,7 +146,7 @@ function drawOverlays(): void {
   const target = plan.targetRef();
   const start: Vec3 = target ? (app.view(target).status?.position_enu_m ?? [0, 0, 0]) : [0, 0, 0];
   const draft = plannedPath(plan.draft, [start[0], start[1], 0], mapView.origin);
-  mapView.setDraft(draft.points, draft.items);
+  mapView.setDraft(draft);
   const paths: { color: string; points: Vec3[]; label: string }[] = [];
   app.drones().forEach((ref, i) => {
     const p = app.planOf(ref);

@@ -9,6 +9,7 @@ import {
   goToItem,
   landItem,
   moveItem,
+  moveTarget,
   parseMission,
   plannedPath,
   sortErrors,
@@ -131,5 +132,37 @@ describe('geographic missions', () => {
     expect(points[2][1]).toBeCloseTo(-20, 1);
     expect(points[2][2]).toBeCloseTo(4, 6);
     expect(plannedPath(m).points).toHaveLength(3); // without the origin the lat/lon point is left out
+  });
+});
+
+describe('dragging a target on the map', () => {
+  const origin = { lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488 };
+
+  it('moves a go_to and keeps its height and speed', () => {
+    const m = addWaypoint(emptyMission('drone_0'), [1, 2], d);
+    const moved = moveTarget(m, 0, 0, [10.123, -4.5], null);
+    expect(moved.plan[0].args).toMatchObject({ x: 10.12, y: -4.5, z: 4, speed: 2 });
+    expect(m.plan[0].args).toMatchObject({ x: 1, y: 2 });
+  });
+
+  it('moves one point of a follow_path, the others stay', () => {
+    const m = addPath(emptyMission('drone_0'), [[0, 0], [5, 5], [10, 0]], d);
+    const moved = moveTarget(m, 0, 1, [6, 7], null);
+    expect(moved.plan[0].args.path).toEqual([[0, 0, 4], [6, 7, 4], [10, 0, 4]]);
+  });
+
+  it('moves a go_to_gps in lat/lon, and leaves it when the origin is unknown', () => {
+    const m = addGpsWaypoint(emptyMission('drone_0'), enuToGeo(origin, 0, 0), 488, d);
+    const [lat, lon] = enuToGeo(origin, 20, 10);
+    const moved = moveTarget(m, 0, 0, [20, 10], origin);
+    expect(moved.plan[0].args.lat).toBeCloseTo(lat, 7);
+    expect(moved.plan[0].args.lon).toBeCloseTo(lon, 7);
+    expect(moveTarget(m, 0, 0, [20, 10], null)).toBe(m);
+  });
+
+  it('leaves takeoff and land alone, and plannedPath marks only targets movable', () => {
+    const m = { target: 'drone_0', plan: [takeoffItem(3, 1), goToItem([5, 5, 3], 1), landItem(0.5)] };
+    expect(moveTarget(m, 0, 0, [9, 9], null)).toBe(m);
+    expect(plannedPath(m).movable).toEqual([false, false, true, false]);
   });
 });

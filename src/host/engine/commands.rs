@@ -8,9 +8,10 @@ use crate::estimator::frames::{FrameMotion, BASE_LINK, EARTH, MAP, ODOM};
 use crate::host::status::EventBody;
 use crate::mission::executor::Progress;
 use crate::mission::{
-    ActionError, ContextSnapshot, ExecState, Mission, MissionStatus, MissionUpdate, Request,
-    ValidationContext, ValidationError,
+    Action, ActionError, ContextSnapshot, ExecState, Mission, MissionStatus, MissionUpdate,
+    Request, ValidMission, ValidationContext, ValidationError,
 };
+use crate::types::LinkHealth;
 use crate::types::{Pose, Vec3};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -428,6 +429,10 @@ impl Host {
                 .ok_or_else(|| HostError::UnknownDrone(i.to_string(), self.ids()))?;
             Request::prepare(update, &ctx)?
         };
+        // EXECUTE only: a landing mission LOADed for later is not a landing now.
+        if let (Action::Execute, Some(m)) = (req.action, &req.mission) {
+            self.refuse_landing_on_ground(i, m)?;
+        }
         for w in req.mission.iter().flat_map(|m| &m.warnings) {
             let drone = self.cores.get(i).map(|c| c.drone_id()).unwrap_or_default();
             tracing::warn!("{} for {drone}: {w}", update.action);
@@ -441,6 +446,26 @@ impl Host {
             drone: core.drone_id().to_string(),
             status,
         })
+    }
+
+    /// Refuses to EXECUTE a mission whose first item is `land` (the page's LAND) on drone `i`
+    /// when it is on the ground and disarmed (with its link up: otherwise its state is not
+    /// known). It could not start, and EXECUTE would have stored it all the same.
+    fn refuse_landing_on_ground(&self, i: usize, mission: &ValidMission) -> Result<(), HostError> {
+        let Some(core) = self.cores.get(i) else {
+            return Ok(());
+        };
+        let platform = core.platform_status();
+        let lands_first = mission
+            .items
+            .first()
+            .is_some_and(|p| p.item.behavior == "land");
+        let on_ground =
+            platform.link == LinkHealth::Ok && !platform.armed && !platform.flight.is_airborne();
+        if lands_first && on_ground {
+            return Err(HostError::AlreadyLanded(core.drone_id().to_string()));
+        }
+        Ok(())
     }
 
     fn log_command(&mut self, i: usize, command: &str, fields: Value) {

@@ -58,6 +58,9 @@ pub enum HostError {
     NotSupported(String),
     #[error("{0}")]
     Unavailable(String),
+    /// EXECUTE of a mission that starts by landing, for a drone on the ground and disarmed.
+    #[error("{0} is on the ground and disarmed: there is nothing to land, so the mission that starts with `land` was refused and not stored")]
+    AlreadyLanded(String),
     #[error(transparent)]
     Behavior(#[from] ServerError),
 }

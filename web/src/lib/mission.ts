@@ -1,7 +1,7 @@
 // Mission building: items from map clicks, paths and coverage answers; the path a mission will
 // fly (for the map); the API's validation errors sorted by item and argument.
 
-import { geoToEnu, type GeoOrigin } from './geo';
+import { enuToGeo, geoToEnu, type GeoOrigin } from './geo';
 import type { CoverageAnswer, ErrorDetail, Mission, MissionItem, Vec2, Vec3 } from './types';
 
 export const CALL = '__call__';
@@ -114,6 +114,8 @@ export function moveItem(mission: Mission, index: number, delta: -1 | 1): Missio
 
 const num = (v: unknown): number | null => (typeof v === 'number' && Number.isFinite(v) ? v : null);
 
+const MOVABLE = new Set(['go_to', 'navigate_to', 'go_to_gps']);
+
 function asPoint(v: unknown): Vec3 | null {
   if (!Array.isArray(v) || v.length < 2) return null;
   const [x, y, z] = v.map(num);
@@ -125,15 +127,20 @@ function asPoint(v: unknown): Vec3 | null {
  * reaches each point (-1 for the start). go_to_gps targets are drawn when the ENU origin's
  * lat/lon is known. Only earth-frame targets are drawn;
  * items in another frame (a panel, the nacelle) are listed in `framed` for the frames layer.
+ * `sub` is each point's index in its item's `path` (follow_path), 0 otherwise; `movable` says
+ * whether the point is a target the operator may drag (go_to, navigate_to, go_to_gps and
+ * follow_path points, not takeoff, land or rtl).
  */
 export function plannedPath(
   mission: Mission,
   start: Vec3 = [0, 0, 0],
   origin: GeoOrigin | null = null,
-): { points: Vec3[]; items: number[]; framed: string[] } {
+): { points: Vec3[]; items: number[]; sub: number[]; movable: boolean[]; framed: string[] } {
   let here: Vec3 = start;
   const points: Vec3[] = [start];
   const items: number[] = [-1];
+  const sub: number[] = [0];
+  const movable: boolean[] = [false];
   const framed: string[] = [];
   for (const [index, it] of mission.plan.entries()) {
     const a = it.args ?? {};
@@ -157,10 +164,12 @@ export function plannedPath(
       }
       case 'follow_path': {
         const path = Array.isArray(a.path) ? a.path.map(asPoint) : [];
-        for (const p of path) {
+        for (const [j, p] of path.entries()) {
           if (!p) continue;
           points.push((here = p));
           items.push(index);
+          sub.push(j);
+          movable.push(true);
         }
         continue;
       }
@@ -184,8 +193,10 @@ export function plannedPath(
     }
     points.push(here);
     items.push(index);
+    sub.push(0);
+    movable.push(MOVABLE.has(it.behavior));
   }
-  return { points, items, framed };
+  return { points, items, sub, movable, framed };
 }
 
 /** Validation errors keyed by item index and argument name, plus those about the whole mission. */
@@ -238,4 +249,41 @@ export function parseMission(text: string, fallbackTarget: string): { mission: M
 
 export function missionToJson(mission: Mission): string {
   return JSON.stringify(mission, null, 2);
+}
+
+/**
+ * A target dragged on the map to ENU `[x, y]` (metres, rounded to cm): the item's x/y (go_to,
+ * navigate_to), its lat/lon (go_to_gps, needs the origin), or point `sub` of its path
+ * (follow_path). Height and every other argument are kept; anything else is returned unchanged.
+ */
+export function moveTarget(mission: Mission, index: number, sub: number, [x, y]: Vec2, origin: GeoOrigin | null): Mission {
+  const it = mission.plan[index];
+  if (!it) return mission;
+  const args = { ...(it.args ?? {}) };
+  const cm = (v: number) => Math.round(v * 100) / 100;
+  switch (it.behavior) {
+    case 'go_to':
+    case 'navigate_to':
+      args.x = cm(x);
+      args.y = cm(y);
+      break;
+    case 'go_to_gps': {
+      if (!origin) return mission;
+      const [lat, lon] = enuToGeo(origin, x, y);
+      args.lat = Math.round(lat * 1e7) / 1e7;
+      args.lon = Math.round(lon * 1e7) / 1e7;
+      break;
+    }
+    case 'follow_path': {
+      const path = Array.isArray(args.path) ? [...args.path] : [];
+      const old = path[sub];
+      if (!Array.isArray(old)) return mission;
+      path[sub] = [cm(x), cm(y), ...old.slice(2)];
+      args.path = path;
+      break;
+    }
+    default:
+      return mission;
+  }
+  return replaceItem(mission, index, { ...it, args });
 }

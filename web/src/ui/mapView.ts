@@ -8,6 +8,7 @@ import 'leaflet/dist/leaflet.css';
 import { behaviorColor, trailRuns } from '../lib/colors';
 import { hasPosition, type DroneView, type LinkView } from '../lib/fleet';
 import { enuToGeo, geoToEnu, type GeoOrigin } from '../lib/geo';
+import { graticule } from '../lib/graticule';
 import { gridBounds, gridPixels, type Grid } from '../lib/grid';
 import type { FrameInfo, FrontierView, Vec2, Vec3 } from '../lib/types';
 
@@ -18,6 +19,8 @@ export interface MapCallbacks {
   finish(tool: 'path' | 'polygon', points: Vec2[]): void;
   drawingChanged(tool: Tool, points: Vec2[]): void;
   frameClicked(frameId: string): void;
+  /** A plan target dragged to ENU `p`: item `item`, point `sub` of its path (0 for one point). */
+  waypointMoved(item: number, sub: number, p: Vec2): void;
   /** The pointer moved over the map: ENU metres, and latitude/longitude in geographic mode. */
   cursor?(enu: Vec2, latLon: [number, number] | null): void;
 }
@@ -51,6 +54,8 @@ export class MapView {
   private markers = new Map<string, L.Marker>();
   private trailDrawn = new Map<string, { n: number; group: L.LayerGroup }>();
   private gridUrl: string | null = null;
+  private draftKey = '';
+  private draggingTarget = false;
   tool: Tool = 'pan';
   drawing: Vec2[] = [];
 
@@ -88,6 +93,11 @@ export class MapView {
       .addTo(this.map);
     L.control.scale({ imperial: false }).addTo(this.map);
     this.map.setView(this.ll(0, 0), geo ? 19 : 3);
+    // Without a basemap the geographic view would be blank: lat/lon lines and labels instead.
+    if (geo && !basemapUrl) {
+      this.map.on('moveend', () => this.drawGraticule());
+      this.drawGraticule();
+    }
     this.map.on('click', (e: L.LeafletMouseEvent) => this.onClick(e.latlng));
     this.map.on('dblclick', () => this.finishDrawing());
     this.map.on('mousemove', (e: L.LeafletMouseEvent) => this.cb.cursor?.(this.enu(e.latlng), this.origin ? [e.latlng.lat, e.latlng.lng] : null));
@@ -170,6 +180,33 @@ export class MapView {
     }).addTo(g);
   }
 
+  /** Latitude/longitude lines over the visible area, labelled at the left and top edges. */
+  private drawGraticule(): void {
+    const g = this.layers.axes;
+    g.clearLayers();
+    const b = this.map.getBounds();
+    const size = this.map.getSize();
+    if (size.x === 0 || size.y === 0) return;
+    const grat = graticule(b.getSouth(), b.getWest(), b.getNorth(), b.getEast());
+    const style = { color: '#9a9a9a', weight: 1, interactive: false };
+    const label = (ll: L.LatLng, cls: string, text: string, value: number, anchor: [number, number]) =>
+      L.marker(ll, {
+        interactive: false,
+        keyboard: false,
+        icon: L.divIcon({ className: 'grat-label', html: `<span class="${cls}" data-deg="${value}">${text}</span>`, iconSize: [110, 16], iconAnchor: anchor }),
+      }).addTo(g);
+    for (const lat of grat.lats) {
+      L.polyline([L.latLng(lat.value_deg, b.getWest()), L.latLng(lat.value_deg, b.getEast())], style).addTo(g);
+      const at = this.map.containerPointToLatLng([52, 0]);
+      label(L.latLng(lat.value_deg, at.lng), 'grat-lat', lat.label, lat.value_deg, [0, 17]);
+    }
+    for (const lon of grat.lons) {
+      L.polyline([L.latLng(b.getSouth(), lon.value_deg), L.latLng(b.getNorth(), lon.value_deg)], style).addTo(g);
+      const at = this.map.containerPointToLatLng([0, size.y - 34]);
+      label(L.latLng(at.lat, lon.value_deg), 'grat-lon', lon.label, lon.value_deg, [-3, 16]);
+    }
+  }
+
   renderDrones(drones: DroneDraw[]): void {
     const seen = new Set<string>();
     for (const d of drones) {
@@ -239,19 +276,44 @@ export class MapView {
     this.trailDrawn.clear();
   }
 
-  /** The plan being edited: dashed black line with numbered go_to points. */
-  setDraft(points: Vec3[], items: number[]): void {
+  /** The plan being edited: dashed black line with numbered points; targets (`movable`) are
+   * dragged to move them. */
+  setDraft(draft: { points: Vec3[]; items: number[]; sub: number[]; movable: boolean[] }): void {
+    // Redrawn at telemetry rate: not while a target is being dragged (its marker would go), nor
+    // when nothing changed.
+    const key = JSON.stringify(draft);
+    if (this.draggingTarget || key === this.draftKey) return;
+    this.draftKey = key;
     const g = this.layers.draft;
     g.clearLayers();
+    const { points, items, sub, movable } = draft;
     if (points.length < 2) return;
     const lls = points.map(([x, y]) => this.ll(x, y));
     L.polyline(lls, { color: '#111', weight: 3, dashArray: '8 6', interactive: false }).addTo(g);
     lls.forEach((ll, i) => {
-      if (items[i] < 0 || items[i] === items[i + 1]) return;
-      L.marker(ll, {
-        interactive: false,
-        icon: L.divIcon({ className: 'wp-icon', html: `<span>${items[i]}</span>`, iconSize: [22, 22], iconAnchor: [11, 11] }),
-      }).addTo(g);
+      const drag = movable[i] === true;
+      if (items[i] < 0 || (!drag && items[i] === items[i + 1])) return;
+      const m = L.marker(ll, {
+        interactive: drag,
+        draggable: drag,
+        keyboard: false,
+        title: drag ? `item ${items[i]}: drag to move` : '',
+        icon: L.divIcon({
+          className: `wp-icon${drag ? ' wp-movable' : ''}`,
+          html: `<span data-item="${items[i]}" data-sub="${sub[i]}">${items[i]}</span>`,
+          iconSize: [22, 22],
+          iconAnchor: [11, 11],
+        }),
+      });
+      if (drag) {
+        m.on('dragstart', () => (this.draggingTarget = true));
+        m.on('dragend', () => {
+          this.draggingTarget = false;
+          const [x, y] = this.enu(m.getLatLng());
+          this.cb.waypointMoved(items[i], sub[i], [Math.round(x * 100) / 100, Math.round(y * 100) / 100]);
+        });
+      }
+      m.addTo(g);
     });
   }
 

@@ -14,6 +14,7 @@ import {
   landItem,
   missionToJson,
   moveItem,
+  moveTarget,
   parseMission,
   removeItem,
   replaceItem,
@@ -165,6 +166,11 @@ export class PlanView {
       return;
     }
     this.setDraft(addWaypoint(this.draft, p, this.defaults()));
+  }
+
+  /** A target dragged on the map: its item (and path point) now goes to `p`. */
+  moveWaypoint(index: number, sub: number, p: Vec2): void {
+    this.setDraft(moveTarget(this.draft, index, sub, p, this.geoOrigin));
   }
 
   addPath(points: Vec2[]): void {
