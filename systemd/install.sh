@@ -27,7 +27,15 @@ if [ ! -s "$ROOT/etc/kestrel/api-token" ]; then
     (umask 027 && head -c 32 /dev/urandom | base64 | tr -d '/+=\n' > "$ROOT/etc/kestrel/api-token")
     echo "API token written to $ROOT/etc/kestrel/api-token"
 fi
-"$ROOT/usr/bin/kestrel" check-config --config "$ROOT/etc/kestrel/kestrel.toml" >/dev/null
+if [ -z "$ROOT" ]; then
+    /usr/bin/kestrel check-config --config /etc/kestrel/kestrel.toml
+else
+    # The config names /etc/kestrel/api-token: check a copy naming the one under $ROOT.
+    copy=$(mktemp)
+    sed "s#\"/etc/kestrel/#\"$ROOT/etc/kestrel/#" "$ROOT/etc/kestrel/kestrel.toml" > "$copy"
+    "$ROOT/usr/bin/kestrel" check-config --config "$copy" || { rm -f "$copy"; exit 1; }
+    rm -f "$copy"
+fi
 install -D -m 0644 systemd/kestrel.service "$ROOT/etc/systemd/system/kestrel.service"
 install -D -m 0644 README.md "$ROOT/usr/share/doc/kestrel/README.md"
 install -d -m 0755 "$ROOT/usr/share/kestrel/platforms" "$ROOT/usr/share/kestrel/missions"
