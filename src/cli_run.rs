@@ -12,7 +12,8 @@
 
 use crate::cli_flights::Flights;
 use crate::cli_serve::ServeOptions;
-use anyhow::{bail, Context, Result};
+use crate::cli_startup::{prepare, Overrides, PlatformPlan, Startup};
+use anyhow::{Context, Result};
 use clap::Args;
 use kestrel::config::Config;
 use kestrel::control::{AcceptedSetpoints, Setpoint};
@@ -21,14 +22,12 @@ use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
-use kestrel::host::vehicle::{state_dir, vehicle_host};
-use kestrel::platform::mavlink::{LinkConfig, MavlinkPlatform, Profile};
+use kestrel::host::vehicle::vehicle_host;
+use kestrel::platform::mavlink::{LinkConfig, MavlinkPlatform};
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use kestrel::sim::world::World;
 use kestrel::sim::{Environment, SimWorld};
 use kestrel::types::Vec3;
-use serde::Deserialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 #[derive(Args, Debug)]
@@ -36,8 +35,9 @@ pub struct RunArgs {
     /// Config file (TOML); its `[mavlink]` section says where the autopilot is.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Autopilot profile (`platforms/px4.toml`, `platforms/ardupilot-copter.toml`, or a
-    /// built-in name `px4` / `ardupilot-copter`). Overrides `mavlink.platform`.
+    /// Autopilot profile: a built-in name (`px4`, `ardupilot-copter`, `sim`) or a file
+    /// (`platforms/px4.toml`; relative paths not found here are looked up in
+    /// /usr/share/kestrel). Overrides `mavlink.platform`.
     #[arg(long)]
     platform: Option<String>,
     /// MAVLink connection (`udpin:0.0.0.0:14540`, `tcpout:127.0.0.1:5760`,
@@ -86,17 +86,6 @@ pub fn run(args: RunArgs) -> Result<()> {
     runtime.block_on(run_async(args))
 }
 
-/// `platforms/sim.toml`: the built-in simulator, stepped in real time.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SimPlatformFile {
-    platform: String,
-    name: String,
-    world: Option<PathBuf>,
-    #[serde(default)]
-    seed: u64,
-}
-
 /// A simulated vehicle behind the `Platform` trait, its physics advanced to each poll's time.
 struct RealtimeSim {
     world: SimWorld,
@@ -141,114 +130,84 @@ impl Platform for RealtimeSim {
     }
 }
 
-/// `mavlink` or `sim`: the `platform` key of a file in `platforms/`, or a built-in name.
-fn platform_kind(name: &str) -> Result<String> {
-    let path = Path::new(name);
-    if !path.exists() {
-        return match name {
-            "px4" | "ardupilot-copter" => Ok("mavlink".into()),
-            "sim" => Ok("sim".into()),
-            _ => bail!("no platform file `{name}` (and no built-in profile of that name)"),
-        };
-    }
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {name}"))?;
-    let value: toml::Value = toml::from_str(&text).with_context(|| format!("parsing {name}"))?;
-    match value.get("platform").and_then(|v| v.as_str()) {
-        Some(k @ ("mavlink" | "sim")) => Ok(k.to_string()),
-        other => bail!("{name}: `platform` must be \"mavlink\" or \"sim\", got {other:?}"),
-    }
-}
-
-fn load_profile(name: &str) -> Result<Profile> {
-    let path = Path::new(name);
-    if !path.exists() {
-        if let Some(p) = Profile::builtin(name) {
-            return Ok(p?);
+/// Starts the platform prepared by [`crate::cli_startup::prepare`]: (platform, readiness
+/// timeout, estimator by default).
+fn start_platform(
+    startup: Startup,
+) -> Result<(Config, Box<dyn Platform>, Duration, EstimatorPlugin)> {
+    let Startup {
+        config,
+        platform,
+        platform_origin,
+        ..
+    } = startup;
+    match platform {
+        PlatformPlan::Sim { file, world } => {
+            let environment = Environment {
+                wind_mps: Vec3::from(config.sim.wind_enu_mps),
+                turbulence_mps2: config.sim.turbulence_mps2,
+            };
+            println!("kestrel run: {} (profile {platform_origin})", file.name);
+            let sim = RealtimeSim {
+                world: SimWorld::new(*world, 1, file.seed, environment),
+                stepped_to: Duration::ZERO,
+            };
+            Ok((
+                config,
+                Box::new(sim),
+                SIM_READY_TIMEOUT,
+                EstimatorPlugin::GroundTruth,
+            ))
+        }
+        PlatformPlan::Mavlink(profile) => {
+            let m = &config.mavlink;
+            let ready_timeout = profile.ready_timeout;
+            println!(
+                "kestrel run: {} over {} (profile {platform_origin})",
+                profile.name, m.connection
+            );
+            let link = LinkConfig {
+                connection: m.connection.clone(),
+                forward: m.forward.clone(),
+                peers: m.peer_policy(),
+            };
+            let platform = MavlinkPlatform::start(*profile, m.session_config(), link)?;
+            Ok((
+                config,
+                Box::new(platform),
+                ready_timeout,
+                EstimatorPlugin::AutopilotOdometry,
+            ))
         }
     }
-    Ok(Profile::load(path)?)
-}
-
-/// Starts the platform named in config: (platform, readiness timeout, estimator by default).
-fn start_platform(config: &Config) -> Result<(Box<dyn Platform>, Duration, EstimatorPlugin)> {
-    let m = &config.mavlink;
-    if platform_kind(&m.platform)? == "sim" {
-        let file: SimPlatformFile = if Path::new(&m.platform).exists() {
-            toml::from_str(&std::fs::read_to_string(&m.platform)?)
-                .with_context(|| format!("parsing {}", m.platform))?
-        } else {
-            SimPlatformFile {
-                platform: "sim".into(),
-                name: "Built-in simulator".into(),
-                world: None,
-                seed: 0,
-            }
-        };
-        if file.platform != "sim" {
-            bail!("{}: not a simulator platform file", m.platform);
-        }
-        let world = match &file.world {
-            Some(p) => World::load(p)?,
-            None => World::empty(),
-        };
-        let environment = Environment {
-            wind_mps: Vec3::from(config.sim.wind_enu_mps),
-            turbulence_mps2: config.sim.turbulence_mps2,
-        };
-        println!("kestrel run: {} (profile {})", file.name, m.platform);
-        let sim = RealtimeSim {
-            world: SimWorld::new(world, 1, file.seed, environment),
-            stepped_to: Duration::ZERO,
-        };
-        return Ok((
-            Box::new(sim),
-            SIM_READY_TIMEOUT,
-            EstimatorPlugin::GroundTruth,
-        ));
-    }
-    let profile = load_profile(&m.platform)?;
-    let ready_timeout = profile.ready_timeout;
-    println!(
-        "kestrel run: {} over {} (profile {})",
-        profile.name, m.connection, m.platform
-    );
-    let link = LinkConfig {
-        connection: m.connection.clone(),
-        forward: m.forward.clone(),
-        peers: m.peer_policy(),
-    };
-    let platform = MavlinkPlatform::start(profile, m.session_config(), link)?;
-    Ok((
-        Box::new(platform),
-        ready_timeout,
-        EstimatorPlugin::AutopilotOdometry,
-    ))
 }
 
 /// The simulator is ready at once; this only bounds a broken setup.
 const SIM_READY_TIMEOUT: Duration = Duration::from_secs(5);
 
 async fn run_async(args: RunArgs) -> Result<()> {
-    let mut config = match &args.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    };
-    if let Some(p) = &args.platform {
-        config.mavlink.platform = p.clone();
-    }
-    if let Some(c) = &args.connection {
-        config.mavlink.connection = c.clone();
-    }
-    config
-        .mavlink
-        .validate()
-        .map_err(|(field, message)| anyhow::anyhow!("{field}: {message}"))?;
-    let (platform, ready_timeout, estimator) = start_platform(&config)?;
+    let startup = prepare(
+        args.config.as_deref(),
+        &Overrides {
+            platform: args.platform.clone(),
+            connection: args.connection.clone(),
+            listen: args.listen.clone(),
+            state_dir: args.state_dir.clone(),
+            no_api: args.no_api,
+        },
+    )?;
+    let (listen, token, state_dir, map) = (
+        startup.listen,
+        startup.token.clone(),
+        startup.state_dir.clone(),
+        startup.map.clone(),
+    );
+    let (config, platform, ready_timeout, estimator) = start_platform(startup)?;
     let mut core_config = CoreConfig::new(&config.drone.id);
     core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
     core_config.controller = config.controller;
     core_config.behaviors = config.behaviors;
-    core_config.map = config.map.config(None).context("[map]")?;
+    core_config.map = map;
     core_config.safety = config.safety_config();
     if let Some(o) = config.drone.geodetic_origin {
         core_config.geo_origin = GeodeticOrigin(o);
@@ -258,23 +217,39 @@ async fn run_async(args: RunArgs) -> Result<()> {
         platform.capabilities(),
         kestrel::host::payload::registry(),
     );
-    serve_vehicle(&args, &config, core, platform, ready_timeout).await
+    let api = Api {
+        listen,
+        token,
+        state_dir,
+    };
+    serve_vehicle(&args, &config, api, core, platform, ready_timeout).await
+}
+
+/// The API's address (`None`: `--no-api`) and token, and the state directory, as checked.
+struct Api {
+    listen: Option<std::net::SocketAddr>,
+    token: Option<String>,
+    state_dir: PathBuf,
 }
 
 /// The service path: the vehicle on the host, the API served until interrupted.
 async fn serve_vehicle(
     args: &RunArgs,
     config: &Config,
+    api: Api,
     core: DroneCore,
     platform: Box<dyn Platform>,
     ready_timeout: Duration,
 ) -> Result<()> {
     let mut host = vehicle_host(vec![(core, platform)], config);
-    let (listen, token) = crate::cli_serve::listen_and_token(args.listen.as_deref(), config)?;
-    let listener = if args.no_api {
-        None
-    } else {
-        Some(crate::cli_serve::bind(listen, token.as_deref())?)
+    let Api {
+        listen,
+        token,
+        state_dir: dir,
+    } = api;
+    let listener = match listen {
+        Some(listen) => Some(crate::cli_serve::bind(listen, token.as_deref())?),
+        None => None,
     };
     let start = std::time::SystemTime::now();
     let (writer, log_file) = crate::cli_serve::open_log(&crate::cli_serve::LogChoice {
@@ -300,7 +275,6 @@ async fn serve_vehicle(
         start,
     }));
     host.set_log(log);
-    let dir = state_dir(args.state_dir.clone(), config);
     crate::cli_serve::open_state(&mut host, &dir)?;
     let flights = match &args.mission {
         Some(file) => {

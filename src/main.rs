@@ -1,6 +1,6 @@
 //! `kestrel`: the composition root. Parses the command line, loads config, wires the parts.
 
-use anyhow::{bail, Context, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -14,6 +14,7 @@ mod cli_remote;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;
+mod cli_startup;
 mod cli_world;
 
 #[derive(Parser)]
@@ -46,7 +47,8 @@ enum Command {
     World(cli_world::WorldCommand),
     /// Exploration metrics of a flight log against the true world.
     Evaluate(cli_evaluate::EvaluateArgs),
-    /// Check a config file and print the validated result.
+    /// Check a config file as `kestrel run` does at start (platform, token, listen address,
+    /// directories) and print a short summary.
     CheckConfig {
         /// Config file (TOML).
         #[arg(long, default_value = "/etc/kestrel/kestrel.toml")]
@@ -65,14 +67,6 @@ fn main() -> Result<()> {
         Command::Map(command) => cli_map::run(command),
         Command::World(command) => cli_world::run(command),
         Command::Evaluate(args) => cli_evaluate::run(args),
-        Command::CheckConfig { config } => {
-            let c = kestrel::config::Config::load(&config)
-                .with_context(|| format!("checking {}", config.display()))?;
-            println!("{}", toml::to_string_pretty(&c).context("printing config")?);
-            if c.drone.id.is_empty() {
-                bail!("drone.id is empty");
-            }
-            Ok(())
-        }
+        Command::CheckConfig { config } => cli_startup::check(&config),
     }
 }

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs Kestrel as a systemd service: the binary, a `kestrel` system user (in `dialout`,
-# for the serial link), /etc/kestrel/kestrel.toml, an API token, and the unit.
+# for the serial link), /etc/kestrel/kestrel.toml, an API token, the unit, and the autopilot
+# profiles and example missions under /usr/share/kestrel. (The .deb installs the same files:
+# `cargo deb`, see README.)
 #
 #   cargo build --release && sudo systemd/install.sh
 #
@@ -25,9 +27,20 @@ if [ ! -s "$ROOT/etc/kestrel/api-token" ]; then
     (umask 027 && head -c 32 /dev/urandom | base64 | tr -d '/+=\n' > "$ROOT/etc/kestrel/api-token")
     echo "API token written to $ROOT/etc/kestrel/api-token"
 fi
-"$ROOT/usr/bin/kestrel" check-config --config "$ROOT/etc/kestrel/kestrel.toml" >/dev/null
+if [ -z "$ROOT" ]; then
+    /usr/bin/kestrel check-config --config /etc/kestrel/kestrel.toml
+else
+    # The config names /etc/kestrel/api-token: check a copy naming the one under $ROOT.
+    copy=$(mktemp)
+    sed "s#\"/etc/kestrel/#\"$ROOT/etc/kestrel/#" "$ROOT/etc/kestrel/kestrel.toml" > "$copy"
+    "$ROOT/usr/bin/kestrel" check-config --config "$copy" || { rm -f "$copy"; exit 1; }
+    rm -f "$copy"
+fi
 install -D -m 0644 systemd/kestrel.service "$ROOT/etc/systemd/system/kestrel.service"
 install -D -m 0644 README.md "$ROOT/usr/share/doc/kestrel/README.md"
+install -d -m 0755 "$ROOT/usr/share/kestrel/platforms" "$ROOT/usr/share/kestrel/missions"
+install -m 0644 platforms/*.toml "$ROOT/usr/share/kestrel/platforms/"
+install -m 0644 missions/*.json "$ROOT/usr/share/kestrel/missions/"
 if [ -z "$ROOT" ]; then
     chgrp -R kestrel /etc/kestrel
     systemctl daemon-reload

@@ -12,8 +12,10 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MavlinkSection {
-    /// Autopilot profile: a file (`platforms/px4.toml`) or a built-in name (`px4`,
-    /// `ardupilot-copter`). `kestrel run --platform` overrides it.
+    /// Autopilot profile: a built-in name (`px4`, the default; `ardupilot-copter`; `sim`) or a
+    /// file (`platforms/px4.toml`; a relative path not found from the working directory is
+    /// looked up under /usr/share/kestrel, see `kestrel run --help`). `kestrel run --platform`
+    /// overrides it.
     pub platform: String,
     /// `udpin:0.0.0.0:14540`, `udpout:HOST:PORT`, `tcpout:HOST:PORT`, `tcpin:ADDR:PORT`,
     /// `serial:/dev/ttyACM0:921600`. `kestrel run --connection` overrides it.
@@ -45,7 +47,7 @@ pub struct MavlinkSection {
 impl Default for MavlinkSection {
     fn default() -> Self {
         Self {
-            platform: "platforms/px4.toml".into(),
+            platform: "px4".into(),
             connection: "udpin:0.0.0.0:14540".into(),
             system_id: None,
             component_id: 191,

@@ -1,0 +1,279 @@
+//! What `kestrel run` checks before it starts anything, shared with `kestrel check-config` so
+//! the two cannot disagree: whatever makes `run` refuse to start makes `check-config` fail.
+//!
+//! In: the config file (or the defaults), the command line's overrides and the environment
+//! (`KESTREL_API_TOKEN`, `STATE_DIRECTORY`, `KESTREL_DATA_DIR`). Out: a [`Startup`] (the
+//! validated config, the platform resolved and loaded, the API's address and token, the log and
+//! state directories), or the first reason to refuse, naming the file and the key.
+//!
+//! Platform names resolve in this order: a file at that path (relative to the working
+//! directory); a built-in name (`px4`, `ardupilot-copter`, `sim`); for a relative path, the
+//! installed profiles: `<data dir>/NAME`, `<data dir>/platforms/NAME`, and
+//! `<data dir>/platforms/NAME.toml` for a name without extension, where the data dir is
+//! `$KESTREL_DATA_DIR` or `/usr/share/kestrel`.
+
+use anyhow::{bail, Context, Result};
+use kestrel::config::Config;
+use kestrel::mapping::config::MapConfig;
+use kestrel::platform::mavlink::Profile;
+use kestrel::sim::world::World;
+use serde::Deserialize;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+/// Where the installed profiles and example missions live (the .deb and systemd/install.sh).
+pub const DATA_DIR: &str = "/usr/share/kestrel";
+
+/// The built-in platform names.
+const BUILTIN: [&str; 3] = ["px4", "ardupilot-copter", "sim"];
+
+/// `platforms/sim.toml`: the built-in simulator, stepped in real time.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimPlatformFile {
+    /// `sim`: read by [`load_platform`] before this struct.
+    #[serde(rename = "platform")]
+    _platform: String,
+    pub name: String,
+    world: Option<PathBuf>,
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// The platform `run` will start, already loaded and validated.
+pub enum PlatformPlan {
+    /// The real-time simulator with its world.
+    Sim {
+        file: SimPlatformFile,
+        world: Box<World>,
+    },
+    /// An autopilot over MAVLink with this profile.
+    Mavlink(Box<Profile>),
+}
+
+/// Everything `run` needs that can be checked without touching the vehicle or the network.
+pub struct Startup {
+    pub config: Config,
+    /// Where the platform came from: `built-in px4` or the file's path.
+    pub platform_origin: String,
+    pub platform: PlatformPlan,
+    pub map: Option<MapConfig>,
+    /// `None` with `--no-api`.
+    pub listen: Option<SocketAddr>,
+    pub token: Option<String>,
+    pub log_dir: PathBuf,
+    pub state_dir: PathBuf,
+}
+
+/// The command line's say over the config (all `None` for `check-config`).
+#[derive(Default)]
+pub struct Overrides {
+    pub platform: Option<String>,
+    pub connection: Option<String>,
+    pub listen: Option<String>,
+    pub state_dir: Option<PathBuf>,
+    pub no_api: bool,
+}
+
+/// Loads and checks everything `run` checks at start, in the order it uses them.
+pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Startup> {
+    let file = config_path.map_or_else(|| "the default config".into(), |p| p.display().to_string());
+    let mut config = match config_path {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    let platform_key = match &overrides.platform {
+        Some(p) => {
+            config.mavlink.platform = p.clone();
+            "--platform".to_string()
+        }
+        None => format!("{file}: mavlink.platform"),
+    };
+    if let Some(c) = &overrides.connection {
+        config.mavlink.connection = c.clone();
+    }
+    config
+        .mavlink
+        .validate()
+        .map_err(|(field, message)| anyhow::anyhow!("{file}: {field}: {message}"))?;
+    let (platform_origin, platform) =
+        load_platform(&config.mavlink.platform).with_context(|| platform_key.clone())?;
+    let map = config
+        .map
+        .config(None)
+        .with_context(|| format!("{file}: [map]"))?;
+    let (listen, token) = api(&config, overrides, &file)?;
+    let log_dir = config.drone.log_dir.clone().unwrap_or_default();
+    directory(&log_dir, &format!("{file}: drone.log_dir"))?;
+    let state_dir = kestrel::host::vehicle::state_dir(overrides.state_dir.clone(), &config);
+    directory(&state_dir, "the state directory")?;
+    Ok(Startup {
+        config,
+        platform_origin,
+        platform,
+        map,
+        listen,
+        token,
+        log_dir,
+        state_dir,
+    })
+}
+
+/// The API's address and token; refuses a listen address beyond loopback without a token.
+fn api(
+    config: &Config,
+    overrides: &Overrides,
+    file: &str,
+) -> Result<(Option<SocketAddr>, Option<String>)> {
+    let token =
+        kestrel::api::auth::resolve_token(std::env::var("KESTREL_API_TOKEN").ok(), &config.api)
+            .with_context(|| format!("{file}: [api]"))?;
+    if overrides.no_api {
+        return Ok((None, token));
+    }
+    let listen: SocketAddr = match &overrides.listen {
+        Some(l) => l
+            .parse()
+            .with_context(|| format!("--listen `{l}`: takes ADDR:PORT, e.g. 127.0.0.1:8080"))?,
+        None => config
+            .api
+            .listen
+            .parse()
+            .with_context(|| format!("{file}: api.listen"))?,
+    };
+    kestrel::api::auth::check_listen(listen, token.as_deref())
+        .with_context(|| format!("{file}: [api]"))?;
+    Ok((Some(listen), token))
+}
+
+/// A directory `run` creates if missing; something else at that path is refused.
+fn directory(dir: &Path, what: &str) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        bail!("{what}: {} exists and is not a directory", dir.display());
+    }
+    Ok(())
+}
+
+/// Where a platform name leads: a file, or a built-in name.
+enum Source {
+    File(PathBuf),
+    Builtin(String),
+}
+
+fn data_dir() -> PathBuf {
+    std::env::var_os("KESTREL_DATA_DIR").map_or_else(|| PathBuf::from(DATA_DIR), PathBuf::from)
+}
+
+fn resolve(name: &str) -> Result<Source> {
+    let path = Path::new(name);
+    if path.is_file() {
+        return Ok(Source::File(path.to_path_buf()));
+    }
+    if BUILTIN.contains(&name) {
+        return Ok(Source::Builtin(name.to_string()));
+    }
+    let mut tried = vec![path.to_path_buf()];
+    if path.is_relative() && !name.is_empty() {
+        let data = data_dir();
+        tried.push(data.join(path));
+        tried.push(data.join("platforms").join(path));
+        if path.extension().is_none() {
+            tried.push(data.join("platforms").join(format!("{name}.toml")));
+        }
+    }
+    if let Some(found) = tried.iter().skip(1).find(|p| p.is_file()) {
+        return Ok(Source::File(found.clone()));
+    }
+    let places: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
+    bail!(
+        "no platform `{name}`: not a built-in name ({}) and no file at {}",
+        BUILTIN.join(", "),
+        places.join(", ")
+    )
+}
+
+/// Resolves and loads a platform: (where it came from, the loaded platform).
+fn load_platform(name: &str) -> Result<(String, PlatformPlan)> {
+    match resolve(name)? {
+        Source::Builtin(b) if b == "sim" => Ok((
+            "built-in sim".into(),
+            PlatformPlan::Sim {
+                file: SimPlatformFile {
+                    _platform: "sim".into(),
+                    name: "Built-in simulator".into(),
+                    world: None,
+                    seed: 0,
+                },
+                world: Box::new(World::empty()),
+            },
+        )),
+        Source::Builtin(b) => {
+            let profile =
+                Profile::builtin(&b).with_context(|| format!("no built-in profile `{b}`"))??;
+            Ok((
+                format!("built-in {b}"),
+                PlatformPlan::Mavlink(Box::new(profile)),
+            ))
+        }
+        Source::File(path) => {
+            let shown = path.display().to_string();
+            let text =
+                std::fs::read_to_string(&path).with_context(|| format!("reading {shown}"))?;
+            let value: toml::Value =
+                toml::from_str(&text).with_context(|| format!("parsing {shown}"))?;
+            match value.get("platform").and_then(|v| v.as_str()) {
+                Some("mavlink") => {
+                    let profile = Profile::parse(&text, &shown)?;
+                    Ok((shown, PlatformPlan::Mavlink(Box::new(profile))))
+                }
+                Some("sim") => {
+                    let file: SimPlatformFile =
+                        toml::from_str(&text).with_context(|| format!("parsing {shown}"))?;
+                    let world = match &file.world {
+                        Some(p) => World::load(p).with_context(|| format!("{shown}: world"))?,
+                        None => World::empty(),
+                    };
+                    Ok((
+                        shown,
+                        PlatformPlan::Sim {
+                            file,
+                            world: Box::new(world),
+                        },
+                    ))
+                }
+                other => bail!("{shown}: `platform` must be \"mavlink\" or \"sim\", got {other:?}"),
+            }
+        }
+    }
+}
+
+/// `kestrel check-config`: the checks of `run`, then a short summary of what it would start.
+pub fn check(config_path: &Path) -> Result<()> {
+    let s = prepare(Some(config_path), &Overrides::default())?;
+    let m = &s.config.mavlink;
+    let (platform, link) = match &s.platform {
+        PlatformPlan::Sim { file, .. } => (file.name.clone(), "none (simulator)".to_string()),
+        PlatformPlan::Mavlink(p) => (p.name.clone(), m.connection.clone()),
+    };
+    let shown = |p: &Path| {
+        if p.as_os_str().is_empty() {
+            ".".to_string()
+        } else {
+            p.display().to_string()
+        }
+    };
+    println!("OK: {}", config_path.display());
+    println!("  drone id   {}", s.config.drone.id);
+    println!("  platform   {platform} ({})", s.platform_origin);
+    println!("  mavlink    {link}");
+    if let Some(listen) = s.listen {
+        println!("  api        {listen}");
+    }
+    println!(
+        "  token      {}",
+        if s.token.is_some() { "yes" } else { "no" }
+    );
+    println!("  log dir    {}", shown(&s.log_dir));
+    println!("  state dir  {}", shown(&s.state_dir));
+    Ok(())
+}

@@ -1,0 +1,276 @@
+//! `kestrel check-config` refuses exactly what makes `kestrel run` refuse to start, with the
+//! same message naming the file and the key, and otherwise prints a short summary. Both run as
+//! the real binary, in an empty working directory, with the installed profiles looked up in a
+//! temporary data directory (`KESTREL_DATA_DIR`).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod support;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+struct Site {
+    dir: tempfile::TempDir,
+}
+
+impl Site {
+    fn new() -> Self {
+        let site = Self {
+            dir: tempfile::tempdir().unwrap(),
+        };
+        std::fs::create_dir_all(site.path("work")).unwrap();
+        std::fs::create_dir_all(site.path("share/platforms")).unwrap();
+        site
+    }
+
+    fn path(&self, rel: &str) -> PathBuf {
+        self.dir.path().join(rel)
+    }
+
+    /// Writes `kestrel.toml`: the given sections plus log and state directories in the site.
+    fn config(&self, sections: &str) -> PathBuf {
+        let path = self.path("kestrel.toml");
+        let text = format!(
+            "{sections}\n[drone]\nid = \"drone_0\"\nlog_dir = \"{}\"\n\n[mission]\nstate_dir = \"{}\"\n",
+            self.path("log").display(),
+            self.path("state").display()
+        );
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    fn command(&self, args: &[&str]) -> Command {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_kestrel"));
+        c.current_dir(self.path("work"))
+            .env_remove("KESTREL_API_TOKEN")
+            .env_remove("STATE_DIRECTORY")
+            .env("KESTREL_DATA_DIR", self.path("share"))
+            .env("RUST_BACKTRACE", "0")
+            .env("RUST_LOG", "warn")
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        c
+    }
+
+    fn check(&self, config: &Path) -> Output {
+        self.command(&["check-config", "--config", config.to_str().unwrap()])
+            .output()
+            .unwrap()
+    }
+
+    /// `kestrel run`, killed (and the test failed) if still running after 30 s.
+    fn run(&self, config: &Path, extra: &[&str]) -> Output {
+        let mut args = vec!["run", "--config", config.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let child = self.command(&args).spawn().unwrap();
+        let id = child.id();
+        let started = Instant::now();
+        let watchdog = std::thread::spawn(move || {
+            while started.elapsed() < Duration::from_secs(30) {
+                std::thread::sleep(Duration::from_millis(100));
+                if !Path::new(&format!("/proc/{id}")).exists() {
+                    return;
+                }
+            }
+            let _ = Command::new("kill").arg(id.to_string()).status();
+        });
+        let out = child.wait_with_output().unwrap();
+        watchdog.join().unwrap();
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "kestrel run did not exit: {}",
+            text(&out)
+        );
+        out
+    }
+}
+
+fn text(out: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+/// Both commands fail, and both say every one of `needles`.
+fn both_refuse(site: &Site, config: &Path, needles: &[&str]) {
+    let check = site.check(config);
+    let run = site.run(config, &[]);
+    for (name, out) in [("check-config", &check), ("run", &run)] {
+        assert!(!out.status.success(), "{name} accepted it: {}", text(out));
+        for needle in needles {
+            assert!(
+                text(out).contains(needle),
+                "{name} does not say `{needle}`: {}",
+                text(out)
+            );
+        }
+    }
+    assert!(
+        !text(&run).contains("kestrel run:"),
+        "run started a platform before refusing: {}",
+        text(&run)
+    );
+}
+
+#[test]
+fn a_missing_token_file_is_refused() {
+    let site = Site::new();
+    let missing = site.path("api-token");
+    let config = site.config(&format!(
+        "[api]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\n",
+        missing.display()
+    ));
+    both_refuse(
+        &site,
+        &config,
+        &[
+            &format!("{}: [api]", config.display()),
+            &format!("cannot read the API token file {}", missing.display()),
+        ],
+    );
+}
+
+#[test]
+fn a_public_listen_address_without_a_token_is_refused() {
+    let site = Site::new();
+    let config = site.config("[api]\nlisten = \"0.0.0.0:0\"\n");
+    both_refuse(
+        &site,
+        &config,
+        &["refusing to listen on 0.0.0.0:0 without an API token"],
+    );
+}
+
+#[test]
+fn an_unknown_platform_is_refused() {
+    let site = Site::new();
+    let config = site.config("[mavlink]\nplatform = \"px5\"\n");
+    both_refuse(
+        &site,
+        &config,
+        &[
+            &format!("{}: mavlink.platform", config.display()),
+            "no platform `px5`",
+            "px4, ardupilot-copter, sim",
+        ],
+    );
+}
+
+#[test]
+fn a_profile_path_that_does_not_resolve_is_refused_saying_where_it_looked() {
+    let site = Site::new();
+    let config = site.config("[mavlink]\nplatform = \"platforms/custom.toml\"\n");
+    let installed = site.path("share/platforms/platforms/custom.toml");
+    both_refuse(
+        &site,
+        &config,
+        &[
+            "no platform `platforms/custom.toml`",
+            &site
+                .path("share/platforms/custom.toml")
+                .display()
+                .to_string(),
+            &installed.display().to_string(),
+        ],
+    );
+}
+
+#[test]
+fn an_invalid_profile_file_is_refused() {
+    let site = Site::new();
+    let profile = site.path("share/platforms/broken.toml");
+    std::fs::write(&profile, "platform = \"mavlink\"\nname = \"Broken\"\n").unwrap();
+    let config = site.config("[mavlink]\nplatform = \"broken\"\n");
+    both_refuse(&site, &config, &[&format!("profile {}", profile.display())]);
+}
+
+#[test]
+fn a_log_dir_that_is_a_file_is_refused() {
+    let site = Site::new();
+    std::fs::write(site.path("log"), "not a directory").unwrap();
+    let config = site.config("");
+    both_refuse(
+        &site,
+        &config,
+        &[
+            &format!("{}: drone.log_dir", config.display()),
+            "exists and is not a directory",
+        ],
+    );
+}
+
+#[test]
+fn an_installed_profile_is_found_by_relative_path_and_summarised() {
+    let site = Site::new();
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::copy(
+        repo.join("platforms/ardupilot-copter.toml"),
+        site.path("share/platforms/ardupilot-copter.toml"),
+    )
+    .unwrap();
+    std::fs::write(site.path("token"), "secret\n").unwrap();
+    let config = site.config(&format!(
+        "[mavlink]\nplatform = \"platforms/ardupilot-copter.toml\"\nconnection = \"serial:/dev/ttyACM0:115200\"\n\n[api]\nlisten = \"0.0.0.0:8080\"\ntoken_file = \"{}\"\n",
+        site.path("token").display()
+    ));
+    let out = site.check(&config);
+    assert!(out.status.success(), "{}", text(&out));
+    let expected = format!(
+        "OK: {}\n  drone id   drone_0\n  platform   ArduPilot Copter ({})\n  mavlink    serial:/dev/ttyACM0:115200\n  api        0.0.0.0:8080\n  token      yes\n  log dir    {}\n  state dir  {}\n",
+        config.display(),
+        site.path("share/platforms/ardupilot-copter.toml").display(),
+        site.path("log").display(),
+        site.path("state").display()
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stdout), expected);
+}
+
+/// The shipped config (systemd/kestrel.toml) names no platform: the built-in PX4 profile, with
+/// no profile file anywhere. `run` starts with it (issue 12: it used to look for
+/// `platforms/px4.toml` in the service's working directory and exit).
+#[test]
+fn the_shipped_config_starts_with_the_built_in_px4_profile() {
+    let site = Site::new();
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::write(site.path("api-token"), "secret\n").unwrap();
+    let shipped = std::fs::read_to_string(repo.join("systemd/kestrel.toml")).unwrap();
+    let rewritten = shipped
+        .replace("/etc/kestrel/", &format!("{}/", site.dir.path().display()))
+        .replace("/var/log/kestrel", &site.path("log").display().to_string())
+        .replace(
+            "/var/lib/kestrel",
+            &site.path("state").display().to_string(),
+        );
+    let config = site.path("shipped.toml");
+    std::fs::write(&config, rewritten).unwrap();
+    let out = site.check(&config);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("platform   PX4 (built-in px4)"),
+        "{}",
+        text(&out)
+    );
+    let udp = support::free_udp_port();
+    let run = site.run(
+        &config,
+        &[
+            "--connection",
+            &format!("udpin:127.0.0.1:{udp}"),
+            "--no-api",
+            "--max-time-s",
+            "1",
+        ],
+    );
+    assert!(run.status.success(), "{}", text(&run));
+    assert!(
+        text(&run).contains(&format!(
+            "kestrel run: PX4 over udpin:127.0.0.1:{udp} (profile built-in px4)"
+        )),
+        "{}",
+        text(&run)
+    );
+}
