@@ -11,6 +11,7 @@ mod cli_flights;
 mod cli_map;
 mod cli_mission;
 mod cli_remote;
+mod cli_report;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;
@@ -46,6 +47,8 @@ enum Command {
     World(cli_world::WorldCommand),
     /// Exploration metrics of a flight log against the true world.
     Evaluate(cli_evaluate::EvaluateArgs),
+    /// A flight log as a report: index.html with figures (SVG, PNG), a table and poses.csv.
+    Report(cli_report::ReportArgs),
     /// Check a config file and print the validated result.
     CheckConfig {
         /// Config file (TOML).
@@ -65,6 +68,7 @@ fn main() -> Result<()> {
         Command::Map(command) => cli_map::run(command),
         Command::World(command) => cli_world::run(command),
         Command::Evaluate(args) => cli_evaluate::run(args),
+        Command::Report(args) => cli_report::run(args),
         Command::CheckConfig { config } => {
             let c = kestrel::config::Config::load(&config)
                 .with_context(|| format!("checking {}", config.display()))?;
