@@ -270,7 +270,7 @@ mod tests {
         assert_eq!(f.command(), Some("sim"));
         assert_eq!(
             (f.skipped_lines, f.skipped_examples.clone()),
-            (2, vec![3, 8])
+            (2, vec![3, 7])
         );
         let a = &f.drones["a"];
         assert_eq!(a.poses.len(), 2);

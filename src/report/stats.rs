@@ -47,9 +47,9 @@ pub fn stats(log: &DroneLog) -> DroneStats {
     for a in &log.activations {
         *behavior_time_s.entry(a.behavior.clone()).or_insert(0.0) += a.end_s - a.start_s;
     }
-    let battery = log.poses.iter().filter_map(|p| p.battery_fraction);
-    let first = battery.clone().next();
-    let battery_used_fraction = first.zip(battery.last()).map(|(a, b)| a - b);
+    let first = log.poses.iter().find_map(|p| p.battery_fraction);
+    let last = log.poses.iter().rev().find_map(|p| p.battery_fraction);
+    let battery_used_fraction = first.zip(last).map(|(a, b)| a - b);
     let mut position = Vec::new();
     let mut velocity = Vec::new();
     for p in &log.poses {
