@@ -276,6 +276,9 @@ async fn api_serves_the_report_of_a_listed_log_only() {
     let follow = palette::behavior_hex("follow_path");
     assert!(elements_with(&page, "polyline", "stroke", &follow) > 0);
 
+    let (_, spec) = k.get("/api/openapi.json").await;
+    assert!(spec["paths"].get("/api/logs/{name}/report").is_some());
+
     for bad in [
         "kestrel-sim-2026-01-02T00-00-00Z.jsonl".to_string(),
         format!(

@@ -7,7 +7,8 @@
 //! definition, after a 3x3 closing, and as a share of what is observable), paths (Euclidean and
 //! the thesis's L1), overlap, per-drone shares, clearances, collisions, the area curve, the
 //! rotation-independent lower bound on time (exploration-research §3.2) and the times to reach
-//! 90/95/99 % of the final area.
+//! 90/95/99 % of the final area; [`evaluate_with_map`] adds the final known cells ([`KnownMap`], for
+//! plots).
 //!
 //! Each airborne sample casts the four beams at the true obstacles (exact ray-shape hits, found
 //! through [`ShapeIndex`]); every grid cell a beam crosses up to its hit or its range, and the
