@@ -15,8 +15,8 @@ use std::io::{BufRead, Read};
 
 /// Longest line read (bytes), as `exploration::evaluate`.
 pub const MAX_LINE_BYTES: usize = 1 << 20;
-/// Most pose records kept (a 7-drone hour at 20 Hz is 504 000).
-pub const MAX_POSES: usize = 20_000_000;
+/// Most pose records kept (a 7-drone hour at 20 Hz is 504 000; each costs about 150 bytes).
+pub const MAX_POSES: usize = 5_000_000;
 /// How many skipped line numbers the page lists.
 const LISTED_SKIPS: usize = 10;
 
