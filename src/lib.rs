@@ -26,6 +26,7 @@ pub mod mapping;
 pub mod mission;
 pub mod planning;
 pub mod platform;
+pub mod report;
 pub mod safety;
 pub mod sim;
 pub mod types;

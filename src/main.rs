@@ -11,6 +11,7 @@ mod cli_flights;
 mod cli_map;
 mod cli_mission;
 mod cli_remote;
+mod cli_report;
 mod cli_run;
 mod cli_serve;
 mod cli_sim;
@@ -47,6 +48,8 @@ enum Command {
     World(cli_world::WorldCommand),
     /// Exploration metrics of a flight log against the true world.
     Evaluate(cli_evaluate::EvaluateArgs),
+    /// A flight log as a report: index.html with figures (SVG, PNG), a table and poses.csv.
+    Report(cli_report::ReportArgs),
     /// Check a config file as `kestrel run` does at start (platform, token, listen address,
     /// directories) and print a short summary.
     CheckConfig {
@@ -67,6 +70,7 @@ fn main() -> Result<()> {
         Command::Map(command) => cli_map::run(command),
         Command::World(command) => cli_world::run(command),
         Command::Evaluate(args) => cli_evaluate::run(args),
+        Command::Report(args) => cli_report::run(args),
         Command::CheckConfig { config } => cli_startup::check(&config),
     }
 }

@@ -15,6 +15,7 @@ pub mod geofence;
 pub mod map;
 pub mod openapi;
 pub mod quiet;
+pub mod reports;
 pub mod routes;
 pub mod saved;
 pub mod scans;
@@ -107,6 +108,7 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         .route("/api/frames", get(routes::frames).post(routes::set_frame))
         .route("/api/log", get(routes::log))
         .route("/api/logs", get(routes::logs))
+        .route("/api/logs/{name}/report", get(reports::report))
         .route("/api/sim/fault", post(routes::sim_fault))
         .route("/api/ws", get(ws::upgrade))
         .merge(map_routes())

@@ -7,7 +7,8 @@
 //! definition, after a 3x3 closing, and as a share of what is observable), paths (Euclidean and
 //! the thesis's L1), overlap, per-drone shares, clearances, collisions, the area curve, the
 //! rotation-independent lower bound on time (exploration-research §3.2) and the times to reach
-//! 90/95/99 % of the final area.
+//! 90/95/99 % of the final area; [`evaluate_with_map`] adds the final known cells ([`KnownMap`], for
+//! plots).
 //!
 //! Each airborne sample casts the four beams at the true obstacles (exact ray-shape hits, found
 //! through [`ShapeIndex`]); every grid cell a beam crosses up to its hit or its range, and the
@@ -184,12 +185,34 @@ pub struct ExplorationMetrics {
 /// Shares of the final area `time_to_pct` reports (%).
 const TIME_TO_PCTS: [f64; 3] = [90.0, 95.0, 99.0];
 
+/// The cells known by any drone at the end, on the evaluation grid (for plots).
+#[derive(Debug, Clone, PartialEq)]
+pub struct KnownMap {
+    /// South-west corner of cell (0, 0) (ENU m).
+    pub min_x_m: f64,
+    pub min_y_m: f64,
+    pub cell_m: f64,
+    pub nx: usize,
+    pub ny: usize,
+    /// Row-major from the south-west corner: `known[iy * nx + ix]`.
+    pub known: Vec<bool>,
+}
+
 /// Evaluates a flight against the true world. `samples` may come in any order.
 pub fn evaluate(
     world: &World,
     samples: &[PoseSample],
     params: &EvalParams,
 ) -> Result<ExplorationMetrics, EvalError> {
+    evaluate_with_map(world, samples, params).map(|(metrics, _)| metrics)
+}
+
+/// [`evaluate`], plus the final known cells.
+pub fn evaluate_with_map(
+    world: &World,
+    samples: &[PoseSample],
+    params: &EvalParams,
+) -> Result<(ExplorationMetrics, KnownMap), EvalError> {
     check(params)?;
     let raster = Raster::over(&world.bounds_m, params.cell_m)?;
     let index = ShapeIndex::new(world.shapes());
@@ -231,7 +254,15 @@ pub fn evaluate(
         params.speed_mps,
     );
     let final_cells = known_cells as f64;
-    Ok(ExplorationMetrics {
+    let map = KnownMap {
+        min_x_m: raster.min_x,
+        min_y_m: raster.min_y,
+        cell_m: raster.cell_m,
+        nx: raster.nx,
+        ny: raster.ny,
+        known: (0..cells).map(|i| union.contains(i)).collect(),
+    };
+    let metrics = ExplorationMetrics {
         time_s,
         first_takeoff_s,
         last_landing_s,
@@ -275,7 +306,8 @@ pub fn evaluate(
                     })
             })
             .collect(),
-    })
+    };
+    Ok((metrics, map))
 }
 
 /// The rotation-independent bound T >= (A - N pi R^2) / (2 R v N), never below zero.

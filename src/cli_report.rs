@@ -1,0 +1,61 @@
+//! `kestrel report`: a flight log made into a page of figures (the thesis's figures).
+//!
+//! In: a flight log (JSON lines), optionally `--out DIR` and `--world FILE` (the true world of
+//! an exploration log, when its header's is missing or moved). Out: DIR (default
+//! `<log stem>-report/` beside the log) with `index.html`, every figure as SVG and PNG,
+//! `poses.csv`, and `area.csv` for an evaluated exploration; the files written on stdout.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use kestrel::report::{self, Exploration, Options};
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Flight log (JSON lines) to report on.
+    flight_log: PathBuf,
+    /// Directory to write into (created if missing). Default: <log stem>-report/ beside the log.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// World file of an exploration log (JSON), instead of the one its header names.
+    #[arg(long)]
+    world: Option<PathBuf>,
+}
+
+pub fn run(args: ReportArgs) -> Result<()> {
+    let log = &args.flight_log;
+    let flight =
+        report::read_file(log).with_context(|| format!("reading flight log {}", log.display()))?;
+    let dir = log.parent().map(PathBuf::from).unwrap_or_default();
+    let stem = log
+        .file_stem()
+        .map_or("flight".into(), |s| s.to_string_lossy().into_owned());
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| dir.join(format!("{stem}-report")));
+    let name = log
+        .file_name()
+        .map_or(stem.clone(), |s| s.to_string_lossy().into_owned());
+    let options = Options {
+        world: args.world.clone(),
+        log_dir: Some(dir),
+    };
+    let report = report::analyse(&name, flight, &options);
+    if report.flight.skipped_lines > 0 {
+        eprintln!(
+            "kestrel report: skipped {} malformed line(s) of {}",
+            report.flight.skipped_lines,
+            log.display()
+        );
+    }
+    if let Exploration::NoWorld(reason) = &report.exploration {
+        eprintln!("kestrel report: no explored-area figures: {reason}");
+    }
+    let written = report::write_dir(&report, &out)
+        .with_context(|| format!("writing the report into {}", out.display()))?;
+    for path in written {
+        println!("{}", path.display());
+    }
+    Ok(())
+}
