@@ -1,6 +1,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 //! End to end: `kestrel report` on the logs of real `kestrel sim` and `kestrel explore` runs,
-//! and `GET /api/logs/{name}/report` of a running `kestrel sim`.
+//! and `GET /api/logs/{name}/report` and `GET /api/logs/{name}` of a running `kestrel sim`.
 
 mod support;
 
@@ -288,6 +288,71 @@ async fn api_serves_the_report_of_a_listed_log_only() {
         "%2Fetc%2Fpasswd".to_string(),
     ] {
         let (status, body) = k.get(&format!("/api/logs/{bad}/report")).await;
+        assert_eq!(status, 404, "{bad}: {body}");
+    }
+}
+
+#[tokio::test]
+async fn api_downloads_a_listed_log_only_and_the_current_one_flushed() {
+    let dir = tempfile::tempdir().unwrap();
+    let outside = tempfile::tempdir().unwrap();
+    let name = "kestrel-sim-2026-01-01T00-00-00Z.jsonl";
+    // Larger than one 64 KiB chunk, so the download is assembled from several.
+    let past: String = (0..3000)
+        .map(|i| format!("{{\"t\":{i}.0,\"drone\":\"drone_0\",\"type\":\"pose\"}}\n"))
+        .collect();
+    assert!(past.len() > 2 * 64 * 1024);
+    std::fs::write(dir.path().join(name), &past).unwrap();
+    std::fs::write(outside.path().join("secret.jsonl"), "{}\n").unwrap();
+    let k = support::Kestrel::sim(dir.path(), "s3cret", &[]).await;
+
+    let r = k.get_raw(&format!("/api/logs/{name}")).await;
+    assert_eq!(r.status().as_u16(), 200);
+    assert_eq!(r.headers()["content-type"], "application/x-ndjson");
+    assert_eq!(
+        r.headers()["content-disposition"],
+        format!("attachment; filename=\"{name}\"").as_str()
+    );
+    assert_eq!(r.text().await.unwrap(), past, "the file byte for byte");
+
+    // The current log: what was written up to the request, header record first.
+    let (_, listed) = k.get("/api/logs").await;
+    let current = listed
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["current"] == true)
+        .unwrap()["name"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let text = k
+        .get_raw(&format!("/api/logs/{current}"))
+        .await
+        .text()
+        .await
+        .unwrap();
+    let first: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    assert_eq!(first["type"], "header", "{first}");
+
+    let (_, spec) = k.get("/api/openapi.json").await;
+    assert!(spec["paths"].get("/api/logs/{name}").is_some());
+
+    // Without the token: 401, nothing served.
+    let anon = reqwest::get(format!("{}/api/logs/{name}", k.base))
+        .await
+        .unwrap();
+    assert_eq!(anon.status().as_u16(), 401);
+
+    for bad in [
+        "kestrel-sim-2026-01-02T00-00-00Z.jsonl".to_string(),
+        format!(
+            "..%2F{}%2Fsecret.jsonl",
+            outside.path().file_name().unwrap().to_string_lossy()
+        ),
+        "%2Fetc%2Fpasswd".to_string(),
+    ] {
+        let (status, body) = k.get(&format!("/api/logs/{bad}")).await;
         assert_eq!(status, 404, "{bad}: {body}");
     }
 }

@@ -12,6 +12,7 @@ pub mod coverage;
 pub mod error;
 pub mod exploration;
 pub mod geofence;
+pub mod logs;
 pub mod map;
 pub mod openapi;
 pub mod quiet;
@@ -108,6 +109,7 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         .route("/api/frames", get(routes::frames).post(routes::set_frame))
         .route("/api/log", get(routes::log))
         .route("/api/logs", get(routes::logs))
+        .route("/api/logs/{name}", get(logs::download))
         .route("/api/logs/{name}/report", get(reports::report))
         .route("/api/sim/fault", post(routes::sim_fault))
         .route("/api/ws", get(ws::upgrade))

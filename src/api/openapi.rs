@@ -3,7 +3,7 @@
 
 use super::error::ErrorBody;
 use super::{coverage, exploration, geofence, map, scans};
-use super::{reports, routes};
+use super::{logs, reports, routes};
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::status::{BatteryStatus, DroneStatus, GeoStatus};
@@ -31,7 +31,7 @@ impl Modify for BearerAuth {
     paths(
         routes::health, routes::status, routes::behaviors, routes::missions, routes::upload,
         routes::mission, routes::delete_mission, routes::mission_update, routes::set_frame,
-        routes::frames, routes::log, routes::logs, reports::report, routes::sim_fault
+        routes::frames, routes::log, routes::logs, logs::download, reports::report, routes::sim_fault
     ),
     components(schemas(
         ErrorBody, ValidationError, Mission, MissionItem, MissionUpdate, MissionStatus,

@@ -6,9 +6,7 @@
 //! names (relative paths from the log directory first, then the working directory).
 
 use super::error::{ApiError, ErrorBody};
-use super::ApiState;
-use crate::host::logfiles;
-use crate::host::Command;
+use super::{logs, ApiState};
 use crate::report::{self, Options, ReportError};
 use axum::extract::{Path, State};
 use axum::http::header;
@@ -26,38 +24,8 @@ pub async fn report(
     State(s): State<ApiState>,
     Path(name): Path<String>,
 ) -> Result<Response, ApiError> {
-    let file = s
-        .log
-        .clone()
-        .ok_or_else(|| ApiError::NotFound("no flight log is being written".into()))?;
-    let dir = file
-        .path
-        .parent()
-        .map(std::path::Path::to_path_buf)
-        .unwrap_or_default();
-    let listed = {
-        let (dir, current) = (dir.clone(), file.path.clone());
-        tokio::task::spawn_blocking(move || logfiles::list(&dir, Some(&current)))
-            .await
-            .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?
-            .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?
-    };
-    let Some(entry) = listed.into_iter().find(|e| e.name == name) else {
-        return Err(ApiError::NotFound(format!(
-            "no flight log named `{name}`: GET /api/logs lists them"
-        )));
-    };
-    if entry.current {
-        s.host.call(|reply| Command::FlushLog { reply }).await?;
-        // The writer thread flushes when idle, at most 100 ms after the hand-over.
-        tokio::time::sleep(std::time::Duration::from_millis(150)).await;
-    }
+    let (read_from, entry) = logs::listed(&s, &name).await?;
     let html = tokio::task::spawn_blocking(move || -> Result<String, ReportError> {
-        let read_from = if dir.as_os_str().is_empty() {
-            std::path::PathBuf::from(".")
-        } else {
-            dir
-        };
         let flight = report::read_file(&read_from.join(&entry.name))?;
         let options = Options {
             world: None,

@@ -87,7 +87,7 @@ describe('ground station finishing items at 1024 x 768', { timeout: 400_000 }, (
     await page.locator('#btn-hold').click();
     await page.locator('#btn-hold-all').click();
     await until(page, () => document.querySelectorAll('#toasts .toast').length >= 4, null, 10_000);
-    for (const name of ['control', 'plan', 'fleet', 'timeline']) {
+    for (const name of ['control', 'plan', 'fleet', 'timeline', 'logs']) {
       await tab(name);
       const r = await page.evaluate(controlsUnderNotices);
       assert.ok(r.notices >= 1 && r.controls > 20, `${name}: ${r.notices} notices, ${r.controls} controls`);

@@ -43,11 +43,11 @@ function freePort() {
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 /**
- * Starts `kestrel sim --no-demo` (or `--scenario FILE`, which flies its mission) and waits for its
- * health route; returns a handle. With `autopilotPort`, `kestrel run` instead, waiting for an
+ * Starts `kestrel sim --no-demo` (or `--scenario FILE`, which flies its mission; or with `demo`,
+ * the sim's demo mission on every drone) and waits for its health route; returns a handle. With `autopilotPort`, `kestrel run` instead, waiting for an
  * autopilot there.
  */
-export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null, autopilotPort = null } = {}) {
+export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null, demo = false, autopilotPort = null } = {}) {
   if (!process.env.KESTREL_BIN) throw new Error('KESTREL_BIN must name the kestrel binary to test');
   const bin = path.resolve(process.env.KESTREL_BIN);
   const port = await freePort();
@@ -60,6 +60,7 @@ export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, sce
   // `kestrel run` waiting for an autopilot at a UDP port where nothing answers.
   if (autopilotPort) args.splice(0, 6, 'run', '--platform', 'px4', '--connection', `udpin:127.0.0.1:${autopilotPort}`);
   if (scenario) args.splice(args.indexOf('--no-demo'), 1, '--scenario', path.resolve(HERE, '../..', scenario));
+  else if (demo) args.splice(args.indexOf('--no-demo'), 1);
   // A scratch working directory: nothing kestrel writes lands in the repository.
   const cwd = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-run-'));
   const child = spawn(bin, args, {
@@ -93,6 +94,7 @@ export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, sce
     base,
     port,
     logPath,
+    flightLog,
     async api(method, route, body) {
       const res = await fetch(`${base}${route}`, {
         method,

@@ -1,5 +1,5 @@
 // Entry point: asks the token once per session, connects to the kestrel that serves the page, and
-// wires the views (fleet, plan, control, explore, monitor, timeline) to the map and to each other.
+// wires the views (fleet, plan, control, explore, monitor, timeline, logs) to the map and to each other.
 
 import './style.css';
 import { ApiError } from './lib/api';
@@ -19,6 +19,7 @@ import { ExplorationPanel } from './ui/explorationView';
 import { act, onRejected, toast } from './ui/feedback';
 import { FleetView, restoreInstances } from './ui/fleetView';
 import { disconnectReason } from './ui/instance';
+import { LogsView } from './ui/logsView';
 import { droneColor, MapView, type Tool } from './ui/mapView';
 import { MonitorView } from './ui/monitorView';
 import { PlanView } from './ui/planView';
@@ -34,6 +35,7 @@ const control = new ControlView(app, plan);
 const exploration = new ExplorationPanel(app);
 const monitor = new MonitorView(app);
 const timeline = new TimelineView(app);
+const logs = new LogsView(app);
 let mapView: MapView;
 const altitude = new AltitudeView(byId('alt-view'));
 let grid: Grid | null = null;
@@ -221,6 +223,7 @@ function showTab(name: string): void {
   document.querySelectorAll<HTMLElement>('.panel').forEach((p) => p.classList.toggle('active', p.id === `panel-${name}`));
   if (name === 'timeline') timeline.render();
   if (name === 'explore') void exploration.poll(true);
+  if (name === 'logs') void logs.show();
 }
 
 function wireHeader(): void {

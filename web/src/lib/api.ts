@@ -9,6 +9,7 @@ import type {
   ExplorationStarted,
   ExplorationView,
   FrameInfo,
+  LogEntry,
   Mission,
   MissionUpdate,
   MissionUpdateAnswer,
@@ -182,6 +183,26 @@ export class ApiClient {
     const text = await res.text();
     if (!res.ok) throw new ApiError(res.status, parseErrorBody(res.status, text));
     return text;
+  }
+
+  /** The flight logs beside the current one, newest first. */
+  logs(): Promise<LogEntry[]> {
+    return this.json('GET', '/api/logs');
+  }
+
+  /** The flight report of a listed log: one self-contained HTML page. */
+  async logReport(name: string): Promise<string> {
+    const res = await this.request('GET', `/api/logs/${encodeURIComponent(name)}/report`);
+    const text = await res.text();
+    if (!res.ok) throw new ApiError(res.status, parseErrorBody(res.status, text));
+    return text;
+  }
+
+  /** A listed flight log, whole (JSON lines), and the file name the server gives it. */
+  async logFile(name: string): Promise<{ filename: string; blob: Blob }> {
+    const res = await this.request('GET', `/api/logs/${encodeURIComponent(name)}`);
+    if (!res.ok) throw new ApiError(res.status, parseErrorBody(res.status, await res.text()));
+    return { filename: attachmentName(res.headers.get('Content-Disposition')) ?? name, blob: await res.blob() };
   }
 
   /** Registers (or moves) a frame, e.g. a panel from an alert, relative to `earth`. */

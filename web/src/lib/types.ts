@@ -222,3 +222,13 @@ export interface ExplorationStarted {
   started_at_s: number;
   drones: { drone: string; mission_id: number }[];
 }
+
+/** One flight log as `GET /api/logs` lists it. */
+export interface LogEntry {
+  name: string;
+  size_bytes: number;
+  /** Wall-clock start (RFC 3339, UTC); null for a log named by `--log FILE`. */
+  start_time: string | null;
+  /** The log this run is writing. */
+  current: boolean;
+}
