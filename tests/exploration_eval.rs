@@ -2,12 +2,9 @@
 //! evaluates a hand-written flight log in it; an ignored test times a large log in process.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use kestrel::exploration::evaluate::{evaluate, poses_from_log, EvalParams};
 use kestrel::sim::world::World;
 use serde_json::{json, Value};
-use std::path::Path;
 use std::process::Command;
-use std::time::Instant;
 
 fn kestrel(args: &[&str]) -> String {
     let out = Command::new(env!("CARGO_BIN_EXE_kestrel"))
@@ -96,49 +93,4 @@ fn generate_a_world_then_evaluate_a_log_flown_in_it() {
     assert!(sep >= 2.4 - 1e-9, "starts are 2.4 m apart: {sep}");
     assert_eq!(m["collisions"], 0);
     assert_eq!(m["drones"].as_array().unwrap().len(), 2);
-}
-
-/// A lawnmower with a spin: 7 drones, 600 s at 20 Hz in the thesis's high-density world.
-fn large_log() -> String {
-    let mut lines = Vec::with_capacity(7 * 12_000);
-    for k in 0..12_000u32 {
-        let t = f64::from(k) * 0.05;
-        for d in 0..7u32 {
-            let lane = f64::from(d) * 7.0 - 21.0;
-            let along = (t * 0.75) % 96.0;
-            let x = if along < 48.0 {
-                -24.0 + along
-            } else {
-                72.0 - along
-            };
-            let y = lane + 2.0 * (t * 0.05).sin();
-            let z = if (2.0..=598.0).contains(&t) { 1.0 } else { 0.0 };
-            lines.push(pose(t, &format!("d{d}"), x, y, z, 0.5 * t));
-        }
-    }
-    lines.join("\n")
-}
-
-#[test]
-#[ignore = "timing: run with --release -- --ignored --nocapture"]
-fn a_large_log_evaluates_quickly() {
-    let world =
-        World::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("sitl/worlds/high.json")).unwrap();
-    let text = large_log();
-    let started = Instant::now();
-    let samples = poses_from_log(&text).unwrap();
-    let parsed = started.elapsed();
-    let m = evaluate(&world, &samples, &EvalParams::default()).unwrap();
-    let total = started.elapsed();
-    println!(
-        "{} samples ({} MB): parse {:.2} s, total {:.2} s; area {:.1} %, observable share {:.1} %",
-        samples.len(),
-        text.len() / 1_000_000,
-        parsed.as_secs_f64(),
-        total.as_secs_f64(),
-        m.area_pct,
-        m.observable_share_pct
-    );
-    assert_eq!(samples.len(), 84_000);
-    assert_eq!(m.drones_flown, 7);
 }

@@ -402,27 +402,3 @@ fn run_flies_the_demo_on_the_simulator_platform() {
         .count();
     assert_eq!(finished, 4, "takeoff, go_to, follow_path, land");
 }
-
-/// Benchmark (BENCHMARKS.md `## MAVLink`): the 50 Hz setpoint stream as the fake receives it,
-/// from the end of the takeoff to the start of the landing (go_to and follow_path in OFFBOARD).
-/// `cargo test --release --test mavlink_e2e -- --ignored --nocapture setpoint_jitter`
-#[test]
-#[ignore = "benchmark: run in release with --ignored"]
-fn setpoint_jitter_at_50_hz() {
-    let _one = serial();
-    let p = Personality::Px4;
-    let fake = Fake::start(p, &[]);
-    let mut kestrel = Kestrel::run(p, &fake.connection, "", DEMO);
-    let takeoff = "takeoff #1 succeeded";
-    kestrel.wait_line(takeoff, Duration::from_secs(60));
-    fake.cmd(json!({"cmd": "setpoint_stats", "reset": true}));
-    kestrel.wait_line("land #4 started", Duration::from_secs(60));
-    let stats = fake.cmd(json!({"cmd": "setpoint_stats"}));
-    println!("setpoint stream at 50 Hz seen by the fake during go_to + follow_path: {stats}");
-    assert!(
-        kestrel.wait(FLIGHT_TIMEOUT).success(),
-        "{}",
-        kestrel.output()
-    );
-    assert!(stats["p99_ms"].as_f64().unwrap() < 40.0, "{stats}");
-}
