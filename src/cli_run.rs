@@ -40,15 +40,17 @@ pub struct RunArgs {
     config: Option<PathBuf>,
     /// Autopilot profile: a built-in name (`px4`, `ardupilot-copter`, `sim`) or a file
     /// (`platforms/px4.toml`; relative paths not found here are looked up in
-    /// /usr/share/kestrel). Overrides `mavlink.platform`.
+    /// /usr/share/kestrel). Overrides `mavlink.platform` (with a `[[vehicle]]` list: the
+    /// profile of the vehicles that name none).
     #[arg(long)]
     platform: Option<String>,
     /// MAVLink connection (`udpin:0.0.0.0:14540`, `tcpout:127.0.0.1:5760`,
-    /// `serial:/dev/ttyACM0:921600` ...). Overrides `mavlink.connection`.
+    /// `serial:/dev/ttyACM0:921600` ...). Overrides `mavlink.connection`; refused with a
+    /// `[[vehicle]]` list (each vehicle names its own).
     #[arg(long)]
     connection: Option<String>,
     /// Fly the demo plan of `kestrel sim` (takeoff, go_to, follow_path, land) as a mission, from
-    /// where the vehicle stands once it is ready.
+    /// where the (first) vehicle stands once it is ready.
     #[arg(long)]
     mission_demo: bool,
     /// Exit when the plan is over: 0 if it succeeded, non-zero with the reason if not.
