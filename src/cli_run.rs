@@ -3,7 +3,9 @@
 //!
 //! In: `--config FILE` (TOML), `--platform` and `--connection` overriding its `[mavlink]`
 //! section (`--platform platforms/sim.toml` flies the built-in simulator in real time instead).
-//! Out: the vehicle on the host, serving the HTTP/WebSocket API (`--listen`; `--no-api`: none),
+//! A `[[vehicle]]` list in the config flies several autopilots, each over its own connection
+//! with its own core and mission executor, its local frame shifted into the shared one.
+//! Out: the vehicles on the host, serving the HTTP/WebSocket API (`--listen`; `--no-api`: none),
 //! with systemd READY and watchdog pings from the control loop: this is what the service runs.
 //! `--mission FILE` flies a mission at start; `--mission-demo` flies the simulator's demo plan as
 //! a mission once the autopilot is ready. Missions follow `[mission] on_link_regained` after a
@@ -12,7 +14,7 @@
 
 use crate::cli_flights::Flights;
 use crate::cli_serve::ServeOptions;
-use crate::cli_startup::{prepare, Overrides, PlatformPlan, Startup};
+use crate::cli_startup::{prepare, Overrides, PlatformPlan, Startup, VehiclePlan};
 use anyhow::{Context, Result};
 use clap::Args;
 use kestrel::config::Config;
@@ -24,6 +26,7 @@ use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
 use kestrel::host::vehicle::vehicle_host;
 use kestrel::platform::mavlink::{LinkConfig, MavlinkPlatform};
+use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use kestrel::sim::{Environment, SimWorld};
 use kestrel::types::Vec3;
@@ -37,15 +40,17 @@ pub struct RunArgs {
     config: Option<PathBuf>,
     /// Autopilot profile: a built-in name (`px4`, `ardupilot-copter`, `sim`) or a file
     /// (`platforms/px4.toml`; relative paths not found here are looked up in
-    /// /usr/share/kestrel). Overrides `mavlink.platform`.
+    /// /usr/share/kestrel). Overrides `mavlink.platform` (with a `[[vehicle]]` list: the
+    /// profile of the vehicles that name none).
     #[arg(long)]
     platform: Option<String>,
     /// MAVLink connection (`udpin:0.0.0.0:14540`, `tcpout:127.0.0.1:5760`,
-    /// `serial:/dev/ttyACM0:921600` ...). Overrides `mavlink.connection`.
+    /// `serial:/dev/ttyACM0:921600` ...). Overrides `mavlink.connection`; refused with a
+    /// `[[vehicle]]` list (each vehicle names its own).
     #[arg(long)]
     connection: Option<String>,
     /// Fly the demo plan of `kestrel sim` (takeoff, go_to, follow_path, land) as a mission, from
-    /// where the vehicle stands once it is ready.
+    /// where the (first) vehicle stands once it is ready.
     #[arg(long)]
     mission_demo: bool,
     /// Exit when the plan is over: 0 if it succeeded, non-zero with the reason if not.
@@ -130,56 +135,79 @@ impl Platform for RealtimeSim {
     }
 }
 
-/// Starts the platform prepared by [`crate::cli_startup::prepare`]: (platform, readiness
-/// timeout, estimator by default).
+/// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]: (platform,
+/// readiness timeout, estimator by default). `several`: name the vehicle in the banner.
 fn start_platform(
-    startup: Startup,
-) -> Result<(Config, Box<dyn Platform>, Duration, EstimatorPlugin)> {
-    let Startup {
-        config,
-        platform,
+    config: &Config,
+    plan: VehiclePlan,
+    several: bool,
+) -> Result<(Box<dyn Platform>, Duration, EstimatorPlugin)> {
+    let VehiclePlan {
+        id,
         platform_origin,
-        ..
-    } = startup;
-    match platform {
+        platform,
+        connection,
+        forward,
+        target_system,
+        origin_enu_m,
+    } = plan;
+    let who = if several {
+        format!("{id}: ")
+    } else {
+        String::new()
+    };
+    let (platform, ready_timeout, estimator): (Box<dyn Platform>, _, _) = match platform {
         PlatformPlan::Sim { file, world } => {
             let environment = Environment {
                 wind_mps: Vec3::from(config.sim.wind_enu_mps),
                 turbulence_mps2: config.sim.turbulence_mps2,
             };
-            println!("kestrel run: {} (profile {platform_origin})", file.name);
+            println!(
+                "kestrel run: {who}{} (profile {platform_origin})",
+                file.name
+            );
             let sim = RealtimeSim {
                 world: SimWorld::new(*world, 1, file.seed, environment),
                 stepped_to: Duration::ZERO,
             };
-            Ok((
-                config,
+            (
                 Box::new(sim),
                 SIM_READY_TIMEOUT,
                 EstimatorPlugin::GroundTruth,
-            ))
+            )
         }
         PlatformPlan::Mavlink(profile) => {
             let m = &config.mavlink;
             let ready_timeout = profile.ready_timeout;
             println!(
-                "kestrel run: {} over {} (profile {platform_origin})",
-                profile.name, m.connection
+                "kestrel run: {who}{} over {connection} (profile {platform_origin})",
+                profile.name
             );
+            let mut peers = m.peer_policy();
+            peers.target_system = target_system;
+            let mut session = m.session_config();
+            session.target_system = target_system;
             let link = LinkConfig {
-                connection: m.connection.clone(),
-                forward: m.forward.clone(),
-                peers: m.peer_policy(),
+                connection,
+                forward,
+                peers,
             };
-            let platform = MavlinkPlatform::start(*profile, m.session_config(), link)?;
-            Ok((
-                config,
+            let platform = MavlinkPlatform::start(*profile, session, link)
+                .with_context(|| format!("vehicle {id}"))?;
+            (
                 Box::new(platform),
                 ready_timeout,
                 EstimatorPlugin::AutopilotOdometry,
-            ))
+            )
         }
-    }
+    };
+    let origin = Vec3::from(origin_enu_m);
+    let platform: Box<dyn Platform> = if origin == Vec3::zeros() {
+        platform
+    } else {
+        Box::new(Shifted::new(platform, origin))
+    };
+    Ok((platform, ready_timeout, estimator))
 }
 
 /// The simulator is ready at once; this only bounds a broken setup.
@@ -202,27 +230,38 @@ async fn run_async(args: RunArgs) -> Result<()> {
         startup.state_dir.clone(),
         startup.map.clone(),
     );
-    let (config, platform, ready_timeout, estimator) = start_platform(startup)?;
-    let mut core_config = CoreConfig::new(&config.drone.id);
-    core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
-    core_config.controller = config.controller;
-    core_config.behaviors = config.behaviors;
-    core_config.map = map;
-    core_config.safety = config.safety_config();
-    if let Some(o) = config.drone.geodetic_origin {
-        core_config.geo_origin = GeodeticOrigin(o);
+    let Startup {
+        config, vehicles, ..
+    } = startup;
+    let several = vehicles.len() > 1 || !config.vehicles.is_empty();
+    let mut fleet = Vec::with_capacity(vehicles.len());
+    let mut ready_timeout = Duration::ZERO;
+    for plan in vehicles {
+        let id = plan.id.clone();
+        let (platform, ready, estimator) = start_platform(&config, plan, several)?;
+        ready_timeout = ready_timeout.max(ready);
+        let mut core_config = CoreConfig::new(&id);
+        core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
+        core_config.controller = config.controller;
+        core_config.behaviors = config.behaviors;
+        core_config.map.clone_from(&map);
+        core_config.safety = config.safety_config();
+        if let Some(o) = config.drone.geodetic_origin {
+            core_config.geo_origin = GeodeticOrigin(o);
+        }
+        let core = DroneCore::new(
+            core_config,
+            platform.capabilities(),
+            kestrel::host::payload::registry(),
+        );
+        fleet.push((core, platform));
     }
-    let core = DroneCore::new(
-        core_config,
-        platform.capabilities(),
-        kestrel::host::payload::registry(),
-    );
     let api = Api {
         listen,
         token,
         state_dir,
     };
-    serve_vehicle(&args, &config, api, core, platform, ready_timeout).await
+    serve_vehicles(&args, &config, api, fleet, ready_timeout).await
 }
 
 /// The API's address (`None`: `--no-api`) and token, and the state directory, as checked.
@@ -232,16 +271,15 @@ struct Api {
     state_dir: PathBuf,
 }
 
-/// The service path: the vehicle on the host, the API served until interrupted.
-async fn serve_vehicle(
+/// The service path: the vehicles on the host, the API served until interrupted.
+async fn serve_vehicles(
     args: &RunArgs,
     config: &Config,
     api: Api,
-    core: DroneCore,
-    platform: Box<dyn Platform>,
+    fleet: Vec<(DroneCore, Box<dyn Platform>)>,
     ready_timeout: Duration,
 ) -> Result<()> {
-    let mut host = vehicle_host(vec![(core, platform)], config);
+    let mut host = vehicle_host(fleet, config);
     let Api {
         listen,
         token,

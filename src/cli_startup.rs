@@ -3,8 +3,11 @@
 //!
 //! In: the config file (or the defaults), the command line's overrides and the environment
 //! (`KESTREL_API_TOKEN`, `STATE_DIRECTORY`, `KESTREL_DATA_DIR`). Out: a [`Startup`] (the
-//! validated config, the platform resolved and loaded, the API's address and token, the log and
-//! state directories), or the first reason to refuse, naming the file and the key.
+//! validated config, each vehicle's platform resolved and loaded with its link, the API's address
+//! and token, the log and state directories), or the first reason to refuse, naming the file and
+//! the key. One vehicle (`[drone] id` over `[mavlink]`) unless the config has a `[[vehicle]]`
+//! list; `--connection` is refused with a list (each vehicle names its own), `--platform` then
+//! replaces `mavlink.platform`, the profile of the vehicles that name none.
 //!
 //! Platform names resolve in this order: a file at that path (relative to the working
 //! directory); a built-in name (`px4`, `ardupilot-copter`, `sim`); for a relative path, the
@@ -51,12 +54,27 @@ pub enum PlatformPlan {
     Mavlink(Box<Profile>),
 }
 
-/// Everything `run` needs that can be checked without touching the vehicle or the network.
-pub struct Startup {
-    pub config: Config,
+/// One vehicle `run` will fly: its platform, loaded, and where its autopilot is.
+pub struct VehiclePlan {
+    /// The core's id (missions' `target`, the API).
+    pub id: String,
     /// Where the platform came from: `built-in px4` or the file's path.
     pub platform_origin: String,
     pub platform: PlatformPlan,
+    /// The MAVLink connection (unused by the simulator).
+    pub connection: String,
+    pub forward: Vec<String>,
+    /// Follow only this autopilot system id.
+    pub target_system: Option<u8>,
+    /// Its local frame's origin in the shared frame (m, ENU); zero for the single vehicle.
+    pub origin_enu_m: [f64; 3],
+}
+
+/// Everything `run` needs that can be checked without touching the vehicle or the network.
+pub struct Startup {
+    pub config: Config,
+    /// At least one; several with a `[[vehicle]]` list.
+    pub vehicles: Vec<VehiclePlan>,
     pub map: Option<MapConfig>,
     /// `None` with `--no-api`.
     pub listen: Option<SocketAddr>,
@@ -90,14 +108,19 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         None => format!("{file}: mavlink.platform"),
     };
     if let Some(c) = &overrides.connection {
+        if !config.vehicles.is_empty() {
+            bail!(
+                "--connection: {file} has a [[vehicle]] list, where each vehicle names its own \
+                 connection"
+            );
+        }
         config.mavlink.connection = c.clone();
     }
     config
         .mavlink
         .validate()
         .map_err(|(field, message)| anyhow::anyhow!("{file}: {field}: {message}"))?;
-    let (platform_origin, platform) =
-        load_platform(&config.mavlink.platform).with_context(|| platform_key.clone())?;
+    let vehicles = vehicle_plans(&config, &platform_key, &file)?;
     let map = config
         .map
         .config(None)
@@ -109,14 +132,58 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
     directory(&state_dir, "the state directory")?;
     Ok(Startup {
         config,
-        platform_origin,
-        platform,
+        vehicles,
         map,
         listen,
         token,
         log_dir,
         state_dir,
     })
+}
+
+/// The vehicles to fly: the `[[vehicle]]` list, or the one of `[drone]` and `[mavlink]`.
+fn vehicle_plans(config: &Config, platform_key: &str, file: &str) -> Result<Vec<VehiclePlan>> {
+    let m = &config.mavlink;
+    if config.vehicles.is_empty() {
+        let (platform_origin, platform) =
+            load_platform(&m.platform).with_context(|| platform_key.to_string())?;
+        return Ok(vec![VehiclePlan {
+            id: config.drone.id.clone(),
+            platform_origin,
+            platform,
+            connection: m.connection.clone(),
+            forward: m.forward.clone(),
+            target_system: m.target_system,
+            origin_enu_m: [0.0; 3],
+        }]);
+    }
+    config
+        .vehicles
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let (name, key) = match &v.platform {
+                Some(p) => (p, format!("{file}: vehicle[{i}].platform")),
+                None => (&m.platform, platform_key.to_string()),
+            };
+            let (platform_origin, platform) = load_platform(name).with_context(|| key.clone())?;
+            if let PlatformPlan::Sim { .. } = platform {
+                bail!(
+                    "{key}: the built-in simulator flies one vehicle under `kestrel run`; \
+                     `kestrel sim` flies fleets"
+                );
+            }
+            Ok(VehiclePlan {
+                id: v.id.clone(),
+                platform_origin,
+                platform,
+                connection: v.connection.clone(),
+                forward: v.forward.clone(),
+                target_system: v.target_system,
+                origin_enu_m: v.origin_enu_m,
+            })
+        })
+        .collect()
 }
 
 /// The API's address and token; refuses a listen address beyond loopback without a token.
@@ -250,11 +317,6 @@ fn load_platform(name: &str) -> Result<(String, PlatformPlan)> {
 /// `kestrel check-config`: the checks of `run`, then a short summary of what it would start.
 pub fn check(config_path: &Path) -> Result<()> {
     let s = prepare(Some(config_path), &Overrides::default())?;
-    let m = &s.config.mavlink;
-    let (platform, link) = match &s.platform {
-        PlatformPlan::Sim { file, .. } => (file.name.clone(), "none (simulator)".to_string()),
-        PlatformPlan::Mavlink(p) => (p.name.clone(), m.connection.clone()),
-    };
     let shown = |p: &Path| {
         if p.as_os_str().is_empty() {
             ".".to_string()
@@ -263,9 +325,25 @@ pub fn check(config_path: &Path) -> Result<()> {
         }
     };
     println!("OK: {}", config_path.display());
-    println!("  drone id   {}", s.config.drone.id);
-    println!("  platform   {platform} ({})", s.platform_origin);
-    println!("  mavlink    {link}");
+    match s.vehicles.as_slice() {
+        [one] if s.config.vehicles.is_empty() => {
+            let (platform, link) = match &one.platform {
+                PlatformPlan::Sim { file, .. } => {
+                    (file.name.clone(), "none (simulator)".to_string())
+                }
+                PlatformPlan::Mavlink(p) => (p.name.clone(), one.connection.clone()),
+            };
+            println!("  drone id   {}", one.id);
+            println!("  platform   {platform} ({})", one.platform_origin);
+            println!("  mavlink    {link}");
+        }
+        fleet => {
+            println!("  vehicles   {}", fleet.len());
+            for v in fleet {
+                println!("  {}", vehicle_summary(v));
+            }
+        }
+    }
     if let Some(listen) = s.listen {
         println!("  api        {listen}");
     }
@@ -276,4 +354,24 @@ pub fn check(config_path: &Path) -> Result<()> {
     println!("  log dir    {}", shown(&s.log_dir));
     println!("  state dir  {}", shown(&s.state_dir));
     Ok(())
+}
+
+/// One line of `check-config` for a vehicle of the list: id, platform, link, system id, frame.
+fn vehicle_summary(v: &VehiclePlan) -> String {
+    let name = match &v.platform {
+        PlatformPlan::Sim { file, .. } => file.name.as_str(),
+        PlatformPlan::Mavlink(p) => p.name.as_str(),
+    };
+    let system = v
+        .target_system
+        .map_or_else(|| "first heard".to_string(), |s| s.to_string());
+    let [x, y, z] = v.origin_enu_m;
+    let mut line = format!(
+        "{}: {name} ({}) over {}, system id {system}, origin [{x}, {y}, {z}] m",
+        v.id, v.platform_origin, v.connection
+    );
+    if !v.forward.is_empty() {
+        line.push_str(&format!(", forward {}", v.forward.join(" ")));
+    }
+    line
 }

@@ -274,3 +274,78 @@ fn the_shipped_config_starts_with_the_built_in_px4_profile() {
         text(&run)
     );
 }
+
+/// Two vehicles of a `[[vehicle]]` list, one of an installed profile file, the other with
+/// `[mavlink] platform`.
+fn fleet_sections(site: &Site, second_connection: &str) -> String {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::copy(
+        repo.join("platforms/ardupilot-copter.toml"),
+        site.path("share/platforms/ardupilot-copter.toml"),
+    )
+    .unwrap();
+    format!(
+        "[mavlink]\nplatform = \"px4\"\n\n[[vehicle]]\nid = \"scout\"\nconnection = \"udpin:0.0.0.0:14540\"\ntarget_system = 1\n\n[[vehicle]]\nid = \"lifter\"\nplatform = \"platforms/ardupilot-copter.toml\"\nconnection = \"{second_connection}\"\ntarget_system = 2\norigin_enu_m = [3.0, -1.5, 0.0]\nforward = [\"udpout:127.0.0.1:14550\"]\n"
+    )
+}
+
+#[test]
+fn a_vehicle_list_is_summarised_one_line_per_vehicle() {
+    let site = Site::new();
+    let config = site.config(&fleet_sections(&site, "serial:/dev/ttyACM0:115200"));
+    let out = site.check(&config);
+    assert!(out.status.success(), "{}", text(&out));
+    let expected = format!(
+        "OK: {}\n  vehicles   2\n  scout: PX4 (built-in px4) over udpin:0.0.0.0:14540, system id 1, origin [0, 0, 0] m\n  lifter: ArduPilot Copter ({}) over serial:/dev/ttyACM0:115200, system id 2, origin [3, -1.5, 0] m, forward udpout:127.0.0.1:14550\n  api        127.0.0.1:8080\n  token      no\n  log dir    {}\n  state dir  {}\n",
+        config.display(),
+        site.path("share/platforms/ardupilot-copter.toml").display(),
+        site.path("log").display(),
+        site.path("state").display()
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stdout), expected);
+}
+
+#[test]
+fn two_vehicles_behind_one_connection_are_refused_as_not_supported_yet() {
+    let site = Site::new();
+    let config = site.config(&fleet_sections(&site, "udpin:127.0.0.1:14540"));
+    both_refuse(
+        &site,
+        &config,
+        &[
+            &format!("{}", config.display()),
+            "vehicle[1].connection",
+            "not supported yet",
+        ],
+    );
+}
+
+#[test]
+fn a_repeated_vehicle_id_is_refused() {
+    let site = Site::new();
+    let sections = fleet_sections(&site, "udpin:0.0.0.0:14541").replace("\"lifter\"", "\"scout\"");
+    let config = site.config(&sections);
+    both_refuse(
+        &site,
+        &config,
+        &["vehicle[1].id", "`scout` is also vehicle[0]'s id"],
+    );
+}
+
+/// `--connection` would say which vehicle's? `run` refuses it with a list.
+#[test]
+fn run_refuses_a_connection_flag_with_a_vehicle_list() {
+    let site = Site::new();
+    let config = site.config(&fleet_sections(&site, "udpin:0.0.0.0:14541"));
+    let out = site.run(
+        &config,
+        &["--connection", "udpin:127.0.0.1:14600", "--no-api"],
+    );
+    assert!(!out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("--connection") && text(&out).contains("[[vehicle]] list"),
+        "{}",
+        text(&out)
+    );
+    assert!(!text(&out).contains("kestrel run:"), "{}", text(&out));
+}

@@ -1,8 +1,10 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
-//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`.
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`, and the `[[vehicle]]`
+//! list (several autopilots on one host; without it, `[drone]` over `[mavlink]` is the one).
 
 pub mod bounds;
+pub mod vehicles;
 
 use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
@@ -29,6 +31,10 @@ pub struct Config {
     pub mission: MissionSection,
     pub map: crate::mapping::config::MapSection,
     pub safety: SafetySection,
+    /// `[[vehicle]]` entries: several autopilots flown by `kestrel run`; empty = one vehicle,
+    /// `[drone] id` over `[mavlink]`.
+    #[serde(rename = "vehicle", skip_serializing_if = "Vec::is_empty")]
+    pub vehicles: Vec<vehicles::VehicleSection>,
 }
 
 /// The safety stage every setpoint passes (the geofence itself is `[geofence]`).
@@ -319,6 +325,7 @@ impl Config {
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;
         }
         self.validate_controller()?;
+        vehicles::validate(&self.vehicles, &self.mavlink)?;
         let b = &self.behaviors;
         positive("behaviors.goal_threshold_m", b.goal_threshold_m, 10.0, "m")?;
         positive(

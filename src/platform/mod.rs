@@ -2,9 +2,11 @@
 //!
 //! In (from the core, each tick): a [`Setpoint`] and [`PlatformRequest`]s. Out (to the core):
 //! [`PlatformStatus`] and estimator [`Measurement`]s. Nothing above this layer knows which
-//! platform it flies; the MAVLink implementation lives in `platform::mavlink`.
+//! platform it flies; the MAVLink implementation lives in `platform::mavlink`, and
+//! `platform::shifted` moves a vehicle's local frame into a fleet's shared one.
 
 pub mod mavlink;
+pub mod shifted;
 
 use crate::types::Setpoint;
 pub use crate::types::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};

@@ -96,6 +96,64 @@ impl Fake {
         }
     }
 
+    /// `n` fake PX4 vehicles in one process (one world, one clock), each on its own UDP ports
+    /// and system id `1 + i`; returns the fake and Kestrel's connection string for each.
+    pub fn start_px4_fleet(n: u16, extra: &[&str]) -> (Self, Vec<String>) {
+        let control_port = free_tcp_port();
+        let listen = free_udp_ports(n);
+        let remote = loop {
+            let r = free_udp_ports(n);
+            if r.abs_diff(listen) >= n {
+                break r;
+            }
+        };
+        let mut args: Vec<String> = vec!["--control-port".into(), control_port.to_string()];
+        args.extend(["--personality".into(), "px4".into()]);
+        args.extend(["--vehicles".into(), n.to_string()]);
+        args.extend(["--px4-listen-base".into(), listen.to_string()]);
+        args.extend(["--px4-remote-base".into(), remote.to_string()]);
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let connections: Vec<String> = (0..n)
+            .map(|i| format!("udpin:127.0.0.1:{}", remote + i))
+            .collect();
+        let fake = Self {
+            child: spawn_fake(&args),
+            args,
+            control_port,
+            connection: connections[0].clone(),
+        };
+        (fake, connections)
+    }
+
+    /// The true state of vehicle `index` of the process.
+    pub fn state_of(&self, index: usize) -> Value {
+        self.cmd(json!({"cmd": "state", "vehicle": index}))
+    }
+
+    /// Records the true state of all `n` vehicles every 50 ms (each sample an array of `n`).
+    pub fn poll_fleet_states(&self, n: usize) -> Poller {
+        let port = self.control_port;
+        let stop = Arc::new(AtomicBool::new(false));
+        let samples = Arc::new(Mutex::new(Vec::new()));
+        let (s, out) = (stop.clone(), samples.clone());
+        let handle = std::thread::spawn(move || {
+            while !s.load(Ordering::Relaxed) {
+                let states: Option<Vec<Value>> = (0..n)
+                    .map(|i| try_control(port, &json!({"cmd": "state", "vehicle": i})))
+                    .collect();
+                if let Some(states) = states {
+                    out.lock().unwrap().push(Value::Array(states));
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        });
+        Poller {
+            stop,
+            samples,
+            handle: Some(handle),
+        }
+    }
+
     /// Kills the process and starts a new one on the same ports (an autopilot power cycle,
     /// or a serial cable pulled and plugged back).
     pub fn restart(&mut self, off_for: Duration) {
@@ -159,6 +217,24 @@ impl Fake {
     }
 }
 
+/// The first of `n` consecutive UDP ports on loopback that are free now.
+pub fn free_udp_ports(n: u16) -> u16 {
+    for _ in 0..100 {
+        let base = free_udp_port();
+        if base.checked_add(n).is_none() {
+            continue;
+        }
+        let all_free = (0..n)
+            .map(|i| std::net::UdpSocket::bind(("127.0.0.1", base + i)))
+            .collect::<Result<Vec<_>, _>>()
+            .is_ok();
+        if all_free {
+            return base;
+        }
+    }
+    panic!("no {n} consecutive free UDP ports");
+}
+
 fn spawn_fake(args: &[String]) -> Child {
     let mut child = Command::new(python())
         .arg(repo().join("sitl/fake_autopilot.py"))
@@ -216,7 +292,7 @@ impl Poller {
     }
 }
 
-/// The `kestrel run` process, its stdout lines stamped on arrival.
+/// The `kestrel run` process, its stdout and stderr lines stamped on arrival.
 pub struct Kestrel {
     child: Child,
     pub lines: Arc<Mutex<Vec<(Instant, String)>>>,
@@ -237,6 +313,13 @@ impl Kestrel {
         config: &str,
         extra: &[&str],
     ) -> Self {
+        let mut args = vec!["--platform", platform, "--connection", connection];
+        args.extend(extra);
+        Self::run_config(config, &args)
+    }
+
+    /// `kestrel run --log L <extra>` where `config` (written to a file) says everything else.
+    pub fn run_config(config: &str, extra: &[&str]) -> Self {
         let dir = tempfile::tempdir().unwrap();
         let config_path = dir.path().join("kestrel.toml");
         std::fs::write(&config_path, config).unwrap();
@@ -247,8 +330,6 @@ impl Kestrel {
             .env("RUST_BACKTRACE", "0")
             .arg("run")
             .args(["--config", config_path.to_str().unwrap()])
-            .args(["--platform", platform])
-            .args(["--connection", connection])
             .args(["--log", log.to_str().unwrap()])
             .args(["--state-dir", dir.path().join("state").to_str().unwrap()])
             .args(extra)

@@ -1,0 +1,286 @@
+//! A fleet on `kestrel run`: one real process flies three fake PX4 autopilots (`sitl/`, one
+//! process, one world, each vehicle on its own UDP ports with its own system id) from a
+//! `[[vehicle]]` config, through a three-drone exploration of a walled 10 x 10 m room with five
+//! poles, mapping with each autopilot's four range beams, started over the API like an operator
+//! would (`POST /api/exploration/start`), until no frontier is left and all three have landed.
+//!
+//! Each fake's local frame starts where it was switched on (PX4 counts from its EKF origin), so
+//! the config says where each origin lies in the room: a frame error there puts one drone's walls
+//! where there are none, which the map check catches. Judged on the merged map from the API
+//! (known share of the floor, obstacle cells on true obstacles) and on the fakes' true states
+//! (clearance to obstacles, no collision logged, the drones never closer than 0.5 m).
+//! Needs `sitl/.venv` (`bash sitl/setup.sh`).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod mavlink_support;
+mod support;
+
+use kestrel::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD;
+use kestrel::sim::world::{Shape, World};
+use kestrel::types::Vec3;
+use mavlink_support::{free_tcp_port, repo, serial, Api, Fake, Kestrel};
+use serde_json::{json, Value};
+use std::time::{Duration, Instant};
+
+const WORLD: &str = "sitl/worlds/room10_fleet.json";
+const DRONES: [&str; 3] = ["drone_0", "drone_1", "drone_2"];
+/// Where the fake starts each vehicle (the world's `starts_xy_yaw` for three, m, ENU).
+const STARTS_ENU_M: [[f64; 3]; 3] = [[-3.0, 0.0, 0.0], [0.0, 0.0, 0.0], [3.0, 1.0, 0.0]];
+/// The room's inside faces of the walls (m, ENU, both axes).
+const ROOM_HALF_M: f64 = 5.0;
+/// The whole exploration, take-off to the last disarm (wall clock).
+const EXPLORATION_TIMEOUT: Duration = Duration::from_secs(150);
+/// Least distance between two drones the test accepts (m, centre to centre, 3-D).
+const MIN_SEPARATION_M: f64 = 0.5;
+
+/// The fleet's config: the room's map, PX4's velocity response (as tests/run_explore.rs), and
+/// the three autopilots, each with its connection, system id and frame origin.
+fn config(connections: &[String]) -> String {
+    let mut text = "[map]\nsize_m = [12.0, 12.0]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+                    [mavlink]\nplatform = \"platforms/px4.toml\"\n"
+        .to_string();
+    for (i, (connection, origin)) in connections.iter().zip(STARTS_ENU_M).enumerate() {
+        text.push_str(&format!(
+            "\n[[vehicle]]\nid = \"{}\"\nconnection = \"{connection}\"\ntarget_system = {}\n\
+             origin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
+            DRONES[i],
+            i + 1,
+            origin[0],
+            origin[1],
+            origin[2]
+        ));
+    }
+    text
+}
+
+/// Horizontal distance from `p` to the nearest obstacle surface (m).
+fn clearance_m(shapes: &[Shape], p: Vec3) -> f64 {
+    shapes
+        .iter()
+        .filter_map(|s| s.distance_m(&p))
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn position(state: &Value) -> Vec3 {
+    let p = &state["position_enu_m"];
+    Vec3::new(
+        p[0].as_f64().unwrap(),
+        p[1].as_f64().unwrap(),
+        p[2].as_f64().unwrap(),
+    )
+}
+
+/// Waits until `GET /api/status` lists the three drones, each linked and ready to fly.
+fn wait_ready(api: &Api, kestrel: &Kestrel) -> Value {
+    let deadline = Instant::now() + Duration::from_secs(40);
+    loop {
+        let status = api.get("/api/status");
+        let drones = status["drones"].as_array().cloned().unwrap_or_default();
+        let ready = drones
+            .iter()
+            .filter(|d| d["link"] == "ok" && d["ready_to_fly"] == true)
+            .count();
+        if ready == DRONES.len() {
+            return status;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "autopilots not ready: {status}\n{}",
+            kestrel.output()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+/// Polls `GET /api/exploration` until the run has finished; returns the last answer.
+fn wait_explored(api: &Api, kestrel: &Kestrel, fake: &Fake) -> Value {
+    let deadline = Instant::now() + EXPLORATION_TIMEOUT;
+    loop {
+        let view = api.get("/api/exploration");
+        if view["progress"]["finished"] == true {
+            return view;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "not explored within {EXPLORATION_TIMEOUT:?}: {view}\n{}\n{}",
+            fake.diagnostics(),
+            kestrel.output()
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}
+
+/// Known share (%) of the room's floor outside the poles, and the obstacle cells of the map
+/// farther than `tolerance_m` from every true obstacle.
+fn judge_map(map: &Value, w: &World, tolerance_m: f64) -> (f64, Vec<[f64; 2]>) {
+    let spec = &map["spec"];
+    let res = spec["resolution_m"].as_f64().unwrap();
+    let width = spec["width_cells"].as_u64().unwrap() as usize;
+    let origin = [
+        spec["origin_enu_m"][0].as_f64().unwrap(),
+        spec["origin_enu_m"][1].as_f64().unwrap(),
+    ];
+    let threshold = i64::from(DEFAULT_OCCUPIED_THRESHOLD);
+    let shapes = w.shapes();
+    let (mut floor, mut known) = (0usize, 0usize);
+    let mut stray = Vec::new();
+    for (k, v) in map["data"].as_array().unwrap().iter().enumerate() {
+        let v = v.as_i64().unwrap();
+        let x = origin[0] + ((k % width) as f64 + 0.5) * res;
+        let y = origin[1] + ((k / width) as f64 + 0.5) * res;
+        let d = clearance_m(&shapes, Vec3::new(x, y, 1.0));
+        if x.abs() < ROOM_HALF_M && y.abs() < ROOM_HALF_M && d > 0.0 {
+            floor += 1;
+            known += usize::from(v >= 0);
+        }
+        if v >= threshold && d > tolerance_m {
+            stray.push([x, y]);
+        }
+    }
+    (100.0 * known as f64 / floor.max(1) as f64, stray)
+}
+
+#[test]
+fn three_px4_explore_a_room_together_from_one_kestrel_run() {
+    let _alone = serial();
+    let w = World::load(&repo().join(WORLD)).unwrap();
+    let world_path = repo().join(WORLD);
+    let (fake, connections) = Fake::start_px4_fleet(
+        DRONES.len() as u16,
+        &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
+    );
+    // The config's origins are where the fake switched each vehicle on.
+    for (i, start) in STARTS_ENU_M.iter().enumerate() {
+        let s = fake.state_of(i);
+        assert_eq!(s["sysid"], i + 1, "{s}");
+        let o = &s["local_origin_enu_m"];
+        let o = [0, 1].map(|k| o[k].as_f64().unwrap());
+        assert!(
+            (o[0] - start[0]).abs() < 1e-6 && (o[1] - start[1]).abs() < 1e-6,
+            "{s}"
+        );
+    }
+    let poller = fake.poll_fleet_states(DRONES.len());
+    let port = free_tcp_port();
+    let listen = format!("127.0.0.1:{port}");
+    let kestrel = Kestrel::run_config(&config(&connections), &["--listen", &listen]);
+    let api = Api::connect(port);
+
+    // The API shows the whole fleet, each drone where its autopilot stands in the room.
+    let status = wait_ready(&api, &kestrel);
+    let drones = status["drones"].as_array().unwrap();
+    let ids: Vec<&str> = drones
+        .iter()
+        .map(|d| d["drone"].as_str().unwrap())
+        .collect();
+    assert_eq!(ids, DRONES, "{status}");
+    for (d, start) in drones.iter().zip(STARTS_ENU_M) {
+        let p = &d["position_enu_m"];
+        let at = [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()];
+        assert!(
+            (at[0] - start[0]).abs() < 0.2 && (at[1] - start[1]).abs() < 0.2,
+            "{} at {at:?}, expected {start:?}: {d}",
+            d["drone"]
+        );
+    }
+
+    let started_at = Instant::now();
+    let (code, started) = api.post(
+        "/api/exploration/start",
+        &json!({"drones": DRONES, "args": {"spin_rate": 0.4, "safety_distance": 0.5}}),
+    );
+    assert_eq!(code, 200, "{started}");
+    let view = wait_explored(&api, &kestrel, &fake);
+    let took = started_at.elapsed();
+    // Let the last touchdown's disarm reach the fake.
+    std::thread::sleep(Duration::from_secs(1));
+    let samples = poller.finish();
+    let out = kestrel.output();
+    println!("explored in {took:?}: {view}");
+
+    // Every drone's part succeeded; every vehicle has landed and disarmed.
+    let parts = view["progress"]["drones"].as_array().unwrap();
+    assert_eq!(parts.len(), DRONES.len(), "{view}");
+    for part in parts {
+        assert_eq!(part["phase"], "succeeded", "{view}\n{out}");
+    }
+    for i in 0..DRONES.len() {
+        let end = fake.state_of(i);
+        assert_eq!(
+            (end["armed"].clone(), end["on_ground"].clone()),
+            (json!(false), json!(true)),
+            "vehicle {i}: {end}"
+        );
+    }
+
+    // The merged map of the three: most of the floor known, every obstacle cell on a true
+    // obstacle (a wrong frame origin puts one drone's walls inside the room).
+    let map = api.get("/api/map");
+    let (known_pct, stray) = judge_map(&map, &w, 0.3);
+    assert!(known_pct >= 95.0, "{known_pct:.1} % of the floor known");
+    assert!(
+        stray.len() <= 10,
+        "{} obstacle cells off every true obstacle: {:?}",
+        stray.len(),
+        stray.iter().take(10).collect::<Vec<_>>()
+    );
+
+    // The true flights: every vehicle flew, none closer than 0.2 m to an obstacle, no
+    // collision logged, and no two ever closer than MIN_SEPARATION_M.
+    let shapes = w.shapes();
+    let mut closest_obstacle = (f64::INFINITY, Vec3::zeros());
+    let mut closest_pair = (f64::INFINITY, 0usize);
+    let mut airborne = [0usize; 3];
+    for (k, sample) in samples.iter().enumerate() {
+        let states = sample.as_array().unwrap();
+        let at: Vec<Vec3> = states.iter().map(position).collect();
+        for (i, p) in at.iter().enumerate() {
+            if p.z > 0.3 {
+                airborne[i] += 1;
+                let c = clearance_m(&shapes, *p);
+                if c < closest_obstacle.0 {
+                    closest_obstacle = (c, *p);
+                }
+            }
+            for q in &at[i + 1..] {
+                let d = (p - q).norm();
+                if d < closest_pair.0 {
+                    closest_pair = (d, k);
+                }
+            }
+        }
+    }
+    assert!(
+        airborne.iter().all(|&n| n > 100),
+        "airborne samples per vehicle: {airborne:?}"
+    );
+    assert!(
+        closest_obstacle.0 > 0.2,
+        "{:.2} m from an obstacle at {:?}",
+        closest_obstacle.0,
+        closest_obstacle.1
+    );
+    assert!(
+        closest_pair.0 >= MIN_SEPARATION_M,
+        "two drones {:.2} m apart: {}",
+        closest_pair.0,
+        samples[closest_pair.1]
+    );
+    for i in 0..DRONES.len() {
+        let log = fake.cmd(json!({"cmd": "log", "vehicle": i}));
+        let collisions: Vec<&Value> = log["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["kind"] == "collision")
+            .collect();
+        assert!(collisions.is_empty(), "vehicle {i}: {collisions:?}");
+    }
+    println!(
+        "floor known {known_pct:.1} %, {} stray obstacle cells, closest to an obstacle {:.2} m, \
+         closest two drones {:.2} m, airborne samples {airborne:?}",
+        stray.len(),
+        closest_obstacle.0,
+        closest_pair.0
+    );
+}
