@@ -6,7 +6,10 @@
 //! `Done` when this drone can reach no frontier. The service keeps the goals each drone holds
 //! (a claim lapses when its drone stops asking, so a drone that fails leaves its frontiers to the
 //! others) and the goals given up (seen from up close and still unknown: occluded pockets;
-//! offered again once after a while, left for good the second time).
+//! offered again once after a while, left for good the second time). Frontiers that border
+//! only a small pocket of unknown (`SpaceParams::min_gain_cells`) are offered only to a drone a
+//! few metres away: a visit adds little, so they are worth no more than a short detour, and they
+//! do not keep the exploration going.
 //! The navigable space is kept between requests and re-read only around the cells that changed.
 
 use std::collections::BTreeMap;
@@ -28,6 +31,8 @@ const CLAIM_TTL: Duration = Duration::from_secs(6);
 const GIVEN_UP_RADIUS_M: f64 = 0.8;
 /// A goal given up once is offered again after this long.
 const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
+/// Pockets (frontiers with little unknown behind) are flown to only this close (m of path).
+const LOW_GAIN_NEAR_M: f64 = 3.0;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
 
@@ -176,15 +181,32 @@ impl FrontierService {
                         && near.iter().all(|g| now.saturating_sub(g.at) > GIVEN_UP_FOR))
             })
             .collect();
+        // Pockets (little unknown behind) only when near: a visit adds little, so it is worth
+        // only a short detour.
+        let worth = |f: &Frontier, path_m: f64| !f.low_gain || path_m <= LOW_GAIN_NEAR_M;
+        let paths: Vec<Option<f64>> = open
+            .iter()
+            .map(|f| reach.distance_m(f.goal_index).filter(|&d| worth(f, d)))
+            .collect();
+        let left = open
+            .iter()
+            .zip(&paths)
+            .filter(|(f, p)| p.is_some() || !f.low_gain)
+            .count();
         // Short frontiers (corners, the last strips) only once no long one is left that this
         // drone can reach.
-        let reachable = |f: &&&Frontier| reach.distance_m(f.goal_index).is_some();
-        let only_small = !open.iter().filter(reachable).any(|f| !f.small);
+        let only_small = !open
+            .iter()
+            .zip(&paths)
+            .any(|(f, p)| p.is_some() && !f.small);
         let candidates: Vec<(Candidate, usize)> = open
             .iter()
-            .filter(|f| only_small || !f.small)
-            .filter_map(|f| {
-                let path_m = reach.distance_m(f.goal_index)?;
+            .zip(&paths)
+            .filter_map(|(f, p)| {
+                let path_m = (*p)?;
+                if f.small && !only_small {
+                    return None;
+                }
                 Some((
                     Candidate {
                         centroid_enu_m: f.centroid_enu_m,
@@ -209,14 +231,10 @@ impl FrontierService {
         let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
         let Some(chosen) = choose(request.allocator, &me, &just, &others) else {
             self.claims.remove(&request.drone);
-            return Ok(Allocation::Done {
-                frontiers: open.len(),
-            });
+            return Ok(Allocation::Done { frontiers: left });
         };
         let Some(&(candidate, goal_index)) = candidates.get(chosen) else {
-            return Ok(Allocation::Done {
-                frontiers: open.len(),
-            });
+            return Ok(Allocation::Done { frontiers: left });
         };
         let z = request.flight_height_m;
         let path: Vec<Vec3> = reach
@@ -236,7 +254,7 @@ impl FrontierService {
         Ok(Allocation::Goal {
             goal_enu_m: goal,
             path_enu_m: if path.is_empty() { vec![goal] } else { path },
-            frontiers: open.len(),
+            frontiers: left,
         })
     }
 
@@ -326,6 +344,46 @@ mod tests {
         let later = t + CLAIM_TTL + Duration::from_secs(1);
         let b2 = s.answer(later, &grid, &ask("b", 2.0, 2.0)).unwrap();
         assert!((goal_of(&b2) - ga).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_pocket_is_flown_to_only_from_nearby() {
+        // 20 x 10 m known free but for a 0.5 x 0.5 m unknown pocket around (15.25, 5.05).
+        let spec = GridSpec {
+            resolution_m: 0.1,
+            width_cells: 200,
+            height_cells: 100,
+            origin_enu_m: Vector2::zeros(),
+        };
+        let data = (0..100)
+            .flat_map(|y| {
+                (0..200).map(move |x| {
+                    let pocket = (150..155).contains(&x) && (48..53).contains(&y);
+                    if pocket {
+                        UNKNOWN
+                    } else {
+                        0
+                    }
+                })
+            })
+            .collect();
+        let grid = OccupancyGrid::from_data(spec, data).unwrap();
+        let with_gain = |mut r: ExploreRequest| {
+            r.space.min_gain_cells = 50;
+            r
+        };
+        let t = Duration::from_secs(1);
+        let mut s = FrontierService::new();
+        let far = s.answer(t, &grid, &with_gain(ask("a", 2.0, 5.0))).unwrap();
+        assert_eq!(far, Allocation::Done { frontiers: 0 });
+        let near = s
+            .answer(t, &grid, &with_gain(ask("a", 15.25, 3.6)))
+            .unwrap();
+        assert!((goal_of(&near).xy() - Vector2::new(15.25, 5.05)).norm() < 1.5);
+        // Without the least gain the pocket is a frontier like any other, from anywhere.
+        let mut s = FrontierService::new();
+        let any = s.answer(t, &grid, &ask("a", 2.0, 5.0)).unwrap();
+        assert!((goal_of(&any).xy() - Vector2::new(15.25, 5.05)).norm() < 1.5);
     }
 
     #[test]

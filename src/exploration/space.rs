@@ -36,6 +36,10 @@ pub struct SpaceParams {
     pub split_cells: usize,
     /// Cells at or above this value are obstacles.
     pub occupied_threshold: i8,
+    /// Frontiers with fewer unknown cells behind them (the unknown region they border, counted
+    /// up to this many) are marked `low_gain`: a pocket behind a pole or in a corner that a
+    /// visit could add only this little to. 0: none is.
+    pub min_gain_cells: usize,
 }
 
 impl Default for SpaceParams {
@@ -46,6 +50,7 @@ impl Default for SpaceParams {
             min_final_cells: 15,
             split_cells: 35,
             occupied_threshold: crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD,
+            min_gain_cells: 0,
         }
     }
 }
@@ -74,6 +79,8 @@ pub struct Frontier {
     pub goal_enu_m: Vector2<f64>,
     /// Shorter than `min_cells`: explored only once no longer frontier is left.
     pub small: bool,
+    /// Borders fewer than `min_gain_cells` unknown cells: a small enclosed pocket.
+    pub low_gain: bool,
 }
 
 /// The navigable cells and the frontiers of one grid.
@@ -216,18 +223,65 @@ impl Space {
             self.spec.width_cells as usize,
             self.spec.height_cells as usize,
         );
-        self.frontiers = components(&self.frontier, w, h)
+        let components = components(&self.frontier, w, h);
+        self.frontiers = components
             .into_iter()
             .filter(|c| c.len() >= self.params.min_final_cells.min(self.params.min_cells))
             .flat_map(|c| {
                 let small = c.len() < self.params.min_cells;
+                let gain = self.params.min_gain_cells;
+                let low_gain = gain > 0 && self.unknown_behind(&c, gain) < gain;
                 let mut parts = split(c, &self.spec, self.params.split_cells);
                 for p in &mut parts {
                     p.small = small;
+                    p.low_gain = low_gain;
                 }
                 parts
             })
             .collect();
+    }
+
+    /// How many unknown cells the frontier `cells` borders, counted up to `cap`: the unknown
+    /// cells within the safety distance (plus one cell) of it and every unknown cell 8-connected
+    /// to those. One-cell gaps between rays count too, so this errs on the side of exploring.
+    fn unknown_behind(&self, cells: &[usize], cap: usize) -> usize {
+        let (w, h) = (
+            self.spec.width_cells as usize,
+            self.spec.height_cells as usize,
+        );
+        let r = (self.safety_cells + 1) as i64;
+        let unknown = |x: i64, y: i64| {
+            x >= 0
+                && y >= 0
+                && (x as usize) < w
+                && (y as usize) < h
+                && self.data[y as usize * w + x as usize] == UNKNOWN
+        };
+        let mut seen = std::collections::HashSet::new();
+        let mut stack = Vec::new();
+        for &i in cells {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    if unknown(x + dx, y + dy) && seen.insert((x + dx, y + dy)) {
+                        stack.push((x + dx, y + dy));
+                    }
+                }
+            }
+        }
+        while let Some((x, y)) = stack.pop() {
+            if seen.len() >= cap {
+                break;
+            }
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    if unknown(x + dx, y + dy) && seen.insert((x + dx, y + dy)) {
+                        stack.push((x + dx, y + dy));
+                    }
+                }
+            }
+        }
+        seen.len().min(cap)
     }
 
     pub fn spec(&self) -> &GridSpec {
@@ -434,6 +488,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
                 goal_index,
                 goal_enu_m: center(goal_index),
                 small: false,
+                low_gain: false,
             })
         })
         .collect()
@@ -471,6 +526,42 @@ pub(crate) mod tests {
             .flat_map(|y| (0..w).map(move |x| (x, y)))
             .map(|(x, y)| f(x, y));
         OccupancyGrid::from_data(spec, data.collect()).unwrap()
+    }
+
+    #[test]
+    fn a_frontier_around_a_small_unknown_pocket_is_low_gain_and_one_at_open_unknown_is_not() {
+        // 100 x 60 cells: x >= 80 unknown (open), a 5 x 5 unknown pocket at (30..35, 28..33),
+        // the rest known free.
+        let g = grid(100, 60, |x, y| {
+            if x >= 80 || ((30..35).contains(&x) && (28..33).contains(&y)) {
+                UNKNOWN
+            } else {
+                0
+            }
+        });
+        let params = SpaceParams {
+            min_gain_cells: 50,
+            ..SpaceParams::default()
+        };
+        let space = Space::new(&g, &params);
+        let near_pocket =
+            |f: &&Frontier| (f.centroid_enu_m - Vector2::new(3.25, 3.05)).norm() < 1.0;
+        let pocket: Vec<_> = space.frontiers.iter().filter(near_pocket).collect();
+        let open: Vec<_> = space
+            .frontiers
+            .iter()
+            .filter(|f| f.centroid_enu_m.x > 7.0)
+            .collect();
+        assert!(
+            !pocket.is_empty() && !open.is_empty(),
+            "{:?}",
+            space.frontiers
+        );
+        assert!(pocket.iter().all(|f| f.low_gain), "{pocket:?}");
+        assert!(open.iter().all(|f| !f.low_gain), "{open:?}");
+        // With no least gain, nothing is low gain.
+        let all = Space::new(&g, &SpaceParams::default());
+        assert!(all.frontiers.iter().all(|f| !f.low_gain));
     }
 
     #[test]
