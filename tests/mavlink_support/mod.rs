@@ -3,6 +3,8 @@
 //! records the fake's true state.
 #![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
 
+pub mod room;
+
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
