@@ -326,6 +326,7 @@ async fn serve_vehicles(
         None => Vec::new(),
     };
     println!("flight log {}", log_path.display());
+    let between_ticks = join_fleet_bus(config, &mut host).await?;
     let options = ServeOptions {
         listener,
         token,
@@ -339,9 +340,66 @@ async fn serve_vehicles(
         exit_when_done: args.exit_when_done,
         max_time: (args.exit_when_done || args.no_api)
             .then(|| Duration::from_secs_f64(args.max_time_s.max(1.0))),
+        between_ticks,
     };
     let outcome = crate::cli_serve::serve(host, options).await?;
     crate::cli_serve::report(&outcome, args.exit_when_done)
+}
+
+/// Opens the fleet bus when `[fleet] enabled`: the session is opened now (a bad configuration
+/// stops the start), peers are reached in the background, and the control loop exchanges with
+/// it between ticks.
+#[cfg(feature = "fleet-bus")]
+async fn join_fleet_bus(
+    config: &Config,
+    host: &mut kestrel::host::Host,
+) -> Result<Option<kestrel::host::runtime::BetweenTicks>> {
+    use kestrel::fleet_bus::node::{start, NodeConfig};
+    use kestrel::fleet_bus::remote::SilencePolicy;
+    use kestrel::host::bus_link::BusLink;
+    let fleet = &config.fleet;
+    if !fleet.enabled {
+        return Ok(None);
+    }
+    let node = fleet.node_name(&host.drone_ids());
+    if fleet.credentials_file.is_none() {
+        tracing::warn!(
+            "fleet bus without `credentials_file`: anyone on the network can join fleet `{}`",
+            fleet.name
+        );
+    }
+    let port = start(NodeConfig {
+        section: fleet.clone(),
+        node: node.clone(),
+        max_map_cells: host.map_cells(),
+    })
+    .await?;
+    host.enable_fleet_bus(SilencePolicy {
+        peer_timeout: Duration::from_secs_f64(fleet.peer_timeout_s),
+        max_speed_mps: config.controller.max_horizontal_speed_mps,
+        keepout_cap_m: fleet.silent_keepout_m,
+    });
+    println!(
+        "fleet bus: fleet `{}` as node `{node}`, listening on [{}], connecting to [{}]",
+        fleet.name,
+        fleet.listen.join(", "),
+        fleet.connect.join(", ")
+    );
+    let mut link = BusLink::new(port, fleet, node);
+    Ok(Some(Box::new(move |host: &mut kestrel::host::Host| {
+        link.exchange(host)
+    })))
+}
+
+#[cfg(not(feature = "fleet-bus"))]
+async fn join_fleet_bus(
+    config: &Config,
+    _host: &mut kestrel::host::Host,
+) -> Result<Option<kestrel::host::runtime::BetweenTicks>> {
+    if config.fleet.enabled {
+        anyhow::bail!("[fleet] enabled, but this kestrel was built without the fleet bus (cargo feature `fleet-bus`)");
+    }
+    Ok(None)
 }
 
 /// How long past the profile's readiness timeout the demo waits for the vehicle.

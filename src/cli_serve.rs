@@ -30,6 +30,8 @@ pub struct ServeOptions {
     pub exit_when_done: bool,
     /// Stop after this long in any case (host time); `None`: run until interrupted.
     pub max_time: Option<Duration>,
+    /// Run by the control loop between ticks (the fleet bus).
+    pub between_ticks: Option<kestrel::host::runtime::BetweenTicks>,
 }
 
 /// The API address (`--listen`, else the config's `[api] listen`) and token
@@ -280,6 +282,7 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
     let max_time = options.max_time;
     let store = host.store().cloned();
     let mut rt = RuntimeOptions::new(options.pace);
+    rt.between_ticks = options.between_ticks.take();
     if options.exit_when_done || max_time.is_some() {
         let flights = flights.clone();
         let when_done = options.exit_when_done;

@@ -250,6 +250,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         max_time: args
             .exit_when_done
             .then(|| Duration::from_secs_f64(args.max_sim_time_s)),
+        between_ticks: None,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -171,6 +171,8 @@ impl DroneCore {
             goal_enu_m: motion.and_then(|(_, goal)| goal),
             stamp,
             local: true,
+            uncertainty_m: 0.0,
+            silent: false,
         }
     }
 

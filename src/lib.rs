@@ -20,6 +20,7 @@ pub mod control;
 pub mod core;
 pub mod estimator;
 pub mod exploration;
+pub mod fleet_bus;
 pub mod flightlog;
 pub mod host;
 pub mod mapping;

@@ -72,6 +72,7 @@ impl ApiError {
                 HostError::NotSupported(_) => (StatusCode::BAD_REQUEST, "not_supported"),
                 HostError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
                 HostError::AlreadyLanded(_) => (StatusCode::CONFLICT, "already_landed"),
+                HostError::RemoteDrone { .. } => (StatusCode::CONFLICT, "remote_drone"),
                 HostError::Behavior(b) => match b {
                     ServerError::UnknownBehavior(_) => (StatusCode::NOT_FOUND, "unknown_behavior"),
                     ServerError::Rejected { reason, .. } => {

@@ -52,6 +52,12 @@ pub struct Health {
 pub struct StatusAnswer {
     pub t: f64,
     pub drones: Vec<DroneStatus>,
+    /// Drones other Kestrels of the fleet fly (heard over the fleet bus); absent without a bus.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub remote: Vec<crate::fleet_bus::remote::RemoteDroneStatus>,
+    /// The fleet bus's traffic and latency; absent without a bus.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fleet_bus: Option<crate::host::status::BusReport>,
 }
 
 #[utoipa::path(get, path = "/api/health", tag = "system",
@@ -74,6 +80,8 @@ pub async fn status(State(s): State<ApiState>) -> Json<StatusAnswer> {
     Json(StatusAnswer {
         t: snap.t,
         drones: snap.drones.clone(),
+        remote: snap.remote.clone(),
+        fleet_bus: snap.fleet_bus.clone(),
     })
 }
 

@@ -109,7 +109,12 @@ fn telemetry_frame(snap: &crate::host::HostSnapshot) -> Value {
             v
         })
         .collect();
-    json!({"type": "telemetry", "t": snap.t, "drones": drones})
+    let mut frame = json!({"type": "telemetry", "t": snap.t, "drones": drones});
+    // Drones other Kestrels fly, heard over the fleet bus (only when there are any).
+    if !snap.remote.is_empty() {
+        frame["remote"] = serde_json::to_value(&snap.remote).unwrap_or(Value::Null);
+    }
+    frame
 }
 
 fn event_frame(e: &HostEvent) -> Value {

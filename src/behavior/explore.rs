@@ -400,7 +400,8 @@ impl Explore {
     fn watched_others<'a>(&self, ctx: &BehaviorContext<'a>) -> Vec<Watched<'a>> {
         ctx.fleet
             .others(ctx.drone_id)
-            .filter(|d| d.flying)
+            // A silent remote drone cannot give way in turn: the safety stage keeps away from it.
+            .filter(|d| d.flying && !d.silent)
             .map(|d| Watched {
                 id: &d.id,
                 position_enu_m: [d.position_enu_m.x, d.position_enu_m.y, d.position_enu_m.z],

@@ -26,8 +26,15 @@ pub struct DroneView {
     pub goal_enu_m: Option<Vec3>,
     /// When this state was taken (host time).
     pub stamp: Duration,
-    /// Flown by this Kestrel (false: heard from another one).
+    /// Flown by this Kestrel (false: heard from another one over the fleet bus).
     pub local: bool,
+    /// How far the drone may be from `position_enu_m` (m): 0 for this Kestrel's drones; for a
+    /// remote one, how far it could have flown since it was heard (capped).
+    pub uncertainty_m: f64,
+    /// A remote drone whose Kestrel has not been heard for longer than `[fleet] peer_timeout_s`:
+    /// it cannot take part in decisions that need both sides (the drone watcher), only be kept
+    /// away from.
+    pub silent: bool,
 }
 
 /// What a core gets from its fleet each tick: the view (shared by every core of the host) and
@@ -79,6 +86,8 @@ mod tests {
             goal_enu_m: None,
             stamp: Duration::ZERO,
             local: true,
+            uncertainty_m: 0.0,
+            silent: false,
         }
     }
 

@@ -1,6 +1,6 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
-//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`, and the `[[vehicle]]`
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`, `[fleet]`, and the `[[vehicle]]`
 //! list (several autopilots on one host; without it, `[drone]` over `[mavlink]` is the one).
 
 pub mod bounds;
@@ -31,6 +31,8 @@ pub struct Config {
     pub mission: MissionSection,
     pub map: crate::mapping::config::MapSection,
     pub safety: SafetySection,
+    /// `[fleet]`: the bus to other Kestrels (off by default).
+    pub fleet: crate::fleet_bus::config::FleetSection,
     /// `[[vehicle]]` entries: several autopilots flown by `kestrel run`; empty = one vehicle,
     /// `[drone] id` over `[mavlink]`.
     #[serde(rename = "vehicle", skip_serializing_if = "Vec::is_empty")]
@@ -242,6 +244,15 @@ pub enum ConfigError {
 }
 
 impl Config {
+    /// The ids of the drones this config flies: the `[[vehicle]]` list's, or `[drone] id`.
+    pub fn drone_ids(&self) -> Vec<String> {
+        if self.vehicles.is_empty() {
+            vec![self.drone.id.clone()]
+        } else {
+            self.vehicles.iter().map(|v| v.id.clone()).collect()
+        }
+    }
+
     /// What the safety stage enforces in flight.
     pub fn safety_config(&self) -> SafetyConfig {
         SafetyConfig {
@@ -326,6 +337,7 @@ impl Config {
         }
         self.validate_controller()?;
         vehicles::validate(&self.vehicles, &self.mavlink)?;
+        self.fleet.validate(&self.drone_ids())?;
         let b = &self.behaviors;
         positive("behaviors.goal_threshold_m", b.goal_threshold_m, 10.0, "m")?;
         positive(

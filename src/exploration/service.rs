@@ -35,6 +35,9 @@ const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
 const LOW_GAIN_NEAR_M: f64 = 3.0;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
+/// Two goals this close are one frontier: a drone does not take one a remote drone with a
+/// smaller id holds (m).
+const CONFLICT_RADIUS_M: f64 = 1.5;
 
 /// One drone's question.
 #[derive(Debug, Clone, PartialEq)]
@@ -110,6 +113,8 @@ struct GivenUp {
 struct Claim {
     goal: Vector2<f64>,
     stamp: Duration,
+    /// Held by a drone another Kestrel flies (heard over the fleet bus).
+    remote: bool,
 }
 
 /// The allocator's memory between requests.
@@ -199,12 +204,27 @@ impl FrontierService {
             .iter()
             .zip(&paths)
             .any(|(f, p)| p.is_some() && !f.small);
+        // Two Kestrels may give one frontier to two drones at once (each allocates for its own
+        // drones, and hears the other's claim a moment later): the drone with the larger id
+        // leaves it, so both sides settle the same way without talking again.
+        let yielded: Vec<Vector2<f64>> = self
+            .claims
+            .iter()
+            .filter(|(id, c)| c.remote && **id < request.drone)
+            .map(|(_, c)| c.goal)
+            .collect();
         let candidates: Vec<(Candidate, usize)> = open
             .iter()
             .zip(&paths)
             .filter_map(|(f, p)| {
                 let path_m = (*p)?;
                 if f.small && !only_small {
+                    return None;
+                }
+                if yielded
+                    .iter()
+                    .any(|g| (g - f.goal_enu_m).norm() < CONFLICT_RADIUS_M)
+                {
                     return None;
                 }
                 Some((
@@ -248,6 +268,7 @@ impl FrontierService {
             Claim {
                 goal: candidate.goal_enu_m,
                 stamp: now,
+                remote: false,
             },
         );
         let goal = Vec3::new(candidate.goal_enu_m.x, candidate.goal_enu_m.y, z);
@@ -256,6 +277,29 @@ impl FrontierService {
             path_enu_m: if path.is_empty() { vec![goal] } else { path },
             frontiers: left,
         })
+    }
+
+    /// The goals drones of other Kestrels hold, as last heard (`drone`, goal ENU m, when heard):
+    /// treated as this host's own drones' claims, and lapse the same way when not heard again.
+    pub fn set_remote_claims(&mut self, claims: &[(Arc<str>, [f64; 2], Duration)]) {
+        for (drone, goal, heard) in claims {
+            if self.claims.get(drone).is_some_and(|c| !c.remote) {
+                continue;
+            }
+            self.claims.insert(
+                drone.clone(),
+                Claim {
+                    goal: Vector2::new(goal[0], goal[1]),
+                    stamp: *heard,
+                    remote: true,
+                },
+            );
+        }
+    }
+
+    /// The goal one drone holds, if any.
+    pub fn claim_of(&self, drone: &str) -> Option<[f64; 2]> {
+        self.claims.get(drone).map(|c| [c.goal.x, c.goal.y])
     }
 
     /// The frontiers as last read, for operators.
@@ -344,6 +388,34 @@ mod tests {
         let later = t + CLAIM_TTL + Duration::from_secs(1);
         let b2 = s.answer(later, &grid, &ask("b", 2.0, 2.0)).unwrap();
         assert!((goal_of(&b2) - ga).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_remote_claim_is_kept_from_drones_with_larger_ids_and_lapses_unheard() {
+        let grid = half_known();
+        let t = Duration::from_secs(1);
+        // What `b` alone would get.
+        let alone = goal_of(
+            &FrontierService::new()
+                .answer(t, &grid, &ask("b", 2.0, 2.0))
+                .unwrap(),
+        );
+        let taken: Arc<str> = "a".into();
+        let mut s = FrontierService::new();
+        s.set_remote_claims(&[(taken.clone(), [alone.x, alone.y], t)]);
+        let b = goal_of(&s.answer(t, &grid, &ask("b", 2.0, 2.0)).unwrap());
+        assert!(
+            (b - alone).xy().norm() >= CONFLICT_RADIUS_M,
+            "{b:?} {alone:?}"
+        );
+        assert_eq!(s.claim_of("a"), Some([alone.x, alone.y]));
+        // Not heard again, the claim lapses like a local one.
+        let mut s = FrontierService::new();
+        s.set_remote_claims(&[(taken, [alone.x, alone.y], t)]);
+        let later = t + CLAIM_TTL + Duration::from_secs(1);
+        let b = goal_of(&s.answer(later, &grid, &ask("b", 2.0, 2.0)).unwrap());
+        assert!((b - alone).norm() < 1e-9);
+        assert_eq!(s.claim_of("a"), None);
     }
 
     #[test]

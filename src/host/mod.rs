@@ -6,6 +6,8 @@
 //! slow reader can only lag on), the flight log, the persisted missions, and systemd
 //! READY/WATCHDOG notifications from the control loop.
 
+#[cfg(feature = "fleet-bus")]
+pub mod bus_link;
 pub mod coverage;
 pub mod demo;
 pub mod engine;

@@ -46,7 +46,12 @@ pub struct RuntimeOptions {
     pub publish_period: Duration,
     /// Checked after every step: true ends the loop (e.g. `--exit-when-done`).
     pub stop_when: Option<StopWhen>,
+    /// Run after every tick (or batch), never waiting: the fleet bus's exchange.
+    pub between_ticks: Option<BetweenTicks>,
 }
+
+/// Work the loop does between ticks, with the host.
+pub type BetweenTicks = Box<dyn FnMut(&mut Host) + Send>;
 
 impl RuntimeOptions {
     pub fn new(pace: Pace) -> Self {
@@ -56,6 +61,7 @@ impl RuntimeOptions {
             event_capacity: 1024,
             publish_period: Duration::from_millis(20),
             stop_when: None,
+            between_ticks: None,
         }
     }
 }
@@ -485,6 +491,9 @@ async fn control_loop(
                 stop
             }
         };
+        if let Some(f) = options.between_ticks.as_mut() {
+            f(&mut host);
+        }
         publisher.publish(&mut host);
         watchdog.ping();
         if stop {

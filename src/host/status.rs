@@ -103,6 +103,35 @@ pub struct HostSnapshot {
     /// Seconds since the host started (simulated time in the simulator).
     pub t: f64,
     pub drones: Vec<DroneStatus>,
+    /// The drones other Kestrels of the fleet fly, as heard over the fleet bus (no commands:
+    /// those go to their own Kestrel).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub remote: Vec<crate::fleet_bus::remote::RemoteDroneStatus>,
+    /// The fleet bus, when this Kestrel is on one (refreshed once a second).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fleet_bus: Option<BusReport>,
+}
+
+/// The fleet bus as the API shows it: traffic since start, refusals, and the latency from a
+/// peer sending a state to this Kestrel taking it in (its fleet view has it at the next tick).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct BusReport {
+    pub fleet: String,
+    pub node: String,
+    pub state_sent: u64,
+    pub state_sent_bytes: u64,
+    pub map_sent: u64,
+    pub map_sent_bytes: u64,
+    pub received: u64,
+    pub received_bytes: u64,
+    /// Peer messages that did not decode, check or apply.
+    pub refused: u64,
+    /// Messages not queued because a queue was full.
+    pub dropped: u64,
+    /// Over the last states received (at most 2048).
+    pub latency_samples: usize,
+    pub latency_p50_ms: Option<f64>,
+    pub latency_p99_ms: Option<f64>,
 }
 
 /// Something that happened, for WebSocket clients and logs.

@@ -59,8 +59,53 @@ impl LayeredMap {
     /// Inserts a drone's scan into its layer and re-fuses the changed cells. Returns the changed
     /// box of the global grid (`None` if nothing changed).
     pub fn insert(&mut self, drone: &str, scan: &RangeScan) -> Result<Option<CellBox>, MapError> {
+        Ok(self.insert_both(drone, scan)?.1)
+    }
+
+    /// As [`Self::insert`], returning the changed box of the drone's layer as well:
+    /// `(layer, global)`.
+    pub fn insert_both(
+        &mut self,
+        drone: &str,
+        scan: &RangeScan,
+    ) -> Result<(Option<CellBox>, Option<CellBox>), MapError> {
         let params = self.params;
         let changed = self.layer_mut(drone)?.insert_scan(scan, &params)?;
+        Ok((changed, changed.and_then(|b| self.refuse(b))))
+    }
+
+    /// Writes a region of a drone's layer (row-major `cells` from `region.min`, on the global
+    /// spec) and re-fuses the cells that changed. Returns the changed box of the global grid.
+    pub fn set_region(
+        &mut self,
+        drone: &str,
+        region: CellBox,
+        cells: &[i8],
+    ) -> Result<Option<CellBox>, MapError> {
+        let full = self.global.spec().full_box();
+        let w = region.width_cells() as usize;
+        if region.intersect(full) != Some(region)
+            || cells.len() != w * region.height_cells() as usize
+        {
+            return Err(MapError::InvalidSpec(
+                "a layer region must lie inside the grid and match its cells".into(),
+            ));
+        }
+        let layer = self.layer_mut(drone)?;
+        let mut changed: Option<CellBox> = None;
+        for (k, &v) in cells.iter().enumerate() {
+            let c = Cell {
+                x: region.min.x + (k % w) as u32,
+                y: region.min.y + (k / w) as u32,
+            };
+            if layer.get(c) != Some(v) {
+                layer.set(c, v)?;
+                match changed.as_mut() {
+                    Some(b) => b.include(c),
+                    None => changed = Some(CellBox::of_cell(c)),
+                }
+            }
+        }
         Ok(changed.and_then(|b| self.refuse(b)))
     }
 

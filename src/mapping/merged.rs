@@ -12,7 +12,7 @@ use nalgebra::Vector2;
 use serde::Serialize;
 
 use super::config::MapConfig;
-use super::grid::{CellBox, GridSpec, OccupancyGrid};
+use super::grid::{Cell, CellBox, GridSpec, OccupancyGrid};
 use super::layers::LayeredMap;
 use super::scan::RangeScan;
 use super::MapError;
@@ -39,6 +39,19 @@ pub struct FleetMap {
     layers: LayeredMap,
     pending: BTreeMap<String, CellBox>,
     update_period: Duration,
+    /// This host's drones' layer regions not yet sent on the fleet bus (`None`: no bus).
+    bus_pending: Option<BTreeMap<String, CellBox>>,
+}
+
+/// A region of one drone's layer, as the fleet bus carries it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LayerRegion {
+    pub drone: String,
+    /// The grid the region belongs to (the merged map's).
+    pub grid: GridSpec,
+    pub region: CellBox,
+    /// Row-major from `region.min`.
+    pub cells: Vec<i8>,
 }
 
 impl FleetMap {
@@ -52,6 +65,7 @@ impl FleetMap {
             layers,
             pending: BTreeMap::new(),
             update_period: config.update_period,
+            bus_pending: None,
         })
     }
 
@@ -62,9 +76,12 @@ impl FleetMap {
 
     /// Inserts one of `drone`'s scans into its layer and the merged grid.
     pub fn insert(&mut self, drone: &str, scan: &RangeScan) -> Result<(), MapError> {
-        if let Some(changed) = self.layers.insert(drone, scan)? {
-            let slot = self.pending.entry(drone.to_string()).or_insert(changed);
-            *slot = slot.union(changed);
+        let (layer, global) = self.layers.insert_both(drone, scan)?;
+        if let Some(changed) = global {
+            add(&mut self.pending, drone, changed);
+        }
+        if let (Some(bus), Some(changed)) = (self.bus_pending.as_mut(), layer) {
+            add(bus, drone, changed);
         }
         Ok(())
     }
@@ -83,8 +100,92 @@ impl FleetMap {
         region: CellBox,
     ) -> Result<(), MapError> {
         if let Some(changed) = self.layers.copy_region(drone, own, region)? {
-            let slot = self.pending.entry(drone.to_string()).or_insert(changed);
-            *slot = slot.union(changed);
+            add(&mut self.pending, drone, changed);
+        }
+        if let Some(bus) = self.bus_pending.as_mut() {
+            if let Some(r) = region.intersect(self.layers.global.spec().full_box()) {
+                add(bus, drone, r);
+            }
+        }
+        Ok(())
+    }
+
+    /// From now on, keeps the regions this host's drones change for the fleet bus.
+    pub fn enable_bus(&mut self) {
+        self.bus_pending.get_or_insert_with(BTreeMap::new);
+    }
+
+    /// The regions of this host's drones' layers changed since the last call.
+    pub fn take_bus_regions(&mut self) -> Vec<LayerRegion> {
+        let pending = self
+            .bus_pending
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default();
+        pending
+            .into_iter()
+            .filter_map(|(drone, region)| self.layer_region(&drone, region))
+            .collect()
+    }
+
+    /// The known part of a drone's layer (its bounding box), to send whole.
+    pub fn keyframe(&self, drone: &str) -> Option<LayerRegion> {
+        let layer = self.layers.layers.get(drone)?;
+        let spec = layer.spec();
+        let w = spec.width_cells as usize;
+        let mut known: Option<CellBox> = None;
+        for (i, _) in layer
+            .data()
+            .iter()
+            .enumerate()
+            .filter(|(_, &v)| v != super::UNKNOWN)
+        {
+            let c = Cell {
+                x: (i % w) as u32,
+                y: (i / w) as u32,
+            };
+            match known.as_mut() {
+                Some(b) => b.include(c),
+                None => known = Some(CellBox::of_cell(c)),
+            }
+        }
+        self.layer_region(drone, known?)
+    }
+
+    fn layer_region(&self, drone: &str, region: CellBox) -> Option<LayerRegion> {
+        let layer = self.layers.layers.get(drone)?;
+        let patch = layer.patch(region)?;
+        Some(LayerRegion {
+            drone: drone.to_string(),
+            grid: *layer.spec(),
+            region: patch.region,
+            cells: patch.data,
+        })
+    }
+
+    /// Writes a region of another Kestrel's drone's layer, heard on the fleet bus. The region
+    /// must be on this map's grid (every node of a fleet maps on the same `[map]` grid).
+    pub fn apply_remote(&mut self, region: &LayerRegion) -> Result<(), MapError> {
+        if region.grid != *self.layers.global.spec() {
+            return Err(MapError::InvalidSpec(format!(
+                "the peer maps on a {} x {} grid of {} m at ({}, {}); this Kestrel's is {} x {} of {} m at ({}, {}): give every node the same [map] section",
+                region.grid.width_cells,
+                region.grid.height_cells,
+                region.grid.resolution_m,
+                region.grid.origin_enu_m.x,
+                region.grid.origin_enu_m.y,
+                self.layers.global.spec().width_cells,
+                self.layers.global.spec().height_cells,
+                self.layers.global.spec().resolution_m,
+                self.layers.global.spec().origin_enu_m.x,
+                self.layers.global.spec().origin_enu_m.y,
+            )));
+        }
+        if let Some(changed) =
+            self.layers
+                .set_region(&region.drone, region.region, &region.cells)?
+        {
+            add(&mut self.pending, &region.drone, changed);
         }
         Ok(())
     }
@@ -141,10 +242,14 @@ impl FleetMap {
     }
 }
 
+fn add(pending: &mut BTreeMap<String, CellBox>, drone: &str, changed: CellBox) {
+    let slot = pending.entry(drone.to_string()).or_insert(changed);
+    *slot = slot.union(changed);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mapping::grid::Cell;
     use crate::mapping::scan::Beam;
     use nalgebra::Vector3;
     use std::sync::Arc;
@@ -221,5 +326,40 @@ mod tests {
         assert!(by_copy
             .copy_from_drone("drone_0", other.grid(), other.grid().spec().full_box())
             .is_err());
+    }
+
+    #[test]
+    fn layers_sent_over_the_bus_give_the_peer_the_same_merged_map() {
+        let config = MapConfig::open_field().unwrap();
+        let mut here = FleetMap::new(&config).unwrap();
+        let mut there = FleetMap::new(&config).unwrap();
+        here.enable_bus();
+        there.enable_bus();
+        here.insert("drone_0", &scan_from(0.05, 0.05, 1.0)).unwrap();
+        there
+            .insert("drone_1", &scan_from(0.05, 5.05, 2.0))
+            .unwrap();
+        for r in here.take_bus_regions() {
+            there.apply_remote(&r).unwrap();
+        }
+        for r in there.take_bus_regions() {
+            assert_eq!(r.drone, "drone_1", "only its own drones' regions go out");
+            here.apply_remote(&r).unwrap();
+        }
+        assert_eq!(here.merged(), there.merged());
+        assert!(here.take_bus_regions().is_empty() && there.take_bus_regions().is_empty());
+        // A keyframe repairs a peer that missed regions: it carries everything known.
+        let mut late = FleetMap::new(&config).unwrap();
+        here.insert("drone_0", &scan_from(3.05, 3.05, 2.5)).unwrap();
+        late.apply_remote(&here.keyframe("drone_0").unwrap())
+            .unwrap();
+        late.apply_remote(&there.keyframe("drone_1").unwrap())
+            .unwrap();
+        assert_eq!(late.merged(), here.merged());
+        // A region on another grid is refused with both grids named.
+        let mut other = here.keyframe("drone_0").unwrap();
+        other.grid.resolution_m = 0.2;
+        let err = late.apply_remote(&other).unwrap_err().to_string();
+        assert!(err.contains("same [map] section"), "{err}");
     }
 }

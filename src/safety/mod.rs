@@ -180,8 +180,12 @@ impl SafetyStage {
     ) -> Option<(Setpoint, OverrideKind, String)> {
         let here = state.pose.position_m;
         let min = self.config.min_separation_m;
-        let guard = 2.0 * min;
+        // A remote drone may be up to its uncertainty nearer than where it was heard.
         let (other, d) = fleet.nearest_flying(me, &here)?;
+        let d = d - other.uncertainty_m;
+        // From a silent one, whose uncertainty already holds everywhere it could have gone,
+        // only the separation itself is kept (no slowing margin on top).
+        let guard = if other.silent { min } else { 2.0 * min };
         if d >= guard {
             return None;
         }
@@ -205,8 +209,10 @@ impl SafetyStage {
         if closing > 0.0 {
             v += away * closing;
         }
-        if d < min {
-            v += away * (min - d);
+        // Pushed apart only from a drone heard now: from a silent one's last position, pushing
+        // could as well be toward it.
+        if d < min && !other.silent {
+            v += away * (min - d).min(min);
         }
         let why = format!("{:.2} m from {}: keeping at least {min:.1} m", d, other.id);
         Some((

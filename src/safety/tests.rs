@@ -38,6 +38,8 @@ fn drone(id: &str, x: f64, y: f64) -> DroneView {
         goal_enu_m: None,
         stamp: Duration::ZERO,
         local: true,
+        uncertainty_m: 0.0,
+        silent: false,
     }
 }
 
@@ -173,6 +175,46 @@ fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
         Some(Setpoint::Velocity {
             velocity_enu_mps, ..
         }) => assert!(velocity_enu_mps.x < -0.3),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_silent_remote_drone_is_kept_away_from_by_where_it_could_be() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    // Heard 2.2 m away: outside the 2 m guard of a drone heard now.
+    let mut other = drone("other", 2.2, 0.0);
+    other.local = false;
+    let toward = |stage: &mut SafetyStage, fleet: &FleetView| {
+        stage.check(
+            "me",
+            &at(0.0, 0.0, 2.0),
+            Vec3::zeros(),
+            true,
+            Some(velocity(1.0, 0.0, 0.0)),
+            fleet,
+        )
+    };
+    let fresh = FleetView {
+        drones: vec![other.clone()],
+    };
+    assert_eq!(
+        toward(&mut stage, &fresh).1,
+        None,
+        "heard now: free to approach"
+    );
+    // Silent, and possibly 1.5 m nearer: no closing in, and no push that could be toward it.
+    other.silent = true;
+    other.uncertainty_m = 1.5;
+    let silent = FleetView {
+        drones: vec![other],
+    };
+    let (out, o) = toward(&mut stage, &silent);
+    assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Separation));
+    match out {
+        Some(Setpoint::Velocity {
+            velocity_enu_mps, ..
+        }) => assert!(velocity_enu_mps.norm() < 1e-9, "{velocity_enu_mps}"),
         other => panic!("{other:?}"),
     }
 }

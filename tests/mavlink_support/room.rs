@@ -9,8 +9,8 @@ use kestrel::types::Vec3;
 use serde_json::Value;
 use std::time::{Duration, Instant};
 
-/// The rooms' inside faces of the walls (m, ENU, both axes).
-pub const ROOM_HALF_M: f64 = 5.0;
+/// The rooms' outer walls are this thick, inside the world's bounds (m).
+pub const WALL_M: f64 = 0.2;
 /// The whole exploration, take-off to disarm (wall clock; about 35-70 s here).
 pub const EXPLORATION_TIMEOUT: Duration = Duration::from_secs(150);
 
@@ -40,7 +40,7 @@ pub fn wait_explored(api: &Api, kestrel: &Kestrel, fake: &Fake) -> Value {
     }
 }
 
-/// Known share (%) of the room's floor outside the poles, and the obstacle cells of the map
+/// Known share (%) of the room's floor (inside its outer walls, outside every obstacle), and the obstacle cells of the map
 /// farther than `tolerance_m` from every true obstacle.
 pub fn judge_map(map: &Value, w: &World, tolerance_m: f64) -> (f64, Vec<[f64; 2]>) {
     let spec = &map["spec"];
@@ -59,7 +59,11 @@ pub fn judge_map(map: &Value, w: &World, tolerance_m: f64) -> (f64, Vec<[f64; 2]
         let x = origin[0] + ((k % width) as f64 + 0.5) * res;
         let y = origin[1] + ((k / width) as f64 + 0.5) * res;
         let d = clearance_m(&shapes, Vec3::new(x, y, 1.0));
-        if x.abs() < ROOM_HALF_M && y.abs() < ROOM_HALF_M && d > 0.0 {
+        let inside = x > w.bounds_m.x[0] + WALL_M
+            && x < w.bounds_m.x[1] - WALL_M
+            && y > w.bounds_m.y[0] + WALL_M
+            && y < w.bounds_m.y[1] - WALL_M;
+        if inside && d > 0.0 {
             floor += 1;
             known += usize::from(v >= 0);
         }

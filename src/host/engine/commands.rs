@@ -248,7 +248,13 @@ impl Host {
                 .cores
                 .iter()
                 .position(|c| c.drone_id() == d)
-                .ok_or_else(|| HostError::UnknownDrone(d.to_string(), self.ids())),
+                .ok_or_else(|| match self.remote_node_of(d) {
+                    Some(node) => HostError::RemoteDrone {
+                        drone: d.to_string(),
+                        node: node.to_string(),
+                    },
+                    None => HostError::UnknownDrone(d.to_string(), self.ids()),
+                }),
             None if self.cores.len() == 1 => Ok(0),
             None => Err(HostError::DroneNeeded(self.ids())),
         }

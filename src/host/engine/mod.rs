@@ -6,6 +6,7 @@
 //! and before a command's answer) and a [`PersistedState`]. It never reads the clock: the
 //! runtime (`host::runtime`) decides when to step, in real or simulated time.
 
+mod bus;
 mod commands;
 mod explore;
 mod maps;
@@ -17,7 +18,7 @@ pub use commands::{
 pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 
 use super::fleet::Fleet;
-use super::status::{link_word, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use super::status::{link_word, BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::{Change, Sink};
 use crate::behavior::fleet::{FleetInput, FleetView};
 use crate::behavior::services::{ExploreJob, ServiceAnswer};
@@ -26,6 +27,7 @@ use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
 use crate::exploration::progress::ExplorationRun;
 use crate::exploration::service::{ExplorationView, ExploreError, FrontierService};
+use crate::fleet_bus::remote::RemoteFleet;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
@@ -63,6 +65,9 @@ pub enum HostError {
     AlreadyLanded(String),
     #[error(transparent)]
     Behavior(#[from] ServerError),
+    /// A drone of the fleet that another Kestrel flies (heard over the fleet bus).
+    #[error("{drone} is flown by the Kestrel `{node}` of the fleet, not this one: send the command to that Kestrel's API")]
+    RemoteDrone { drone: String, node: String },
 }
 
 impl From<FrameError> for HostError {
@@ -119,6 +124,10 @@ pub struct Host {
     committed: Vec<u64>,
     /// `revision` (frames) when last handed to the store.
     frames_committed: u64,
+    /// The drones other Kestrels fly, heard over the fleet bus (`None`: no bus).
+    remote: Option<RemoteFleet>,
+    /// The fleet bus's last report, for the snapshot.
+    bus_report: Option<BusReport>,
 }
 
 impl Host {
@@ -153,6 +162,8 @@ impl Host {
             store: None,
             committed: vec![0; n],
             frames_committed: 0,
+            remote: None,
+            bus_report: None,
         }
     }
 
@@ -308,6 +319,12 @@ impl Host {
 
     pub fn snapshot(&self) -> HostSnapshot {
         HostSnapshot {
+            remote: self
+                .remote
+                .as_ref()
+                .map(|r| r.statuses(self.now))
+                .unwrap_or_default(),
+            fleet_bus: self.bus_report.clone(),
             t: self.now.as_secs_f64(),
             drones: self
                 .cores
@@ -363,8 +380,14 @@ impl Host {
             }
         }
         // One snapshot of the fleet for every core this tick, as the last tick left it.
+        let remote = self.remote.iter().flat_map(|r| r.views(now));
         self.fleet_view = Arc::new(FleetView {
-            drones: self.cores.iter().map(|c| c.fleet_entry(now)).collect(),
+            drones: self
+                .cores
+                .iter()
+                .map(|c| c.fleet_entry(now))
+                .chain(remote)
+                .collect(),
         });
         let view = self.fleet_view.clone();
         for i in 0..self.cores.len() {

@@ -1,0 +1,255 @@
+//! The `[fleet]` section: whether this Kestrel joins a fleet bus, under which fleet name and node
+//! name, where it listens and whom it connects to, how often it publishes, and the credentials
+//! its peers must present.
+//!
+//! In: TOML (unknown keys refused). Out: [`FleetSection::validate`] → `Err((field, message))`
+//! naming the field for a name that cannot be a key (only letters, digits, `-`, `_`), an
+//! endpoint that is not `tcp/HOST:PORT` or `udp/HOST:PORT`, a rate out of bounds, or a bus with
+//! nothing to find peers by.
+
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Longest fleet, node or drone name on the bus.
+pub const MAX_NAME_LEN: usize = 64;
+/// Most endpoints in `listen` or `connect`.
+pub const MAX_ENDPOINTS: usize = 32;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FleetSection {
+    /// Join the fleet bus (off by default: one Kestrel alone needs no network).
+    pub enabled: bool,
+    /// Fleets sharing a network are kept apart by name.
+    pub name: String,
+    /// This Kestrel's name on the bus; absent = its first drone's id.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub node: Option<String>,
+    /// Where this Kestrel accepts peers (`tcp/0.0.0.0:7447`); open this port in the firewall.
+    pub listen: Vec<String>,
+    /// Peers (or a Zenoh router) to connect to (`tcp/192.168.1.12:7447`); retried until they
+    /// answer.
+    pub connect: Vec<String>,
+    /// Find peers on the local network by UDP multicast (224.0.0.224:7446) as well.
+    pub scouting: bool,
+    /// Drone states sent per second.
+    pub state_rate_hz: f64,
+    /// Map changes sent per second (only the changed regions, compressed).
+    pub map_rate_hz: f64,
+    /// Every this long the whole known part of each drone's map is sent again, so a peer that
+    /// joins late or lost messages catches up (s).
+    pub map_keyframe_period_s: f64,
+    /// A peer's drone not heard from for this long is shown as silent (s); from then on others
+    /// keep away from everywhere it could have flown since (`[controller]` speed).
+    pub peer_timeout_s: f64,
+    /// The farthest a silent drone is assumed to have flown (m): its autopilot's failsafe (PX4
+    /// and ArduPilot land or hold when their companion computer falls silent) stops it within
+    /// about this distance.
+    pub silent_keepout_m: f64,
+    /// `user:password` lines: the first is this node's, all are accepted from peers. Without it
+    /// the bus is open to anyone on the network (a warning says so).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub credentials_file: Option<PathBuf>,
+}
+
+impl Default for FleetSection {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            name: "kestrel".into(),
+            node: None,
+            listen: Vec::new(),
+            connect: Vec::new(),
+            scouting: false,
+            state_rate_hz: 10.0,
+            map_rate_hz: 2.0,
+            map_keyframe_period_s: 10.0,
+            peer_timeout_s: 1.5,
+            silent_keepout_m: 1.5,
+            credentials_file: None,
+        }
+    }
+}
+
+/// A fleet, node or drone name usable as one chunk of a key: 1 to 64 of `[A-Za-z0-9_-]`.
+pub fn valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= MAX_NAME_LEN
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
+}
+
+fn name_error(what: &str, name: &str) -> String {
+    format!("{what} `{name}` must be 1 to {MAX_NAME_LEN} letters, digits, `-` or `_`")
+}
+
+/// `tcp/HOST:PORT` or `udp/HOST:PORT` with a port number.
+fn valid_endpoint(e: &str) -> bool {
+    let Some((proto, addr)) = e.split_once('/') else {
+        return false;
+    };
+    let Some((host, port)) = addr.rsplit_once(':') else {
+        return false;
+    };
+    matches!(proto, "tcp" | "udp")
+        && !host.is_empty()
+        && !host.contains('/')
+        && port.parse::<u16>().is_ok()
+}
+
+impl FleetSection {
+    /// Checks the section; `drones` are this Kestrel's drone ids (each must be a valid name).
+    pub fn validate(&self, drones: &[String]) -> Result<(), (String, String)> {
+        if !self.enabled {
+            return Ok(());
+        }
+        if !valid_name(&self.name) {
+            return Err((
+                "fleet.name".into(),
+                name_error("the fleet name", &self.name),
+            ));
+        }
+        if let Some(node) = &self.node {
+            if !valid_name(node) {
+                return Err(("fleet.node".into(), name_error("the node name", node)));
+            }
+        }
+        for d in drones {
+            if !valid_name(d) {
+                return Err((
+                    "drone.id".into(),
+                    name_error("on a fleet bus, the drone id", d),
+                ));
+            }
+        }
+        for (field, list) in [("listen", &self.listen), ("connect", &self.connect)] {
+            if list.len() > MAX_ENDPOINTS {
+                return Err((
+                    format!("fleet.{field}"),
+                    format!("{} endpoints, at most {MAX_ENDPOINTS}", list.len()),
+                ));
+            }
+            for (i, e) in list.iter().enumerate() {
+                if !valid_endpoint(e) {
+                    return Err((
+                        format!("fleet.{field}[{i}]"),
+                        format!("`{e}` is not `tcp/HOST:PORT` or `udp/HOST:PORT`"),
+                    ));
+                }
+            }
+        }
+        if self.listen.is_empty() && self.connect.is_empty() && !self.scouting {
+            return Err((
+                "fleet".into(),
+                "a bus needs `listen`, `connect` or `scouting = true` to find its peers".into(),
+            ));
+        }
+        for (field, value, lo, hi) in [
+            ("state_rate_hz", self.state_rate_hz, 0.5, 100.0),
+            ("map_rate_hz", self.map_rate_hz, 0.1, 20.0),
+            (
+                "map_keyframe_period_s",
+                self.map_keyframe_period_s,
+                1.0,
+                600.0,
+            ),
+            ("peer_timeout_s", self.peer_timeout_s, 0.2, 60.0),
+            ("silent_keepout_m", self.silent_keepout_m, 0.0, 20.0),
+        ] {
+            if !(lo..=hi).contains(&value) {
+                return Err((
+                    format!("fleet.{field}"),
+                    format!("{value} is outside {lo} to {hi}"),
+                ));
+            }
+        }
+        if self.peer_timeout_s * self.state_rate_hz < 2.0 {
+            return Err((
+                "fleet.peer_timeout_s".into(),
+                format!(
+                    "{} s is less than two states at {} Hz: peers would blink silent",
+                    self.peer_timeout_s, self.state_rate_hz
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// This node's name on the bus.
+    pub fn node_name(&self, drones: &[String]) -> String {
+        self.node
+            .clone()
+            .or_else(|| drones.first().cloned())
+            .unwrap_or_else(|| "kestrel".into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn on() -> FleetSection {
+        FleetSection {
+            enabled: true,
+            listen: vec!["tcp/0.0.0.0:7447".into()],
+            ..FleetSection::default()
+        }
+    }
+
+    #[test]
+    fn off_is_always_valid_and_on_needs_a_way_to_peers() {
+        assert!(FleetSection::default().validate(&["a b".into()]).is_ok());
+        assert!(on().validate(&["drone_0".into()]).is_ok());
+        let lonely = FleetSection {
+            listen: vec![],
+            ..on()
+        };
+        assert_eq!(lonely.validate(&[]).unwrap_err().0, "fleet");
+    }
+
+    #[test]
+    fn names_endpoints_and_rates_are_checked_with_the_field_named() {
+        let bad_name = FleetSection {
+            name: "a/b".into(),
+            ..on()
+        };
+        assert_eq!(bad_name.validate(&[]).unwrap_err().0, "fleet.name");
+        assert_eq!(
+            on().validate(&["drone 1".into()]).unwrap_err().0,
+            "drone.id"
+        );
+        let bad_endpoint = FleetSection {
+            connect: vec!["tcp/10.0.0.2:7447".into(), "10.0.0.3".into()],
+            ..on()
+        };
+        assert_eq!(
+            bad_endpoint.validate(&[]).unwrap_err().0,
+            "fleet.connect[1]"
+        );
+        let fast = FleetSection {
+            state_rate_hz: 1000.0,
+            ..on()
+        };
+        assert_eq!(fast.validate(&[]).unwrap_err().0, "fleet.state_rate_hz");
+        let blinking = FleetSection {
+            state_rate_hz: 1.0,
+            peer_timeout_s: 1.0,
+            ..on()
+        };
+        assert_eq!(
+            blinking.validate(&[]).unwrap_err().0,
+            "fleet.peer_timeout_s"
+        );
+    }
+
+    #[test]
+    fn the_node_is_named_after_its_first_drone_unless_named() {
+        assert_eq!(on().node_name(&["drone_2".into()]), "drone_2");
+        let named = FleetSection {
+            node: Some("pi-7".into()),
+            ..on()
+        };
+        assert_eq!(named.node_name(&["drone_2".into()]), "pi-7");
+    }
+}

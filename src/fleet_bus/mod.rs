@@ -1,0 +1,16 @@
+//! The fleet bus: several Kestrel processes (one per drone, or one per group) forming one fleet
+//! over Zenoh, so that the fleet view, the merged map, the safety stage's separation check, the
+//! drone watcher and the frontier allocator work across processes as within one.
+//!
+//! In: the `[fleet]` section; from the control loop, this host's drone states (with their
+//! exploration claims) and the changed regions of its drones' map layers; from peers, theirs.
+//! Out: remote drones in the fleet view (`local: false`, with a position uncertainty that grows
+//! while their node is silent), their map layers in the merged map, their claims in the
+//! allocator. `config` and `wire` (formats and checks) and `remote` (what was heard) are plain
+//! code; `node` (the Zenoh session) is built with the `fleet-bus` feature.
+
+pub mod config;
+#[cfg(feature = "fleet-bus")]
+pub mod node;
+pub mod remote;
+pub mod wire;

@@ -1,0 +1,308 @@
+//! This Kestrel's place on the fleet bus: a Zenoh session (peer mode) that publishes what the
+//! control loop hands it and passes on what peers publish, checked.
+//!
+//! In: a [`NodeConfig`] and [`Outbound`] messages from the control loop (bounded queue: when the
+//! bus is slower than the loop, the oldest are not kept; the next state and the next keyframe
+//! repair it). Out: [`Inbound`] messages (decoded and bounds-checked; anything else is counted
+//! and dropped with a warning) and [`BusStats`]. Keys: `kestrel/<fleet>/<node>/state` (JSON) and
+//! `kestrel/<fleet>/<node>/map` (binary, see `wire`). The control loop never waits on the bus:
+//! it only `try_send`s and `try_recv`s.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use serde::Serialize;
+use tokio::sync::mpsc;
+
+use super::config::FleetSection;
+use super::wire::{MapMsg, StateMsg};
+
+/// Messages waiting to be sent, or to be read by the control loop.
+const QUEUE: usize = 256;
+/// How soon a link that stopped answering is dropped (ms): Wi-Fi drops are noticed quickly.
+const LEASE_MS: u64 = 3000;
+
+/// What the bus needs to start.
+#[derive(Debug, Clone)]
+pub struct NodeConfig {
+    pub section: FleetSection,
+    pub node: String,
+    /// Cells of this Kestrel's map grid: no peer's map region may be larger.
+    pub max_map_cells: usize,
+}
+
+#[derive(Debug)]
+pub enum Outbound {
+    State(StateMsg),
+    Map(MapMsg),
+}
+
+#[derive(Debug)]
+pub enum Inbound {
+    State(StateMsg),
+    Map(MapMsg),
+}
+
+/// Counters since the bus started.
+#[derive(Debug, Default)]
+pub struct BusStats {
+    pub state_sent_bytes: AtomicU64,
+    pub state_sent: AtomicU64,
+    pub map_sent_bytes: AtomicU64,
+    pub map_sent: AtomicU64,
+    pub received: AtomicU64,
+    pub received_bytes: AtomicU64,
+    /// Messages from peers that did not decode or check.
+    pub refused: AtomicU64,
+    /// Messages dropped because a queue was full.
+    pub dropped: AtomicU64,
+}
+
+/// The counters as the API shows them.
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
+pub struct BusStatsView {
+    pub state_sent: u64,
+    pub state_sent_bytes: u64,
+    pub map_sent: u64,
+    pub map_sent_bytes: u64,
+    pub received: u64,
+    pub received_bytes: u64,
+    pub refused: u64,
+    pub dropped: u64,
+}
+
+impl BusStats {
+    pub fn view(&self) -> BusStatsView {
+        let r = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        BusStatsView {
+            state_sent: r(&self.state_sent),
+            state_sent_bytes: r(&self.state_sent_bytes),
+            map_sent: r(&self.map_sent),
+            map_sent_bytes: r(&self.map_sent_bytes),
+            received: r(&self.received),
+            received_bytes: r(&self.received_bytes),
+            refused: r(&self.refused),
+            dropped: r(&self.dropped),
+        }
+    }
+}
+
+/// The control loop's end of the bus.
+pub struct BusPort {
+    pub inbound: mpsc::Receiver<Inbound>,
+    pub outbound: mpsc::Sender<Outbound>,
+    pub stats: Arc<BusStats>,
+}
+
+/// The Zenoh configuration for a section: peer mode, the endpoints, scouting only if asked,
+/// user/password authentication when a credentials file is given.
+fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
+    let mut json = serde_json::json!({
+        "mode": "peer",
+        "listen": { "endpoints": section.listen },
+        "connect": {
+            "endpoints": section.connect,
+            "retry": { "period_init_ms": 500, "period_max_ms": 2000, "period_increase_factor": 2 },
+        },
+        "scouting": {
+            "multicast": { "enabled": section.scouting },
+            "gossip": { "enabled": section.scouting },
+        },
+        "transport": { "link": { "tx": { "lease": LEASE_MS } } },
+    });
+    if let Some(path) = &section.credentials_file {
+        let (user, password) = own_credentials(path)?;
+        json["transport"]["auth"] = serde_json::json!({
+            "usrpwd": { "user": user, "password": password, "dictionary_file": path },
+        });
+    }
+    zenoh::Config::from_json5(&json.to_string())
+        .map_err(|e| anyhow::anyhow!("fleet bus configuration: {e}"))
+}
+
+/// This node's `user:password`: the file's first line.
+fn own_credentials(path: &std::path::Path) -> anyhow::Result<(String, String)> {
+    let meta = std::fs::metadata(path)
+        .map_err(|e| anyhow::anyhow!("fleet.credentials_file {}: {e}", path.display()))?;
+    if meta.len() > 64 * 1024 {
+        anyhow::bail!(
+            "fleet.credentials_file {}: larger than 64 KiB",
+            path.display()
+        );
+    }
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow::anyhow!("fleet.credentials_file {}: {e}", path.display()))?;
+    let line = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty())
+        .ok_or_else(|| anyhow::anyhow!("fleet.credentials_file {}: empty", path.display()))?;
+    let (user, password) = line.split_once(':').ok_or_else(|| {
+        anyhow::anyhow!(
+            "fleet.credentials_file {}: the first line is not `user:password`",
+            path.display()
+        )
+    })?;
+    if user.trim().is_empty() || password.trim().is_empty() {
+        anyhow::bail!(
+            "fleet.credentials_file {}: empty user or password on the first line",
+            path.display()
+        );
+    }
+    Ok((user.trim().to_string(), password.trim().to_string()))
+}
+
+/// The peer node a key comes from, if the key is `kestrel/<fleet>/<node>/<kind>`.
+fn key_parts<'a>(key: &'a str, fleet: &str) -> Option<(&'a str, &'a str)> {
+    let rest = key
+        .strip_prefix("kestrel/")?
+        .strip_prefix(fleet)?
+        .strip_prefix('/')?;
+    rest.split_once('/')
+}
+
+/// Opens the session on the current (multi-thread) tokio runtime and starts the tasks. The
+/// configuration is checked at once; peers are reached in the background.
+pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
+    let zconfig = zenoh_config(&config.section)?;
+    let session = zenoh::open(zconfig)
+        .await
+        .map_err(|e| anyhow::anyhow!("fleet bus: cannot open the Zenoh session: {e}"))?;
+    let stats = Arc::new(BusStats::default());
+    let (in_tx, inbound) = mpsc::channel(QUEUE);
+    let (outbound, mut out_rx) = mpsc::channel::<Outbound>(QUEUE);
+    let fleet = config.section.name.clone();
+    let me = config.node.clone();
+    let max_cells = config.max_map_cells;
+    let sub_stats = stats.clone();
+    let subscriber = session
+        .declare_subscriber(format!("kestrel/{fleet}/*/*"))
+        .callback(move |sample| {
+            let key = sample.key_expr().as_str();
+            let Some((node, kind)) = key_parts(key, &fleet) else {
+                return;
+            };
+            if node == me {
+                return;
+            }
+            let bytes = sample.payload().to_bytes();
+            sub_stats.received.fetch_add(1, Ordering::Relaxed);
+            sub_stats
+                .received_bytes
+                .fetch_add(bytes.len() as u64, Ordering::Relaxed);
+            let decoded = match kind {
+                "state" => StateMsg::decode(&bytes).and_then(|m| {
+                    if m.node == node {
+                        Ok(Inbound::State(m))
+                    } else {
+                        Err(super::wire::WireError::Malformed(format!(
+                            "sent on `{node}`'s key as node `{}`",
+                            m.node
+                        )))
+                    }
+                }),
+                "map" => MapMsg::decode(&bytes, max_cells).and_then(|m| {
+                    if m.header.node == node {
+                        Ok(Inbound::Map(m))
+                    } else {
+                        Err(super::wire::WireError::Malformed(format!(
+                            "sent on `{node}`'s key as node `{}`",
+                            m.header.node
+                        )))
+                    }
+                }),
+                _ => return,
+            };
+            match decoded {
+                Ok(msg) => {
+                    if in_tx.try_send(msg).is_err() {
+                        sub_stats.dropped.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                Err(e) => {
+                    sub_stats.refused.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!("fleet bus: refused a `{kind}` message from `{node}`: {e}");
+                }
+            }
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("fleet bus: cannot subscribe: {e}"))?;
+    let fleet = config.section.name.clone();
+    let node = config.node.clone();
+    let pub_stats = stats.clone();
+    tokio::spawn(async move {
+        // The subscriber lives as long as this task: until the control loop drops its port.
+        let _subscriber = subscriber;
+        let state_key = format!("kestrel/{fleet}/{node}/state");
+        let map_key = format!("kestrel/{fleet}/{node}/map");
+        while let Some(msg) = out_rx.recv().await {
+            let (key, bytes, count, sent) = match msg {
+                Outbound::State(m) => (
+                    &state_key,
+                    m.encode(),
+                    &pub_stats.state_sent,
+                    &pub_stats.state_sent_bytes,
+                ),
+                Outbound::Map(m) => {
+                    // Compressing a keyframe takes a few milliseconds: not on the runtime's
+                    // reactor.
+                    let Ok(bytes) = tokio::task::spawn_blocking(move || m.encode()).await else {
+                        continue;
+                    };
+                    (
+                        &map_key,
+                        bytes,
+                        &pub_stats.map_sent,
+                        &pub_stats.map_sent_bytes,
+                    )
+                }
+            };
+            let len = bytes.len() as u64;
+            let put = session
+                .put(key.as_str(), bytes)
+                .congestion_control(zenoh::qos::CongestionControl::Drop)
+                .await;
+            match put {
+                Ok(()) => {
+                    count.fetch_add(1, Ordering::Relaxed);
+                    sent.fetch_add(len, Ordering::Relaxed);
+                }
+                Err(e) => tracing::warn!("fleet bus: not sent: {e}"),
+            }
+        }
+        let _ = session.close().await;
+    });
+    Ok(BusPort {
+        inbound,
+        outbound,
+        stats,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_name_the_fleet_and_the_node() {
+        assert_eq!(
+            key_parts("kestrel/farm/pi-2/state", "farm"),
+            Some(("pi-2", "state"))
+        );
+        assert_eq!(key_parts("kestrel/other/pi-2/state", "farm"), None);
+        assert_eq!(key_parts("kestrel/farmx/pi-2/state", "farm"), None);
+    }
+
+    #[test]
+    fn credentials_are_read_from_the_first_line() {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let path = dir.path().join("creds");
+        std::fs::write(&path, "\n kestrel-a : s3cret \nb:c\n").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            own_credentials(&path).ok(),
+            Some(("kestrel-a".to_string(), "s3cret".to_string()))
+        );
+        std::fs::write(&path, "nocolon\n").unwrap_or_else(|e| panic!("{e}"));
+        assert!(own_credentials(&path).is_err());
+    }
+}

@@ -1,0 +1,164 @@
+//! The host's side of the fleet bus: what it tells other Kestrels and what it takes from them.
+//!
+//! In: checked [`StateMsg`]s and [`MapMsg`]s from peers. Out: this host's drones as a
+//! [`StateMsg`] (state, behavior, mission, exploration claim) and its drones' changed map
+//! regions (or, for keyframes, everything they know) as [`MapMsg`]s. Remote drones join the
+//! fleet view, their map layers the merged map and their claims the frontier allocator; a
+//! peer's message that names one of this host's drones, or a map of a drone it does not fly, is
+//! refused and counted.
+
+use std::time::Duration;
+
+use super::Host;
+use crate::fleet_bus::remote::{RemoteFleet, SilencePolicy};
+use crate::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
+use crate::mapping::merged::LayerRegion;
+use crate::mission::ExecState;
+
+impl Host {
+    /// Joins a fleet bus: from now on remote drones are heard and this host's map regions kept
+    /// for sending.
+    pub fn enable_fleet_bus(&mut self, policy: SilencePolicy) {
+        self.remote = Some(RemoteFleet::new(policy));
+        if let Some(map) = self.map.as_mut() {
+            map.enable_bus();
+        }
+    }
+
+    /// Which node flies `drone`, when another Kestrel does.
+    pub fn remote_node_of(&self, drone: &str) -> Option<&str> {
+        self.remote.as_ref()?.node_of(drone)
+    }
+
+    /// Cells of the merged map's grid (bounds a peer's map region); 0 without a map.
+    pub fn map_cells(&self) -> usize {
+        self.map
+            .as_ref()
+            .map_or(0, |m| m.merged().spec().cell_count())
+    }
+
+    /// Takes in a peer's drones. Returns why some were refused, if any were.
+    pub fn apply_bus_state(&mut self, msg: StateMsg) -> Vec<String> {
+        let local = self.drone_ids();
+        let now = self.now;
+        let Some(remote) = self.remote.as_mut() else {
+            return Vec::new();
+        };
+        let refused = remote.apply(msg, now, &local);
+        self.frontiers.set_remote_claims(&remote.claims());
+        refused
+    }
+
+    /// Takes in a region of a peer's drone's map layer.
+    pub fn apply_bus_map(&mut self, msg: MapMsg) -> Result<(), String> {
+        let h = &msg.header;
+        if self.remote_node_of(&h.drone) != Some(h.node.as_str()) {
+            return Err(format!(
+                "map of `{}` from node `{}`, which does not fly it (yet)",
+                h.drone, h.node
+            ));
+        }
+        let Some(map) = self.map.as_mut() else {
+            return Ok(());
+        };
+        let region = LayerRegion {
+            drone: msg.header.drone,
+            grid: msg.header.grid,
+            region: msg.header.region,
+            cells: msg.cells,
+        };
+        map.apply_remote(&region).map_err(|e| e.to_string())
+    }
+
+    /// This host's drones as the bus carries them.
+    pub fn bus_state(&self, node: &str, seq: u64, sent_unix_us: u64) -> StateMsg {
+        let drones = self
+            .cores
+            .iter()
+            .zip(&self.executors)
+            .map(|(core, ex)| {
+                let view = core.fleet_entry(self.now);
+                let status = core.platform_status();
+                DroneState {
+                    id: core.drone_id().to_string(),
+                    position_enu_m: view.position_enu_m.into(),
+                    velocity_enu_mps: view.velocity_enu_mps.into(),
+                    yaw_rad: view.yaw_rad,
+                    flying: view.flying,
+                    link: view.link,
+                    battery_pct: status
+                        .battery
+                        .and_then(|b| b.remaining_fraction)
+                        .filter(|f| f.is_finite())
+                        .map(|f| (f * 100.0).clamp(0.0, 100.0)),
+                    behavior: view.motion_behavior.map(|b| b.to_string()),
+                    goal_enu_m: view.goal_enu_m.map(Into::into),
+                    mission: Some(
+                        match ex.status(core).state {
+                            ExecState::Idle => "idle",
+                            ExecState::Running => "running",
+                            ExecState::Paused => "paused",
+                        }
+                        .to_string(),
+                    ),
+                    claim_enu_m: self.frontiers.claim_of(core.drone_id()),
+                }
+            })
+            .collect();
+        StateMsg {
+            v: WIRE_VERSION,
+            node: node.to_string(),
+            seq,
+            sent_unix_us,
+            drones,
+        }
+    }
+
+    /// This host's drones' map regions to send: those changed since the last call, or with
+    /// `keyframe` everything each drone knows.
+    pub fn take_bus_maps(&mut self, node: &str, seq: &mut u64, keyframe: bool) -> Vec<MapMsg> {
+        let ids = self.drone_ids();
+        let Some(map) = self.map.as_mut() else {
+            return Vec::new();
+        };
+        let changed = map.take_bus_regions();
+        let regions: Vec<LayerRegion> = if keyframe {
+            ids.iter().filter_map(|d| map.keyframe(d)).collect()
+        } else {
+            changed
+        };
+        regions
+            .into_iter()
+            .map(|r| {
+                *seq += 1;
+                MapMsg {
+                    header: MapHeader {
+                        v: WIRE_VERSION,
+                        node: node.to_string(),
+                        drone: r.drone,
+                        seq: *seq,
+                        keyframe,
+                        grid: r.grid,
+                        region: r.region,
+                    },
+                    cells: r.cells,
+                }
+            })
+            .collect()
+    }
+
+    /// The bus's traffic and latency, shown in the snapshot.
+    pub fn set_bus_report(&mut self, report: crate::host::status::BusReport) {
+        self.bus_report = Some(report);
+    }
+
+    /// Whether a fleet bus is joined.
+    pub fn on_fleet_bus(&self) -> bool {
+        self.remote.is_some()
+    }
+
+    /// Host time now (for the bus's timers).
+    pub fn bus_now(&self) -> Duration {
+        self.now
+    }
+}

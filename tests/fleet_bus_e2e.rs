@@ -1,0 +1,657 @@
+//! A fleet of Kestrels over Zenoh: three real `kestrel run` processes, each flying its own fake
+//! PX4 (`sitl/`, one world with range beams), joined by the fleet bus on localhost, explore three
+//! bays together until no frontier is left, as operators would start it (one
+//! `POST /api/exploration/start` per Kestrel, for its own drone).
+//!
+//! Every link of the bus passes a TCP proxy of the test's (`BusProxy`), so that the bus can be
+//! cut like a Wi-Fi drop: every connection closed and new ones refused. Judged on the true states
+//! of the fakes (separation, clearance, collisions), the maps each Kestrel serves (the same map
+//! everywhere, the floor known) and the time one drone takes alone in the same bays.
+//! Needs `sitl/.venv` (`bash sitl/setup.sh`).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod mavlink_support;
+mod support;
+
+use kestrel::sim::world::World;
+use kestrel::types::Vec3;
+use mavlink_support::room::{clearance_m, judge_map};
+use mavlink_support::{alongside, free_tcp_port, repo, Api, Fake, Kestrel};
+use serde_json::{json, Value};
+use std::io::{Read, Write};
+use std::net::{Shutdown, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+const WORLD: &str = "sitl/worlds/bays18_fleet.json";
+/// Where the fake starts each vehicle: the world's `starts_xy_yaw` for three (one per bay).
+const STARTS_ENU_M: [[f64; 3]; 3] = [[-6.0, -1.0, 0.0], [0.0, 1.0, 0.0], [6.0, -1.0, 0.0]];
+/// Least distance between two drones the tests accept (m, centre to centre, 3-D).
+const MIN_SEPARATION_M: f64 = 0.5;
+/// The explorer's arguments, as tests/run_fleet.rs.
+const ARGS: &str = r#"{"spin_rate": 0.4, "safety_distance": 0.5}"#;
+/// One exploration, take-off to the last disarm (wall clock).
+const EXPLORATION_TIMEOUT: Duration = Duration::from_secs(240);
+/// How long after every drone landed the maps the Kestrels serve may still differ: map regions
+/// go out twice a second, keyframes every 10 s.
+const MAP_LAG: Duration = Duration::from_secs(3);
+
+/// A TCP proxy in front of one Kestrel's bus port, which the test can cut.
+struct BusProxy {
+    port: u16,
+    cut: Arc<AtomicBool>,
+    open: Arc<Mutex<Vec<TcpStream>>>,
+}
+
+impl BusProxy {
+    fn start(target: u16) -> Self {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listener.local_addr().unwrap().port();
+        let cut = Arc::new(AtomicBool::new(false));
+        let open = Arc::new(Mutex::new(Vec::new()));
+        let (c, o) = (cut.clone(), open.clone());
+        std::thread::spawn(move || {
+            for inbound in listener.incoming() {
+                let Ok(inbound) = inbound else { continue };
+                if c.load(Ordering::SeqCst) {
+                    drop(inbound);
+                    continue;
+                }
+                let Ok(outbound) = TcpStream::connect(("127.0.0.1", target)) else {
+                    continue;
+                };
+                let mut list = o.lock().unwrap();
+                list.push(inbound.try_clone().unwrap());
+                list.push(outbound.try_clone().unwrap());
+                drop(list);
+                pipe(inbound.try_clone().unwrap(), outbound.try_clone().unwrap());
+                pipe(outbound, inbound);
+            }
+        });
+        BusProxy { port, cut, open }
+    }
+
+    /// Closes every connection and refuses new ones until [`Self::restore`].
+    fn cut(&self) {
+        self.cut.store(true, Ordering::SeqCst);
+        for s in self.open.lock().unwrap().drain(..) {
+            let _ = s.shutdown(Shutdown::Both);
+        }
+    }
+
+    fn restore(&self) {
+        self.cut.store(false, Ordering::SeqCst);
+    }
+
+    fn endpoint(&self) -> String {
+        format!("tcp/127.0.0.1:{}", self.port)
+    }
+}
+
+fn pipe(mut from: TcpStream, mut to: TcpStream) {
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 16 * 1024];
+        while let Ok(n) = from.read(&mut buf) {
+            if n == 0 || to.write_all(&buf[..n]).is_err() {
+                break;
+            }
+        }
+        let _ = to.shutdown(Shutdown::Both);
+    });
+}
+
+/// The config every Kestrel of the bays shares (the map grid must be the same on every node),
+/// with its own vehicle and, when on a fleet, its bus section.
+fn config(id: usize, connection: &str, fleet: Option<&str>) -> String {
+    let o = STARTS_ENU_M[id];
+    let mut text = format!(
+        "[map]\nsize_m = [20.0, 8.0]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+         [mavlink]\nplatform = \"platforms/px4.toml\"\n\n\
+         [[vehicle]]\nid = \"drone_{id}\"\nconnection = \"{connection}\"\n\
+         target_system = {}\norigin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
+        // The fake numbers its vehicles from 1 in the order they were started.
+        if fleet.is_some() { id + 1 } else { 1 },
+        o[0],
+        o[1],
+        o[2]
+    );
+    if let Some(f) = fleet {
+        text.push_str(f);
+    }
+    text
+}
+
+/// A credentials file the nodes of a fleet share (first line: this node's).
+fn credentials(dir: &std::path::Path, name: &str, line: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, format!("{line}\n")).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+/// Three Kestrels on one bus, each listening on its own port and reaching the others through
+/// proxies: node 1 connects to node 0, node 2 to nodes 0 and 1.
+struct Fleet {
+    nodes: Vec<Option<Kestrel>>,
+    apis: Vec<Api>,
+    proxies: Vec<BusProxy>,
+    _creds: tempfile::TempDir,
+}
+
+impl Fleet {
+    fn start(connections: &[String]) -> Self {
+        let creds = tempfile::tempdir().unwrap();
+        let file = credentials(creds.path(), "fleet-credentials", "bays:s3cret-shared");
+        let name = format!("bays-{}", std::process::id());
+        let bus_ports: Vec<u16> = (0..3).map(|_| free_tcp_port()).collect();
+        let proxies: Vec<BusProxy> = bus_ports[..2].iter().map(|&p| BusProxy::start(p)).collect();
+        let mut nodes = Vec::new();
+        let mut apis = Vec::new();
+        for id in 0..3 {
+            let connect: Vec<String> = proxies[..id].iter().map(|p| p.endpoint()).collect();
+            let fleet = format!(
+                "\n[fleet]\nenabled = true\nname = \"{name}\"\nnode = \"node_{id}\"\n\
+                 listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n",
+                bus_ports[id],
+                serde_json::to_string(&connect).unwrap()
+            );
+            let api_port = free_tcp_port();
+            let listen = format!("127.0.0.1:{api_port}");
+            nodes.push(Some(Kestrel::run_config(
+                &config(id, &connections[id], Some(&fleet)),
+                &["--listen", &listen],
+            )));
+            apis.push(Api::connect(api_port));
+        }
+        Fleet {
+            nodes,
+            apis,
+            proxies,
+            _creds: creds,
+        }
+    }
+
+    fn output(&self) -> String {
+        self.nodes
+            .iter()
+            .enumerate()
+            .map(|(i, k)| match k {
+                Some(k) => format!("--- node_{i} ---\n{}", k.output()),
+                None => format!("--- node_{i}: killed ---"),
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
+    /// Waits until every live node has its drone ready and hears every other live node's.
+    fn wait_joined(&self, live: &[usize]) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let joined = live.iter().all(|&i| {
+                let s = self.apis[i].get("/api/status");
+                let own = &s["drones"][0];
+                let heard: Vec<&str> = s["remote"]
+                    .as_array()
+                    .map(|r| {
+                        r.iter()
+                            .filter(|d| d["silent"] == false)
+                            .filter_map(|d| d["id"].as_str())
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                own["link"] == "ok"
+                    && own["ready_to_fly"] == true
+                    && live
+                        .iter()
+                        .filter(|&&j| j != i)
+                        .all(|j| heard.contains(&format!("drone_{j}").as_str()))
+            });
+            if joined {
+                return;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "the fleet did not join: {:?}\n{}",
+                live.iter()
+                    .map(|&i| self.apis[i].get("/api/status"))
+                    .collect::<Vec<_>>(),
+                self.output()
+            );
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+
+    fn explore(&self, i: usize) {
+        let args: Value = serde_json::from_str(ARGS).unwrap();
+        let (code, body) = self.apis[i].post(
+            "/api/exploration/start",
+            &json!({"drones": [format!("drone_{i}")], "args": args}),
+        );
+        assert_eq!(code, 200, "node_{i}: {body}");
+    }
+
+    /// Waits until every listed node's exploration has finished; returns their views.
+    fn wait_explored(&self, live: &[usize], fake: &Fake) -> Vec<Value> {
+        let deadline = Instant::now() + EXPLORATION_TIMEOUT;
+        loop {
+            let views: Vec<Value> = live
+                .iter()
+                .map(|&i| self.apis[i].get("/api/exploration"))
+                .collect();
+            if views.iter().all(|v| v["progress"]["finished"] == true) {
+                return views;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "not explored within {EXPLORATION_TIMEOUT:?}: {views:?}\n{}\n{}",
+                fake.diagnostics(),
+                self.output()
+            );
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    }
+}
+
+fn position(state: &Value) -> Vec3 {
+    let p = &state["position_enu_m"];
+    Vec3::new(
+        p[0].as_f64().unwrap(),
+        p[1].as_f64().unwrap(),
+        p[2].as_f64().unwrap(),
+    )
+}
+
+/// Over the fake's true states: the least distance between two drones (with the sample), the
+/// least clearance to an obstacle of an airborne drone, and airborne samples per drone.
+fn judge_tracks(samples: &[Value], w: &World) -> ((f64, usize), f64, Vec<usize>) {
+    let shapes = w.shapes();
+    let mut closest_pair = (f64::INFINITY, 0usize);
+    let mut clearance = f64::INFINITY;
+    let mut airborne = vec![0usize; 3];
+    for (k, sample) in samples.iter().enumerate() {
+        let at: Vec<Vec3> = sample.as_array().unwrap().iter().map(position).collect();
+        for (i, p) in at.iter().enumerate() {
+            if p.z > 0.3 {
+                airborne[i] += 1;
+                clearance = clearance.min(clearance_m(&shapes, *p));
+            }
+            for q in &at[i + 1..] {
+                let d = (p - q).norm();
+                if d < closest_pair.0 {
+                    closest_pair = (d, k);
+                }
+            }
+        }
+    }
+    (closest_pair, clearance, airborne)
+}
+
+fn assert_no_collision(fake: &Fake, vehicles: usize) {
+    for i in 0..vehicles {
+        let log = fake.cmd(json!({"cmd": "log", "vehicle": i}));
+        let collisions: Vec<&Value> = log["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["kind"] == "collision")
+            .collect();
+        assert!(collisions.is_empty(), "vehicle {i}: {collisions:?}");
+    }
+}
+
+/// Cells two served maps disagree on (known in one only, or free in one and occupied in the
+/// other), as a share of all cells (%).
+fn map_difference_pct(a: &Value, b: &Value) -> f64 {
+    let (a, b) = (a["data"].as_array().unwrap(), b["data"].as_array().unwrap());
+    assert_eq!(a.len(), b.len(), "the nodes map on different grids");
+    let class = |v: &Value| {
+        let v = v.as_i64().unwrap();
+        if v < 0 {
+            0
+        } else if v >= 31 {
+            2
+        } else {
+            1
+        }
+    };
+    let differ = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| class(x) != class(y))
+        .count();
+    100.0 * differ as f64 / a.len() as f64
+}
+
+/// One drone alone in the bays, on one `kestrel run` without a bus: the time the fleet must beat.
+fn explore_alone(w: &World) -> Duration {
+    let world_path = repo().join(WORLD);
+    let (fake, connections) = Fake::start_px4_fleet(
+        1,
+        &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
+    );
+    let port = free_tcp_port();
+    let listen = format!("127.0.0.1:{port}");
+    let kestrel = Kestrel::run_config(&config(0, &connections[0], None), &["--listen", &listen]);
+    let api = Api::connect(port);
+    let deadline = Instant::now() + Duration::from_secs(40);
+    while api.get("/api/status")["drones"][0]["ready_to_fly"] != true {
+        assert!(
+            Instant::now() < deadline,
+            "not ready:\n{}",
+            kestrel.output()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let args: Value = serde_json::from_str(ARGS).unwrap();
+    let started = Instant::now();
+    let (code, body) = api.post(
+        "/api/exploration/start",
+        &json!({"drones": ["drone_0"], "args": args}),
+    );
+    assert_eq!(code, 200, "{body}");
+    let deadline = started + EXPLORATION_TIMEOUT;
+    let view = loop {
+        let view = api.get("/api/exploration");
+        if view["progress"]["finished"] == true {
+            break view;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "alone: not explored: {view}\n{}",
+            kestrel.output()
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    };
+    let took = started.elapsed();
+    assert_eq!(
+        view["progress"]["drones"][0]["phase"], "succeeded",
+        "{view}"
+    );
+    let (known_pct, _) = judge_map(&api.get("/api/map"), w, 0.3);
+    assert!(
+        known_pct >= 95.0,
+        "alone: {known_pct:.1} % of the floor known"
+    );
+    assert_no_collision(&fake, 1);
+    println!("one drone alone: {took:?}, floor known {known_pct:.1} %");
+    took
+}
+
+#[test]
+fn three_kestrels_on_one_bus_explore_the_bays_in_less_than_half_the_time_of_one() {
+    let _beside = alongside();
+    let w = World::load(&repo().join(WORLD)).unwrap();
+    let alone = explore_alone(&w);
+
+    let world_path = repo().join(WORLD);
+    let (fake, connections) = Fake::start_px4_fleet(
+        3,
+        &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
+    );
+    let fleet = Fleet::start(&connections);
+    fleet.wait_joined(&[0, 1, 2]);
+    // Each Kestrel shows the others' drones, marked as flown elsewhere, and refuses to command
+    // them, with the reason.
+    let status = fleet.apis[0].get("/api/status");
+    let remote = status["remote"].as_array().unwrap();
+    let nodes: Vec<(&str, &str)> = remote
+        .iter()
+        .map(|d| (d["id"].as_str().unwrap(), d["node"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        nodes,
+        [("drone_1", "node_1"), ("drone_2", "node_2")],
+        "{status}"
+    );
+    let (code, refused) =
+        fleet.apis[0].post("/api/exploration/start", &json!({"drones": ["drone_1"]}));
+    let error = &refused["error"];
+    assert_eq!(
+        (code, error["code"].as_str()),
+        (409, Some("remote_drone")),
+        "{refused}"
+    );
+    assert!(
+        error["message"].as_str().unwrap().contains("node_1"),
+        "{refused}"
+    );
+
+    let poller = fake.poll_fleet_states(3);
+    let started = Instant::now();
+    for i in 0..3 {
+        fleet.explore(i);
+    }
+    let views = fleet.wait_explored(&[0, 1, 2], &fake);
+    let took = started.elapsed();
+    std::thread::sleep(Duration::from_secs(1));
+    let samples = poller.finish();
+    for (i, view) in views.iter().enumerate() {
+        assert_eq!(
+            view["progress"]["drones"][0]["phase"],
+            "succeeded",
+            "node_{i}: {view}\n{}",
+            fleet.output()
+        );
+    }
+    for i in 0..3 {
+        let end = fake.state_of(i);
+        assert_eq!(
+            (end["armed"].clone(), end["on_ground"].clone()),
+            (json!(false), json!(true)),
+            "vehicle {i}: {end}"
+        );
+    }
+    let ratio = took.as_secs_f64() / alone.as_secs_f64();
+    println!("three Kestrels: {took:?}, {ratio:.2} of one drone's {alone:?}");
+    assert!(
+        ratio < 0.5,
+        "three drones took {ratio:.2} of one drone's time"
+    );
+
+    // Every Kestrel serves the same merged map, within the bus's lag, with the floor known.
+    std::thread::sleep(MAP_LAG);
+    let maps: Vec<Value> = fleet.apis.iter().map(|a| a.get("/api/map")).collect();
+    for (i, map) in maps.iter().enumerate() {
+        let (known_pct, stray) = judge_map(map, &w, 0.3);
+        assert!(
+            known_pct >= 95.0,
+            "node_{i}: {known_pct:.1} % of the floor known"
+        );
+        assert!(
+            stray.len() <= 10,
+            "node_{i}: {} stray obstacle cells",
+            stray.len()
+        );
+    }
+    for (i, j) in [(0, 1), (0, 2), (1, 2)] {
+        let differ = map_difference_pct(&maps[i], &maps[j]);
+        assert!(
+            differ < 0.5,
+            "node_{i} and node_{j} maps differ on {differ:.2} % of cells"
+        );
+    }
+    let (pair, clearance, airborne) = judge_tracks(&samples, &w);
+    assert!(
+        airborne.iter().all(|&n| n > 60),
+        "airborne samples: {airborne:?}"
+    );
+    assert!(clearance > 0.2, "{clearance:.2} m from an obstacle");
+    assert!(
+        pair.0 >= MIN_SEPARATION_M,
+        "two drones {:.2} m apart: {}",
+        pair.0,
+        samples[pair.1]
+    );
+    assert_no_collision(&fake, 3);
+    let bus = &fleet.apis[0].get("/api/status")["fleet_bus"];
+    println!(
+        "closest two drones {:.2} m, clearance {clearance:.2} m; node_0's bus: {bus}",
+        pair.0
+    );
+    assert!(
+        bus["received"].as_u64().unwrap() > 0 && bus["refused"] == 0,
+        "{bus}"
+    );
+}
+
+#[test]
+fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kestrel() {
+    let _beside = alongside();
+    let w = World::load(&repo().join(WORLD)).unwrap();
+    let world_path = repo().join(WORLD);
+    let (fake, connections) = Fake::start_px4_fleet(
+        3,
+        &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
+    );
+    let mut fleet = Fleet::start(&connections);
+    fleet.wait_joined(&[0, 1, 2]);
+    let poller = fake.poll_fleet_states(3);
+    for i in 0..3 {
+        fleet.explore(i);
+    }
+
+    // The bus is cut for 10 s while all three fly: each Kestrel sees the others fall silent and
+    // keeps away from wherever they could be; once it is back, they hear each other again.
+    std::thread::sleep(Duration::from_secs(8));
+    for p in &fleet.proxies {
+        p.cut();
+    }
+    std::thread::sleep(Duration::from_secs(3));
+    let during = fleet.apis[0].get("/api/status");
+    let silent: Vec<&Value> = during["remote"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|d| d["silent"] == true)
+        .collect();
+    assert_eq!(
+        silent.len(),
+        2,
+        "both peers silent during the cut: {during}"
+    );
+    std::thread::sleep(Duration::from_secs(7));
+    for p in &fleet.proxies {
+        p.restore();
+    }
+    let back = Instant::now();
+    fleet.wait_joined(&[0, 1, 2]);
+    println!("bus back after {:?}", back.elapsed());
+    // Cooperation resumed: node 0's allocator holds the others' claims again.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let goals = fleet.apis[0].get("/api/exploration")["goals"].clone();
+        let holders: Vec<&str> = goals
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|g| g["drone"].as_str())
+            .collect();
+        if holders.contains(&"drone_1") || holders.contains(&"drone_2") {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no remote claim after the cut: {goals}"
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    }
+
+    // node_2 dies: its vehicle lands by itself (PX4's offboard-loss failsafe); the other two
+    // explore its bay as well and land.
+    drop(fleet.nodes[2].take());
+    let views = fleet.wait_explored(&[0, 1], &fake);
+    std::thread::sleep(Duration::from_secs(1));
+    let samples = poller.finish();
+    for (i, view) in views.iter().enumerate() {
+        assert_eq!(
+            view["progress"]["drones"][0]["phase"],
+            "succeeded",
+            "node_{i}: {view}\n{}",
+            fleet.output()
+        );
+    }
+    std::thread::sleep(MAP_LAG);
+    for i in 0..2 {
+        let (known_pct, _) = judge_map(&fleet.apis[i].get("/api/map"), &w, 0.3);
+        assert!(
+            known_pct >= 95.0,
+            "node_{i}: {known_pct:.1} % of the floor known"
+        );
+    }
+    let (pair, clearance, _) = judge_tracks(&samples, &w);
+    assert!(clearance > 0.2, "{clearance:.2} m from an obstacle");
+    assert!(
+        pair.0 >= MIN_SEPARATION_M,
+        "two drones {:.2} m apart: {}",
+        pair.0,
+        samples[pair.1]
+    );
+    assert_no_collision(&fake, 3);
+    let dead = fake.state_of(2);
+    assert_eq!(
+        dead["on_ground"], true,
+        "the orphaned vehicle landed: {dead}"
+    );
+    println!(
+        "closest two drones {:.2} m, clearance {clearance:.2} m",
+        pair.0
+    );
+}
+
+#[test]
+fn a_node_without_the_fleets_credentials_is_not_heard() {
+    let _beside = alongside();
+    let creds = tempfile::tempdir().unwrap();
+    let right = credentials(creds.path(), "right", "farm:correct-horse");
+    let wrong = credentials(creds.path(), "wrong", "farm:battery-staple");
+    let name = format!("auth-{}", std::process::id());
+    let bus: Vec<u16> = (0..3).map(|_| free_tcp_port()).collect();
+    let mut apis = Vec::new();
+    let mut nodes = Vec::new();
+    for (id, file) in [(0, &right), (1, &wrong), (2, &right)] {
+        // No autopilot answers: the drones stay on the ground, announced all the same.
+        let connection = format!("udpin:127.0.0.1:{}", mavlink_support::free_udp_port());
+        let connect: Vec<String> = bus[..id]
+            .iter()
+            .map(|p| format!("tcp/127.0.0.1:{p}"))
+            .collect();
+        let fleet = format!(
+            "\n[fleet]\nenabled = true\nname = \"{name}\"\nnode = \"node_{id}\"\n\
+             listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n",
+            bus[id],
+            serde_json::to_string(&connect).unwrap()
+        );
+        let api_port = free_tcp_port();
+        let listen = format!("127.0.0.1:{api_port}");
+        nodes.push(Kestrel::run_config(
+            &config(id, &connection, Some(&fleet)),
+            &["--listen", &listen],
+        ));
+        apis.push(Api::connect(api_port));
+    }
+    let heard = |i: usize| -> Vec<String> {
+        apis[i].get("/api/status")["remote"]
+            .as_array()
+            .map(|r| {
+                r.iter()
+                    .map(|d| d["id"].as_str().unwrap().to_string())
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while heard(0) != ["drone_2"] {
+        assert!(
+            Instant::now() < deadline,
+            "node_0 hears {:?}\n{}",
+            heard(0),
+            nodes[0].output()
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    }
+    // A few more seconds: the stranger never gets in, either way.
+    std::thread::sleep(Duration::from_secs(3));
+    assert_eq!(heard(0), ["drone_2"]);
+    assert_eq!(heard(2), ["drone_0"]);
+    assert!(heard(1).is_empty(), "the stranger hears {:?}", heard(1));
+}
