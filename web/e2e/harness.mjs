@@ -1,4 +1,5 @@
-// E2E harness: starts a real `kestrel sim` on a free loopback port, opens the ground station it
+// E2E harness: starts a real `kestrel sim` (or `kestrel run` with a config) on a free loopback
+// port, opens the ground station it
 // serves in Debian's chromium (playwright-core, never a downloaded browser), blocks and records
 // every request that is not to the loopback interface, and saves screenshots as artifacts.
 
@@ -28,7 +29,7 @@ const CHROMIUM_ARGS = [
 
 const LOCAL_HOSTS = new Set(['127.0.0.1', 'localhost', '[::1]', '::1']);
 
-function freePort() {
+export function freePort() {
   return new Promise((resolve, reject) => {
     const srv = net.createServer();
     srv.unref();
@@ -45,9 +46,9 @@ const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 /**
  * Starts `kestrel sim --no-demo` (or `--scenario FILE`, which flies its mission; or with `demo`,
  * the sim's demo mission on every drone) and waits for its health route; returns a handle. With `autopilotPort`, `kestrel run` instead, waiting for an
- * autopilot there.
+ * autopilot there. With `config` (TOML text), `kestrel run --config` with it.
  */
-export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null, demo = false, autopilotPort = null } = {}) {
+export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, scenario = null, demo = false, autopilotPort = null, config = null } = {}) {
   if (!process.env.KESTREL_BIN) throw new Error('KESTREL_BIN must name the kestrel binary to test');
   const bin = path.resolve(process.env.KESTREL_BIN);
   const port = await freePort();
@@ -63,6 +64,10 @@ export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, sce
   else if (demo) args.splice(args.indexOf('--no-demo'), 1);
   // A scratch working directory: nothing kestrel writes lands in the repository.
   const cwd = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-run-'));
+  if (config !== null) {
+    fs.writeFileSync(path.join(cwd, 'kestrel.toml'), config);
+    args.splice(0, 6, 'run', '--config', path.join(cwd, 'kestrel.toml'));
+  }
   const child = spawn(bin, args, {
     cwd,
     env: { ...process.env, KESTREL_API_TOKEN: token },
@@ -103,6 +108,11 @@ export async function startKestrel({ drones = 2, speedup = 5, token = TOKEN, sce
       });
       const text = await res.text();
       return { status: res.status, json: text ? JSON.parse(text) : null };
+    },
+    /** Kills it at once (SIGKILL): a Kestrel that dies, not one that shuts down. */
+    async kill() {
+      if (!exited) child.kill('SIGKILL');
+      for (let i = 0; i < 50 && !exited; i++) await sleep(100);
     },
     async stop() {
       if (!exited) {

@@ -23,6 +23,7 @@ import { LogsView } from './ui/logsView';
 import { droneColor, MapView, type Tool } from './ui/mapView';
 import { MonitorView } from './ui/monitorView';
 import { PlanView } from './ui/planView';
+import { remoteCommandNote } from './lib/remote';
 import { TimelineView } from './ui/timelineView';
 
 const TOKEN_KEY = 'kestrel.token';
@@ -284,8 +285,13 @@ function wireHeader(): void {
 
 function renderHeader(): void {
   const refs = app.drones();
+  const remote = app.remoteDrones();
   const select = byId<HTMLSelectElement>('drone-select');
-  setOptions(select, refs.map((r) => ({ value: r.key, label: r.name })));
+  // Other Kestrels' drones are listed, never selectable: they are commanded from their own station.
+  setOptions(select, [
+    ...refs.map((r) => ({ value: r.key, label: r.name })),
+    ...remote.map((r) => ({ value: r.key, label: `${r.name} · remote (${r.drone.node})`, disabled: true, title: remoteCommandNote(r.drone) })),
+  ]);
   if (app.selectedKey && select.value !== app.selectedKey) select.value = app.selectedKey;
   const open = app.instances.filter((i) => i.socketOpen).length;
   const status = byId('conn-status');
@@ -293,7 +299,10 @@ function renderHeader(): void {
   const now = Date.now();
   const lost = refs.filter((r) => app.link(r, now).state === 'lost').map((r) => r.name);
   const lostText = lost.length ? ` · LOST: ${lost.join(', ')}` : '';
-  status.textContent = app.instances.length === 0 ? 'connecting…' : problems.length ? problems.join('; ') : `live · ${refs.length} drone(s) · ${open} instance(s)${lostText}`;
+  const silent = remote.filter((r) => app.remoteLink(r, now).state === 'silent').length;
+  const remoteText = remote.length ? ` · ${remote.length} remote${silent ? ` (${silent} silent)` : ''}` : '';
+  status.textContent =
+    app.instances.length === 0 ? 'connecting…' : problems.length ? problems.join('; ') : `live · ${refs.length} drone(s)${remoteText} · ${open} instance(s)${lostText}`;
   status.className = `conn ${problems.length || app.instances.length === 0 ? 'bad' : lost.length ? 'warn' : 'ok'}`;
 }
 
@@ -316,13 +325,15 @@ function drawDrones(): void {
   const now = Date.now();
   const drones = app.drones().map((ref, i) => ({ key: ref.key, name: ref.name, view: app.view(ref), link: app.link(ref, now), color: droneColor(i) }));
   mapView.renderDrones(drones);
+  mapView.renderRemote(app.remoteDrones().map((ref) => ({ key: ref.key, drone: ref.drone, link: app.remoteLink(ref, now) })));
   altitude.render(drones);
 }
 
-/** Zooms the map to every drone that has a position (home when none has). */
+/** Zooms the map to every drone that has a position, other Kestrels' too (home when none has). */
 function fitFleet(): void {
   const placed = app.drones().map((r) => app.view(r).status).filter(hasPosition);
-  mapView.fitTo(placed.length ? placed.map((s): Vec2 => [s.position_enu_m[0], s.position_enu_m[1]]) : [[0, 0]]);
+  const points = [...placed.map((s) => s.position_enu_m), ...app.remoteDrones().map((r) => r.drone.position_enu_m)];
+  mapView.fitTo(points.length ? points.map((p): Vec2 => [p[0], p[1]]) : [[0, 0]]);
 }
 
 function choicesChanged(): void {
@@ -369,7 +380,7 @@ async function main(): Promise<void> {
   fitFleet();
   // Render at 4 Hz; the link staleness check needs the clock even when no message arrives.
   setInterval(() => {
-    if (app.drones().length !== byId<HTMLSelectElement>('drone-select').options.length) choicesChanged();
+    if (app.drones().length + app.remoteDrones().length !== byId<HTMLSelectElement>('drone-select').options.length) choicesChanged();
     renderHeader();
     fleet.render();
     drawDrones();

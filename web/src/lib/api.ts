@@ -13,6 +13,7 @@ import type {
   Mission,
   MissionUpdate,
   MissionUpdateAnswer,
+  StatusAnswer,
 } from './types';
 
 export type FetchFn = (input: string, init?: RequestInit) => Promise<Response>;
@@ -105,7 +106,12 @@ export class ApiClient {
   }
 
   async status(): Promise<DroneStatus[]> {
-    return (await this.json<{ drones: DroneStatus[] }>('GET', '/api/status')).drones;
+    return (await this.statusAll()).drones;
+  }
+
+  /** The whole status: this Kestrel's drones, and on a fleet bus the remote drones and the bus. */
+  statusAll(): Promise<StatusAnswer> {
+    return this.json('GET', '/api/status');
   }
 
   behaviors(): Promise<BehaviorInfo[]> {

@@ -172,9 +172,50 @@ export interface CoverageAnswer {
   lengths_m: Record<string, number>;
 }
 
+/** A drone another Kestrel of the fleet flies, heard over the fleet bus (docs/API.md). */
+export interface RemoteDrone {
+  id: string;
+  /** The Kestrel (bus node) that flies it. */
+  node: string;
+  position_enu_m: Vec3;
+  velocity_enu_mps: Vec3;
+  yaw_rad: number;
+  flying: boolean;
+  /** Its node's link to its autopilot. */
+  link: LinkState | string;
+  battery_pct: number | null;
+  behavior: string | null;
+  mission: string | null;
+  /** Seconds since its node was last heard. */
+  age_s: number;
+  /** Not heard for longer than the bus's `peer_timeout_s`. */
+  silent: boolean;
+}
+
+/** The fleet bus of this Kestrel, as `GET /api/status` reports it (refreshed once a second). */
+export interface BusReport {
+  fleet: string;
+  node: string;
+  state_sent: number;
+  received: number;
+  refused: number;
+  dropped: number;
+  latency_samples: number;
+  latency_p50_ms: number | null;
+  latency_p99_ms: number | null;
+}
+
+/** `GET /api/status`: `remote` and `fleet_bus` only on a fleet bus. */
+export interface StatusAnswer {
+  t?: number;
+  drones: DroneStatus[];
+  remote?: RemoteDrone[];
+  fleet_bus?: BusReport | null;
+}
+
 /** WebSocket messages from the server. */
 export type ServerMessage =
-  | { type: 'telemetry'; t: number; drones: DroneStatus[] }
+  | { type: 'telemetry'; t: number; drones: DroneStatus[]; remote?: RemoteDrone[] }
   | { type: 'mission_status'; drone: string; status: MissionStatus }
   | { type: 'event'; drone: string | null; t: number; event: Record<string, unknown> }
   | {

@@ -1,10 +1,13 @@
 // The page's state: the instances it talks to, the drone the operator selected, the event log and
 // live behavior records, and the commands every view sends (mission updates, upload, hold, land).
+// Drones other Kestrels fly (remote, heard over a fleet bus) are listed apart: never a command
+// target here.
 
 import { behaviorRecord, describeEvent, updateMarker, type BehaviorRecord, type LogLine, type Marker } from '../lib/events';
 import { linkView, missionStateName, type DroneView, type LinkView } from '../lib/fleet';
 import { buildUpdate, holdUpdate, landUpdate, type UpdateArgs } from '../lib/missionUpdate';
-import type { ActionName, Mission, MissionItem, MissionUpdate, ServerMessage } from '../lib/types';
+import { remoteLink, type RemoteLink } from '../lib/remote';
+import type { ActionName, Mission, MissionItem, MissionUpdate, RemoteDrone, ServerMessage } from '../lib/types';
 import type { Outcome } from './feedback';
 import { describeError, Instance } from './instance';
 
@@ -15,6 +18,15 @@ export interface DroneRef {
   inst: Instance;
   drone: string;
   /** drone name, prefixed by the instance label when there are several instances */
+  name: string;
+}
+
+/** A drone another Kestrel flies, as one instance hears it over its fleet bus. */
+export interface RemoteRef {
+  key: string;
+  inst: Instance;
+  drone: RemoteDrone;
+  /** drone id, prefixed by the instance label when there are several instances */
   name: string;
 }
 
@@ -61,6 +73,25 @@ export class App {
         name: several ? `${inst.label}:${drone}` : drone,
       })),
     );
+  }
+
+  /**
+   * Remote drones of every instance, sorted; one this page also reaches as a local drone of
+   * another instance is listed there only.
+   */
+  remoteDrones(): RemoteRef[] {
+    const several = this.instances.length > 1;
+    const local = new Set(this.instances.flatMap((i) => [...i.state.drones.keys()]));
+    return this.instances.flatMap((inst) =>
+      [...inst.remote.drones.values()]
+        .filter((r) => !local.has(r.id))
+        .sort((a, b) => a.id.localeCompare(b.id))
+        .map((drone) => ({ key: `${inst.id}/remote/${drone.id}`, inst, drone, name: several ? `${inst.label}:${drone.id}` : drone.id })),
+    );
+  }
+
+  remoteLink(ref: RemoteRef, nowMs = Date.now()): RemoteLink {
+    return remoteLink(ref.drone, ref.inst.remote, nowMs, ref.inst.socketOpen);
   }
 
   ref(key: string | null): DroneRef | undefined {

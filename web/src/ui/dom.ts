@@ -35,15 +35,31 @@ export function option(value: string, label: string, selected = false): HTMLOpti
   return o;
 }
 
-/** Replaces a select's options, keeping the chosen value when it still exists. */
-export function setOptions(select: HTMLSelectElement, items: { value: string; label: string }[]): void {
+export interface OptionItem {
+  value: string;
+  label: string;
+  /** Shown but not choosable, `title` saying why. */
+  disabled?: boolean;
+  title?: string;
+}
+
+/** Replaces a select's options, keeping the chosen value when it still exists (and is choosable). */
+export function setOptions(select: HTMLSelectElement, items: OptionItem[]): void {
   const keep = select.value;
   const same =
     select.options.length === items.length &&
-    items.every((it, i) => select.options[i].value === it.value && select.options[i].text === it.label);
+    items.every((it, i) => select.options[i].value === it.value && select.options[i].text === it.label && select.options[i].disabled === !!it.disabled);
   if (same) return;
-  select.replaceChildren(...items.map((it) => option(it.value, it.label, it.value === keep)));
-  if (!items.some((it) => it.value === keep) && items.length) select.value = items[0].value;
+  select.replaceChildren(
+    ...items.map((it) => {
+      const o = option(it.value, it.label, it.value === keep && !it.disabled);
+      o.disabled = !!it.disabled;
+      if (it.title) o.title = it.title;
+      return o;
+    }),
+  );
+  const choosable = items.filter((it) => !it.disabled);
+  if (!choosable.some((it) => it.value === keep) && choosable.length) select.value = choosable[0].value;
 }
 
 export const fmt = (v: number | null | undefined, digits = 1): string =>

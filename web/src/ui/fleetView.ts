@@ -1,5 +1,6 @@
 // Fleet panel: one card per drone (link, armed, mode, flight, battery, position, behavior, mission
-// progress, hold/land), and the list of Kestrel instances with a form to add one.
+// progress, hold/land), the fleet bus and the drones other Kestrels fly (remoteCards.ts), and the
+// list of Kestrel instances with a form to add one.
 
 import { hasPosition, missionProgress, missionStateName, motionBehavior } from '../lib/fleet';
 import { behaviorColor } from '../lib/colors';
@@ -7,6 +8,7 @@ import type { App, DroneRef } from './app';
 import { byId, fmt, h } from './dom';
 import { act } from './feedback';
 import { describeError } from './instance';
+import { RemoteCards } from './remoteCards';
 
 const INSTANCES_KEY = 'kestrel.instances';
 
@@ -46,9 +48,11 @@ export class FleetView {
   private cards = new Map<string, Card>();
   private list = h('div', { className: 'cards', id: 'fleet-cards' });
   private instances = h('ul', { className: 'instances', id: 'instances' });
+  private remote: RemoteCards;
 
   constructor(private readonly app: App) {
     const panel = byId('panel-fleet');
+    this.remote = new RemoteCards(app);
     const addr = h('input', { id: 'inst-addr', placeholder: 'http://drone-2.local:8080', 'aria-label': 'instance address' });
     const token = h('input', { id: 'inst-token', type: 'password', placeholder: 'token', 'aria-label': 'instance token' });
     const answer = h('p', { className: 'answer', id: 'inst-answer' });
@@ -68,7 +72,9 @@ export class FleetView {
     );
     panel.append(
       h('h2', {}, 'Fleet'),
+      this.remote.bus,
       this.list,
+      this.remote.list,
       h('h3', {}, 'Kestrel instances'),
       this.instances,
       h('div', { className: 'row' }, addr, token, add),
@@ -141,6 +147,7 @@ export class FleetView {
         this.cards.delete(key);
       }
     }
+    this.remote.render();
     this.instances.replaceChildren(
       ...this.app.instances.map((i) =>
         h('li', {}, `${i.label} — ${i.client.base || 'this server'} — `, h('span', { className: i.socketOpen ? 'ok' : 'bad' }, i.socketOpen ? 'connected' : (i.problem ?? 'disconnected'))),

@@ -1,16 +1,23 @@
-// One Kestrel instance the page talks to: its HTTP client, its WebSocket (reconnecting), and the
-// reduced state of its drones.
+// One Kestrel instance the page talks to: its HTTP client, its WebSocket (reconnecting), the
+// reduced state of its drones, and the drones other Kestrels of its fleet bus fly (polled with
+// its bus report every 2 s, and carried by each telemetry frame).
 
 import { ApiClient, ApiError, wsUrl } from '../lib/api';
 import { applyMessage, applyStatus, newInstanceState, type InstanceState } from '../lib/fleet';
 import { readGeofence, type Geofence } from '../lib/geo';
+import { applyRemote, newRemoteState, type RemoteState } from '../lib/remote';
 import type { BehaviorInfo, FrameInfo, ServerMessage } from '../lib/types';
+
+/** How often the status (remote drones and the fleet bus report) is polled (ms). */
+const STATUS_POLL_MS = 2000;
 
 export type InstanceListener = (inst: Instance, msg: ServerMessage | null) => void;
 
 export class Instance {
   readonly client: ApiClient;
   readonly state: InstanceState = newInstanceState();
+  /** Drones other Kestrels fly, heard over this one's fleet bus, and the bus report. */
+  readonly remote: RemoteState = newRemoteState();
   behaviors: BehaviorInfo[] = [];
   frames: FrameInfo[] = [];
   geofence: Geofence | null = null;
@@ -20,6 +27,7 @@ export class Instance {
   private ws: WebSocket | null = null;
   private retryMs = 1000;
   private closed = false;
+  private statusTimer: ReturnType<typeof setInterval> | null = null;
 
   constructor(
     readonly id: number,
@@ -33,14 +41,31 @@ export class Instance {
 
   /** Checks the token and loads what the page needs once; throws ApiError (401 included). */
   async start(): Promise<void> {
-    const drones = await this.client.status();
-    applyStatus(this.state, drones, Date.now());
+    const status = await this.client.statusAll();
+    applyStatus(this.state, status.drones, Date.now());
+    this.applyFleet(status.remote, status.fleet_bus);
     this.problem = null;
     this.behaviors = await this.client.behaviors().catch(() => []);
     this.geofence = readGeofence(await this.client.geofence().catch(() => null));
     await this.refreshFrames();
     this.connect();
+    this.statusTimer = setInterval(() => void this.pollStatus(), STATUS_POLL_MS);
     this.listener(this, null);
+  }
+
+  private applyFleet(remote: Parameters<typeof applyRemote>[1], bus: RemoteState['bus'] | undefined): void {
+    applyRemote(this.remote, remote, Date.now());
+    this.remote.bus = bus ?? null;
+  }
+
+  /** The fleet bus report (and the remote drones) from `GET /api/status`; kept when it fails. */
+  private async pollStatus(): Promise<void> {
+    try {
+      const status = await this.client.statusAll();
+      this.applyFleet(status.remote, status.fleet_bus);
+    } catch {
+      // The WebSocket's close handler says why the server is not answering.
+    }
   }
 
   async refreshFrames(): Promise<void> {
@@ -66,6 +91,7 @@ export class Instance {
         return;
       }
       applyMessage(this.state, msg, Date.now());
+      if (msg.type === 'telemetry') applyRemote(this.remote, msg.remote, Date.now());
       this.listener(this, msg);
     };
     ws.onclose = () => {
@@ -100,6 +126,7 @@ export class Instance {
 
   close(): void {
     this.closed = true;
+    if (this.statusTimer !== null) clearInterval(this.statusTimer);
     this.ws?.close();
   }
 }

@@ -1,7 +1,8 @@
 // Leaflet glue: the local ENU map (simple CRS, x east = lng, y north = lat) or, in geographic
 // mode, Web Mercator around the ENU origin. Drones, behavior-coloured trails, planned paths, the
-// plan being drawn, occupancy grid (the explored area), exploration frontiers and goals, frames
-// and geofence are layers; clicks go to the active tool.
+// plan being drawn, occupancy grid (the explored area), exploration frontiers and goals, frames,
+// geofence and the drones other Kestrels fly (remoteLayer.ts) are layers; clicks go to the active
+// tool.
 
 import L from 'leaflet';
 import 'leaflet/dist/leaflet.css';
@@ -11,6 +12,7 @@ import { enuToGeo, geoToEnu, type GeoOrigin } from '../lib/geo';
 import { graticule } from '../lib/graticule';
 import { gridBounds, gridPixels, type Grid } from '../lib/grid';
 import type { FrameInfo, FrontierView, Vec2, Vec3 } from '../lib/types';
+import { RemoteLayer, type RemoteDraw } from './remoteLayer';
 
 export type Tool = 'pan' | 'waypoint' | 'path' | 'polygon';
 
@@ -49,8 +51,10 @@ export class MapView {
     trails: L.layerGroup(),
     draft: L.layerGroup(),
     drawing: L.layerGroup(),
+    remote: L.layerGroup(),
     drones: L.layerGroup(),
   };
+  private readonly remote = new RemoteLayer(this.layers.remote, (x, y) => this.ll(x, y));
   private markers = new Map<string, L.Marker>();
   private trailDrawn = new Map<string, { n: number; group: L.LayerGroup }>();
   private gridUrl: string | null = null;
@@ -88,6 +92,7 @@ export class MapView {
         'Planned paths': this.layers.planned,
         Exploration: this.layers.exploration,
         'Past flight': this.layers.past,
+        'Other Kestrels\' drones': this.layers.remote,
         'Grid lines': this.layers.axes,
       }, { collapsed: true })
       .addTo(this.map);
@@ -247,6 +252,11 @@ export class MapView {
       }
     }
     this.renderTrails(drones);
+  }
+
+  /** Drones other Kestrels of the fleet fly. */
+  renderRemote(drones: RemoteDraw[]): void {
+    this.remote.render(drones);
   }
 
   private renderTrails(drones: DroneDraw[]): void {
