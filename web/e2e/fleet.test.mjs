@@ -103,10 +103,12 @@ describe('two Kestrels on one fleet bus', { timeout: 180_000 }, () => {
       assert.ok(!labels.some((l) => l.includes('drone_1')), `${sel} offers drone_1: ${labels}`);
     }
     assert.equal(await page.locator('#panel-explore input[data-drone="drone_1"]').count(), 0);
-    // The server refuses a command naming it anyway, with a reason (shown by the page as sent).
+    // The server refuses a command naming it anyway, with the reason the page shows (app.send).
     const answer = await nodes[0].api('POST', '/api/mission_update', { drone_id: 'drone_1', mission_id: null, item_id: null, action: 5, mission: null });
-    assert.equal(answer.status, 409);
-    assert.equal(answer.json.error.code, 'remote_drone');
+    assert.equal(answer.status, 409, JSON.stringify(answer.json));
+    assert.equal(answer.json.accepted, false);
+    assert.equal(answer.json.code, 'remote_drone');
+    assert.match(answer.json.reason, /flown by the Kestrel `node_1`/);
   });
 
   test('killing node_1 shows its drone silent within a few seconds, never as live', async () => {

@@ -77,12 +77,20 @@ describe('remote drones', () => {
 });
 
 describe('a command naming a remote drone', () => {
-  it('is refused with the server message, not a bare "refused"', async () => {
-    const body = { error: { code: 'remote_drone', message: 'drone_1 is flown by the Kestrel `node_1` of the fleet, not this one: use its API' } };
+  const reason = 'drone_1 is flown by the Kestrel `node_1` of the fleet, not this one: send the command to that Kestrel\'s API';
+
+  it('a MissionUpdate is refused as an answer carrying the reason', async () => {
+    const body = { accepted: false, code: 'remote_drone', details: [], reason };
     const client = new ApiClient('', 't', async () => new Response(JSON.stringify(body), { status: 409 }));
-    const err = await client.missionUpdate({ drone_id: 'drone_1', mission_id: null, item_id: null, action: 5, mission: null }).catch((e) => e);
+    const answer = await client.missionUpdate({ drone_id: 'drone_1', mission_id: null, item_id: null, action: 5, mission: null });
+    expect(answer).toMatchObject({ accepted: false, reason });
+  });
+
+  it('any other route throws the error with its message and code', async () => {
+    const body = { error: { code: 'remote_drone', message: reason } };
+    const client = new ApiClient('', 't', async () => new Response(JSON.stringify(body), { status: 409 }));
+    const err = await client.postMission({ target: 'drone_1', plan: [] }).catch((e) => e);
     expect(err).toBeInstanceOf(ApiError);
-    expect(err.status).toBe(409);
     expect(err.body.code).toBe('remote_drone');
     expect(err.message).toContain('flown by the Kestrel `node_1`');
   });
