@@ -376,8 +376,8 @@ async fn join_fleet_bus(
     .await?;
     host.enable_fleet_bus(SilencePolicy {
         peer_timeout: Duration::from_secs_f64(fleet.peer_timeout_s),
-        max_speed_mps: config.controller.max_horizontal_speed_mps,
-        keepout_cap_m: fleet.silent_keepout_m,
+        lost_after: Duration::from_secs_f64(fleet.lost_after_s),
+        keepout_m: fleet.silent_keepout_m,
     });
     println!(
         "fleet bus: fleet `{}` as node `{node}`, listening on [{}], connecting to [{}]",

@@ -173,6 +173,7 @@ impl DroneCore {
             local: true,
             uncertainty_m: 0.0,
             silent: false,
+            unaccounted: false,
         }
     }
 

@@ -11,7 +11,10 @@
 //! - [`scans`]: a `POST /api/scans` body as `KSC1` binary and as JSON (every scan kind);
 //! - [`config`]: TOML text as a Kestrel config (`kestrel.toml`) and as a platform profile
 //!   (`platforms/*.toml`), with what `kestrel run` derives from a validated config (safety,
-//!   executor, mission limits, MAVLink session and peers, the map grid).
+//!   executor, mission limits, MAVLink session and peers, the map grid);
+//! - [`fleet_wire`]: a fleet-bus message from a peer, as a drone-state message and as a map
+//!   region (bounds checks, inflating), applied to remote drones and a merged map as
+//!   `kestrel run` does with what a peer sends.
 
 use kestrel::behavior::Registry;
 use kestrel::config::Config;
@@ -164,4 +167,40 @@ pub fn config(data: &[u8]) {
         black_box(config.map.config(None).is_ok());
     }
     black_box(Profile::parse(text, "fuzz").is_ok());
+}
+
+/// A fleet-bus payload: decoded as a state and as a map message; what decodes is applied to a
+/// remote fleet and to a merged map on the open-field grid, as the host does.
+pub fn fleet_wire(data: &[u8]) {
+    use kestrel::fleet_bus::remote::{RemoteFleet, SilencePolicy};
+    use kestrel::fleet_bus::wire::{MapMsg, StateMsg};
+    use kestrel::mapping::config::MapConfig;
+    use kestrel::mapping::merged::{FleetMap, LayerRegion};
+    use std::time::Duration;
+    if let Ok(msg) = StateMsg::decode(data) {
+        let mut remote = RemoteFleet::new(SilencePolicy {
+            peer_timeout: Duration::from_millis(1500),
+            max_speed_mps: 8.0,
+            keepout_cap_m: 1.5,
+        });
+        black_box(remote.apply(msg, Duration::from_secs(1), &["drone_0".to_string()]));
+        black_box(remote.views(Duration::from_secs(3)).count());
+        black_box(remote.claims());
+    }
+    let Ok(config) = MapConfig::open_field() else {
+        return;
+    };
+    let Ok(mut map) = FleetMap::new(&config) else {
+        return;
+    };
+    let cells = map.merged().spec().cell_count();
+    if let Ok(msg) = MapMsg::decode(data, cells) {
+        let region = LayerRegion {
+            drone: msg.header.drone,
+            grid: msg.header.grid,
+            region: msg.header.region,
+            cells: msg.cells,
+        };
+        black_box(map.apply_remote(&region).is_ok());
+    }
 }

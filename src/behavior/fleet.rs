@@ -35,6 +35,9 @@ pub struct DroneView {
     /// it cannot take part in decisions that need both sides (the drone watcher), only be kept
     /// away from.
     pub silent: bool,
+    /// A silent remote drone that was flying and is not accounted for yet: it could be anywhere,
+    /// so this Kestrel's flying drones hold where they are (`fleet_bus::remote`).
+    pub unaccounted: bool,
 }
 
 /// What a core gets from its fleet each tick: the view (shared by every core of the host) and
@@ -88,6 +91,7 @@ mod tests {
             local: true,
             uncertainty_m: 0.0,
             silent: false,
+            unaccounted: false,
         }
     }
 

@@ -39,12 +39,16 @@ pub struct FleetSection {
     /// Every this long the whole known part of each drone's map is sent again, so a peer that
     /// joins late or lost messages catches up (s).
     pub map_keyframe_period_s: f64,
-    /// A peer's drone not heard from for this long is shown as silent (s); from then on others
-    /// keep away from everywhere it could have flown since (`[controller]` speed).
+    /// A peer's drone not heard from for this long is silent (s): while one that was flying is
+    /// silent, this Kestrel's flying drones hold where they are (the peer, if alive and cut off,
+    /// does the same).
     pub peer_timeout_s: f64,
-    /// The farthest a silent drone is assumed to have flown (m): its autopilot's failsafe (PX4
-    /// and ArduPilot land or hold when their companion computer falls silent) stops it within
-    /// about this distance.
+    /// Silent this long while this Kestrel hears the majority of the fleet's nodes, a drone is
+    /// taken to be where it was last heard (its autopilot's failsafe landed or held it, or its
+    /// Kestrel, cut off in a minority, holds it) and the majority flies on around it (s).
+    pub lost_after_s: f64,
+    /// Kept from such a drone on top of `[safety] min_separation_m` (m): how far its failsafe
+    /// may have carried it.
     pub silent_keepout_m: f64,
     /// `user:password` lines: the first is this node's, all are accepted from peers. Without it
     /// the bus is open to anyone on the network (a warning says so).
@@ -65,7 +69,8 @@ impl Default for FleetSection {
             map_rate_hz: 2.0,
             map_keyframe_period_s: 10.0,
             peer_timeout_s: 1.5,
-            silent_keepout_m: 1.5,
+            lost_after_s: 10.0,
+            silent_keepout_m: 0.5,
             credentials_file: None,
         }
     }
@@ -155,6 +160,7 @@ impl FleetSection {
                 600.0,
             ),
             ("peer_timeout_s", self.peer_timeout_s, 0.2, 60.0),
+            ("lost_after_s", self.lost_after_s, 2.0, 600.0),
             ("silent_keepout_m", self.silent_keepout_m, 0.0, 20.0),
         ] {
             if !(lo..=hi).contains(&value) {
@@ -163,6 +169,15 @@ impl FleetSection {
                     format!("{value} is outside {lo} to {hi}"),
                 ));
             }
+        }
+        if self.lost_after_s <= self.peer_timeout_s {
+            return Err((
+                "fleet.lost_after_s".into(),
+                format!(
+                    "{} s is not longer than peer_timeout_s ({} s)",
+                    self.lost_after_s, self.peer_timeout_s
+                ),
+            ));
         }
         if self.peer_timeout_s * self.state_rate_hz < 2.0 {
             return Err((

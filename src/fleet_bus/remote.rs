@@ -1,11 +1,22 @@
-//! The drones other Kestrels fly, as this one last heard them over the fleet bus.
+//! The drones other Kestrels fly, as this one last heard them over the fleet bus, and what this
+//! Kestrel may assume about the ones that fell silent.
 //!
 //! In: checked [`StateMsg`]s with the host time they arrived, and this host's own drone ids.
-//! Out: fleet-view entries (`local: false`) whose position uncertainty grows while their node is
-//! silent (at the fastest this fleet flies, up to `[fleet] silent_keepout_m`), the exploration
-//! claims they hold, and a status per remote drone for the API. A state that names one of this
-//! host's own drones is refused (a peer cannot move our drones in our view), and at most
-//! [`MAX_REMOTE_DRONES`] are kept.
+//! Out: fleet-view entries (`local: false`), the exploration claims they hold, and a status per
+//! remote drone for the API. A state that names one of this host's own drones is refused (a peer
+//! cannot move our drones in our view), and at most [`MAX_REMOTE_DRONES`] are kept.
+//!
+//! Silence, and why it is safe. A peer's drone not heard for `peer_timeout` is `silent`. While a
+//! silent drone was flying and is not accounted for, nobody knows where it goes, so every Kestrel
+//! holds its flying drones where they are (`unaccounted`: the safety stage holds) — and a peer
+//! that is alive but cut off does the same, since it hears us fall silent too: nothing moves
+//! toward anything. A silent drone is accounted for once it has been silent for `lost_after` and
+//! this Kestrel still hears more than half of the fleet's nodes (itself included): the
+//! majority. Either the peer is dead (its autopilot's failsafe has landed or held the drone where
+//! it was) or it is cut off in a minority, where it keeps holding (it never hears a majority).
+//! Both leave the drone where it was last heard: from then on the majority flies again and keeps
+//! `[safety] min_separation_m` plus `keepout_m` from that point. An isolated Kestrel (no
+//! majority) never presumes anything and holds until the bus is back.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -17,7 +28,8 @@ use super::wire::{DroneState, StateMsg};
 use crate::behavior::fleet::DroneView;
 use crate::types::{LinkHealth, Vec3};
 
-/// Most remote drones kept (a flood of made-up ids cannot grow the host's memory).
+/// Most remote drones, and remote nodes, kept (a flood of made-up ids cannot grow the host's
+/// memory).
 pub const MAX_REMOTE_DRONES: usize = 128;
 
 /// How the host treats silence on the bus.
@@ -25,11 +37,11 @@ pub const MAX_REMOTE_DRONES: usize = 128;
 pub struct SilencePolicy {
     /// Not heard for this long: silent.
     pub peer_timeout: Duration,
-    /// A silent drone may have flown this fast since (m/s).
-    pub max_speed_mps: f64,
-    /// At most this far (m): its autopilot's failsafe (PX4 and ArduPilot land or hold when
-    /// their companion falls silent) stops it within about this distance.
-    pub keepout_cap_m: f64,
+    /// Silent this long while the majority is heard: accounted for, where it was last heard.
+    pub lost_after: Duration,
+    /// Kept from a drone accounted for, on top of the separation (m): how far its autopilot's
+    /// failsafe may carry it while it stops or lands.
+    pub keepout_m: f64,
 }
 
 /// One remote drone, as last heard.
@@ -60,11 +72,15 @@ pub struct RemoteDroneStatus {
     pub age_s: f64,
     /// Not heard for longer than `[fleet] peer_timeout_s`.
     pub silent: bool,
+    /// Silent while flying and not accounted for yet: this Kestrel's flying drones hold.
+    pub unaccounted: bool,
 }
 
 #[derive(Debug, Clone)]
 pub struct RemoteFleet {
     drones: BTreeMap<String, Heard>,
+    /// Every peer node heard since start, and when last: the fleet's size for the majority.
+    nodes: BTreeMap<String, Duration>,
     policy: SilencePolicy,
 }
 
@@ -72,13 +88,27 @@ impl RemoteFleet {
     pub fn new(policy: SilencePolicy) -> Self {
         Self {
             drones: BTreeMap::new(),
+            nodes: BTreeMap::new(),
             policy,
         }
+    }
+
+    /// Whether this Kestrel hears more than half of the fleet's nodes, itself included.
+    pub fn in_majority(&self, now: Duration) -> bool {
+        let heard = self
+            .nodes
+            .values()
+            .filter(|&&at| now.saturating_sub(at) <= self.policy.peer_timeout)
+            .count();
+        2 * (1 + heard) > 1 + self.nodes.len()
     }
 
     /// Takes in one node's state. Returns why drones were refused, if any were.
     pub fn apply(&mut self, msg: StateMsg, now: Duration, local: &[String]) -> Vec<String> {
         let mut refused = Vec::new();
+        if self.nodes.contains_key(&msg.node) || self.nodes.len() < MAX_REMOTE_DRONES {
+            self.nodes.insert(msg.node.clone(), now);
+        }
         // A node decides which drones it flies: one it no longer announces is gone.
         let announced: Vec<&str> = msg.drones.iter().map(|d| d.id.as_str()).collect();
         self.drones
@@ -131,25 +161,23 @@ impl RemoteFleet {
         now.saturating_sub(h.at)
     }
 
-    /// How far a drone heard `age` ago may have gone: at its own speed while its node is heard
-    /// regularly, at the fleet's fastest once it is silent, never assumed beyond the cap.
-    fn uncertainty_m(&self, state: &DroneState, age: Duration) -> f64 {
-        let speed = Vec3::from(state.velocity_enu_mps).norm();
-        let timeout = self.policy.peer_timeout.as_secs_f64();
-        let age = age.as_secs_f64();
-        let gone = if age <= timeout {
-            speed * age
-        } else {
-            speed * timeout + self.policy.max_speed_mps * (age - timeout)
-        };
-        gone.min(self.policy.keepout_cap_m)
+    /// How far a drone heard `age` ago may be from where it was heard: as far as its own speed
+    /// takes it while it is heard; once accounted for, the keep-out.
+    fn uncertainty_m(&self, state: &DroneState, age: Duration, accounted: bool) -> f64 {
+        if accounted {
+            return self.policy.keepout_m;
+        }
+        Vec3::from(state.velocity_enu_mps).norm() * age.as_secs_f64()
     }
 
     /// The fleet-view entries of the remote drones at host time `now`.
     pub fn views(&self, now: Duration) -> impl Iterator<Item = DroneView> + '_ {
+        let majority = self.in_majority(now);
         self.drones.values().map(move |h| {
             let s = &h.state;
             let age = self.age(h, now);
+            let silent = age > self.policy.peer_timeout;
+            let accounted = silent && majority && age >= self.policy.lost_after;
             DroneView {
                 id: s.id.as_str().into(),
                 position_enu_m: Vec3::from(s.position_enu_m),
@@ -161,8 +189,9 @@ impl RemoteFleet {
                 goal_enu_m: s.goal_enu_m.map(Vec3::from),
                 stamp: h.at,
                 local: false,
-                uncertainty_m: self.uncertainty_m(s, age),
-                silent: age > self.policy.peer_timeout,
+                uncertainty_m: self.uncertainty_m(s, age, accounted),
+                silent,
+                unaccounted: silent && !accounted && s.flying,
             }
         })
     }
@@ -178,9 +207,9 @@ impl RemoteFleet {
     pub fn statuses(&self, now: Duration) -> Vec<RemoteDroneStatus> {
         self.drones
             .values()
-            .map(|h| {
+            .zip(self.views(now))
+            .map(|(h, view)| {
                 let s = &h.state;
-                let age = self.age(h, now);
                 RemoteDroneStatus {
                     id: s.id.clone(),
                     node: h.node.clone(),
@@ -192,8 +221,9 @@ impl RemoteFleet {
                     battery_pct: s.battery_pct,
                     behavior: s.behavior.clone(),
                     mission: s.mission.clone(),
-                    age_s: age.as_secs_f64(),
-                    silent: age > self.policy.peer_timeout,
+                    age_s: self.age(h, now).as_secs_f64(),
+                    silent: view.silent,
+                    unaccounted: view.unaccounted,
                 }
             })
             .collect()
@@ -209,8 +239,8 @@ mod tests {
     fn policy() -> SilencePolicy {
         SilencePolicy {
             peer_timeout: Duration::from_millis(1500),
-            max_speed_mps: 0.75,
-            keepout_cap_m: 1.5,
+            lost_after: Duration::from_secs(10),
+            keepout_m: 1.5,
         }
     }
 
@@ -241,23 +271,45 @@ mod tests {
     }
 
     #[test]
-    fn a_silent_drone_may_be_anywhere_it_could_have_flown_up_to_the_cap() {
+    fn a_silent_flying_drone_holds_the_fleet_until_the_majority_accounts_for_it() {
         let mut r = RemoteFleet::new(policy());
         let t0 = Duration::from_secs(10);
+        let s = Duration::from_secs_f64;
         assert!(r
             .apply(msg("b", vec![drone("drone_1", 2.0)]), t0, &[])
             .is_empty());
-        let at = |t: f64| r.views(t0 + Duration::from_secs_f64(t)).next().unwrap();
+        r.apply(msg("c", vec![drone("drone_2", 9.0)]), t0, &[]);
+        let view =
+            |r: &RemoteFleet, t: f64, id: &str| r.views(t0 + s(t)).find(|v| &*v.id == id).unwrap();
         // Heard regularly: as far as its own speed (0.5 m/s) took it since.
-        let fresh = at(0.1);
-        assert!(!fresh.local && !fresh.silent);
+        let fresh = view(&r, 0.1, "drone_1");
+        assert!(!fresh.local && !fresh.silent && !fresh.unaccounted);
         assert!((fresh.uncertainty_m - 0.05).abs() < 1e-9);
-        // Silent: from then on at the fleet's fastest (0.75 m/s).
-        let quiet = at(1.6);
-        assert!(quiet.silent);
-        assert!((quiet.uncertainty_m - (0.75 + 0.075)).abs() < 1e-9);
-        assert!((at(60.0).uncertainty_m - 1.5).abs() < 1e-9, "capped");
-        assert_eq!(r.claims(), vec![(Arc::from("drone_1"), [3.0, 0.0], t0)]);
+        // `b` falls silent while `c` is still heard: its drone holds everyone until `lost_after`.
+        for k in 1..=12 {
+            r.apply(
+                msg("c", vec![drone("drone_2", 9.0)]),
+                t0 + s(f64::from(k)),
+                &[],
+            );
+        }
+        let quiet = view(&r, 5.0, "drone_1");
+        assert!(quiet.silent && quiet.unaccounted);
+        // Then, with `c` (two of three nodes heard: the majority), it is where it was heard.
+        assert!(r.in_majority(t0 + s(12.0)));
+        let accounted = view(&r, 12.0, "drone_1");
+        assert!(accounted.silent && !accounted.unaccounted);
+        assert!((accounted.uncertainty_m - 1.5).abs() < 1e-9);
+        assert_eq!(accounted.position_enu_m, Vec3::new(2.0, 0.0, 1.0));
+        // Cut off from both (a minority of one), nothing is ever presumed: hold until heard.
+        assert!(!r.in_majority(t0 + s(60.0)));
+        assert!(view(&r, 60.0, "drone_1").unaccounted && view(&r, 60.0, "drone_2").unaccounted);
+        // A drone on the ground that falls silent holds nobody.
+        let mut landed = drone("drone_3", 0.0);
+        landed.flying = false;
+        r.apply(msg("d", vec![landed]), t0 + s(60.0), &[]);
+        assert!(!view(&r, 65.0, "drone_3").unaccounted);
+        assert_eq!(r.claims().len(), 3);
     }
 
     #[test]

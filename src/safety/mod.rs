@@ -111,6 +111,20 @@ impl SafetyStage {
                 margin_m: self.config.geofence_margin_m,
             };
             self.fenced(&fence, here, sp)
+                .or_else(|| {
+                    // Held in place, still turning as asked: a turn moves nothing toward anyone
+                    // and keeps the range beams sweeping.
+                    held_for_silence(me, fleet).map(|why| {
+                        let yaw = match sp {
+                            Setpoint::Velocity { yaw, .. } | Setpoint::Position { yaw, .. } => yaw,
+                        };
+                        let in_place = Setpoint::Velocity {
+                            velocity_enu_mps: Vec3::zeros(),
+                            yaw,
+                        };
+                        (in_place, OverrideKind::Separation, why)
+                    })
+                })
                 .or_else(|| self.separated(me, state, sp, fleet))
                 .or_else(|| self.limited(sp))
                 .map_or((sp, None), |(s, kind, why)| (s, Some((kind, why))))
@@ -207,7 +221,13 @@ impl SafetyStage {
             return None;
         }
         if closing > 0.0 {
-            v += away * closing;
+            if other.silent {
+                // Around a silent drone's spot nothing guides a sideways slide clear of
+                // obstacles: stop instead.
+                v = Vec3::zeros();
+            } else {
+                v += away * closing;
+            }
         }
         // Pushed apart only from a drone heard now: from a silent one's last position, pushing
         // could as well be toward it.
@@ -317,3 +337,13 @@ fn finite(sp: &Setpoint) -> bool {
 
 #[cfg(test)]
 mod tests;
+
+/// Why to hold, when a remote drone that was flying fell silent and is not accounted for yet:
+/// it could be anywhere, and its Kestrel, if alive, holds as well (see `fleet_bus::remote`).
+fn held_for_silence(me: &str, fleet: &FleetView) -> Option<String> {
+    let other = fleet.others(me).find(|d| d.unaccounted)?;
+    Some(format!(
+        "{} fell silent while flying: holding until it is heard again or accounted for",
+        other.id
+    ))
+}

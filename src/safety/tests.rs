@@ -40,6 +40,7 @@ fn drone(id: &str, x: f64, y: f64) -> DroneView {
         local: true,
         uncertainty_m: 0.0,
         silent: false,
+        unaccounted: false,
     }
 }
 
@@ -217,6 +218,40 @@ fn a_silent_remote_drone_is_kept_away_from_by_where_it_could_be() {
         }) => assert!(velocity_enu_mps.norm() < 1e-9, "{velocity_enu_mps}"),
         other => panic!("{other:?}"),
     }
+}
+
+#[test]
+fn an_unaccounted_silent_drone_holds_this_one_wherever_it_is() {
+    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut other = drone("other", 30.0, 0.0);
+    other.local = false;
+    other.silent = true;
+    other.unaccounted = true;
+    let fleet = FleetView {
+        drones: vec![other],
+    };
+    let (out, o) = stage.check(
+        "me",
+        &at(0.0, 0.0, 2.0),
+        Vec3::zeros(),
+        true,
+        Some(Setpoint::Velocity {
+            velocity_enu_mps: Vec3::new(-1.0, 0.0, 0.0),
+            yaw: YawTarget::Rate(0.4),
+        }),
+        &fleet,
+    );
+    let o = o.unwrap();
+    assert_eq!(o.kind, OverrideKind::Separation);
+    assert!(o.reason.contains("other fell silent"), "{}", o.reason);
+    assert_eq!(
+        out,
+        Some(Setpoint::Velocity {
+            velocity_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Rate(0.4),
+        }),
+        "held in place, still turning"
+    );
 }
 
 #[test]

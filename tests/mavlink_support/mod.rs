@@ -3,6 +3,7 @@
 //! records the fake's true state.
 #![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
 
+pub mod bus;
 pub mod room;
 
 use serde_json::{json, Value};

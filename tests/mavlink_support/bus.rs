@@ -1,0 +1,234 @@
+//! Three `kestrel run` processes on one fleet bus (tests/fleet_bus_e2e.rs, benches/fleet_bus.rs):
+//! the bays world, each node's config, TCP proxies in front of the bus ports that a test can cut
+//! like a Wi-Fi drop, and waiting for the fleet to join and to finish an exploration.
+
+use super::{free_tcp_port, Api, Fake, Kestrel};
+use serde_json::{json, Value};
+use std::io::{Read, Write};
+use std::net::{Shutdown, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+pub const WORLD: &str = "sitl/worlds/bays18_fleet.json";
+/// Where the fake starts each vehicle: the world's `starts_xy_yaw` for three (one per bay).
+pub const STARTS_ENU_M: [[f64; 3]; 3] = [[-6.0, -1.0, 0.0], [0.0, 1.0, 0.0], [6.0, -1.0, 0.0]];
+/// The explorer's arguments, as tests/run_fleet.rs.
+pub const ARGS: &str = r#"{"spin_rate": 0.4, "safety_distance": 0.5}"#;
+/// One exploration, take-off to the last disarm (wall clock).
+pub const EXPLORATION_TIMEOUT: Duration = Duration::from_secs(240);
+
+/// A TCP proxy in front of one Kestrel's bus port, which the test can cut.
+pub struct BusProxy {
+    port: u16,
+    cut: Arc<AtomicBool>,
+    open: Arc<Mutex<Vec<TcpStream>>>,
+}
+
+impl BusProxy {
+    pub fn start(target: u16) -> Self {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listener.local_addr().unwrap().port();
+        let cut = Arc::new(AtomicBool::new(false));
+        let open = Arc::new(Mutex::new(Vec::new()));
+        let (c, o) = (cut.clone(), open.clone());
+        std::thread::spawn(move || {
+            for inbound in listener.incoming() {
+                let Ok(inbound) = inbound else { continue };
+                if c.load(Ordering::SeqCst) {
+                    drop(inbound);
+                    continue;
+                }
+                let Ok(outbound) = TcpStream::connect(("127.0.0.1", target)) else {
+                    continue;
+                };
+                let mut list = o.lock().unwrap();
+                list.push(inbound.try_clone().unwrap());
+                list.push(outbound.try_clone().unwrap());
+                drop(list);
+                pipe(inbound.try_clone().unwrap(), outbound.try_clone().unwrap());
+                pipe(outbound, inbound);
+            }
+        });
+        BusProxy { port, cut, open }
+    }
+
+    /// Closes every connection and refuses new ones until [`Self::restore`].
+    pub fn cut(&self) {
+        self.cut.store(true, Ordering::SeqCst);
+        for s in self.open.lock().unwrap().drain(..) {
+            let _ = s.shutdown(Shutdown::Both);
+        }
+    }
+
+    pub fn restore(&self) {
+        self.cut.store(false, Ordering::SeqCst);
+    }
+
+    pub fn endpoint(&self) -> String {
+        format!("tcp/127.0.0.1:{}", self.port)
+    }
+}
+
+fn pipe(mut from: TcpStream, mut to: TcpStream) {
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 16 * 1024];
+        while let Ok(n) = from.read(&mut buf) {
+            if n == 0 || to.write_all(&buf[..n]).is_err() {
+                break;
+            }
+        }
+        let _ = to.shutdown(Shutdown::Both);
+    });
+}
+
+/// The config every Kestrel of the bays shares (the map grid must be the same on every node),
+/// with its own vehicle and, when on a fleet, its bus section.
+pub fn config(id: usize, connection: &str, fleet: Option<&str>) -> String {
+    let o = STARTS_ENU_M[id];
+    let mut text = format!(
+        "[map]\nsize_m = [20.0, 8.0]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+         [mavlink]\nplatform = \"platforms/px4.toml\"\n\n\
+         [[vehicle]]\nid = \"drone_{id}\"\nconnection = \"{connection}\"\n\
+         target_system = {}\norigin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
+        // The fake numbers its vehicles from 1 in the order they were started.
+        if fleet.is_some() { id + 1 } else { 1 },
+        o[0],
+        o[1],
+        o[2]
+    );
+    if let Some(f) = fleet {
+        text.push_str(f);
+    }
+    text
+}
+
+/// A credentials file the nodes of a fleet share (first line: this node's).
+pub fn credentials(dir: &std::path::Path, name: &str, line: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, format!("{line}\n")).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+/// Three Kestrels on one bus, each listening on its own port and reaching the others through
+/// proxies: node 1 connects to node 0, node 2 to nodes 0 and 1.
+pub struct Fleet {
+    pub nodes: Vec<Option<Kestrel>>,
+    pub apis: Vec<Api>,
+    pub proxies: Vec<BusProxy>,
+    _creds: tempfile::TempDir,
+}
+
+impl Fleet {
+    pub fn start(connections: &[String]) -> Self {
+        let creds = tempfile::tempdir().unwrap();
+        let file = credentials(creds.path(), "fleet-credentials", "bays:s3cret-shared");
+        let name = format!("bays-{}", std::process::id());
+        let bus_ports: Vec<u16> = (0..3).map(|_| free_tcp_port()).collect();
+        let proxies: Vec<BusProxy> = bus_ports[..2].iter().map(|&p| BusProxy::start(p)).collect();
+        let mut nodes = Vec::new();
+        let mut apis = Vec::new();
+        for id in 0..3 {
+            let connect: Vec<String> = proxies[..id].iter().map(|p| p.endpoint()).collect();
+            let fleet = format!(
+                "\n[fleet]\nenabled = true\nname = \"{name}\"\nnode = \"node_{id}\"\n\
+                 listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n",
+                bus_ports[id],
+                serde_json::to_string(&connect).unwrap()
+            );
+            let api_port = free_tcp_port();
+            let listen = format!("127.0.0.1:{api_port}");
+            nodes.push(Some(Kestrel::run_config(
+                &config(id, &connections[id], Some(&fleet)),
+                &["--listen", &listen],
+            )));
+            apis.push(Api::connect(api_port));
+        }
+        Fleet {
+            nodes,
+            apis,
+            proxies,
+            _creds: creds,
+        }
+    }
+
+    pub fn output(&self) -> String {
+        self.nodes
+            .iter()
+            .enumerate()
+            .map(|(i, k)| match k {
+                Some(k) => format!("--- node_{i} ---\n{}", k.output()),
+                None => format!("--- node_{i}: killed ---"),
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
+    /// Waits until every live node has its drone ready and hears every other live node's.
+    pub fn wait_joined(&self, live: &[usize]) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let joined = live.iter().all(|&i| {
+                let s = self.apis[i].get("/api/status");
+                let own = &s["drones"][0];
+                let heard: Vec<&str> = s["remote"]
+                    .as_array()
+                    .map(|r| {
+                        r.iter()
+                            .filter(|d| d["silent"] == false)
+                            .filter_map(|d| d["id"].as_str())
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                own["link"] == "ok"
+                    && own["ready_to_fly"] == true
+                    && live
+                        .iter()
+                        .filter(|&&j| j != i)
+                        .all(|j| heard.contains(&format!("drone_{j}").as_str()))
+            });
+            if joined {
+                return;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "the fleet did not join: {:?}\n{}",
+                live.iter()
+                    .map(|&i| self.apis[i].get("/api/status"))
+                    .collect::<Vec<_>>(),
+                self.output()
+            );
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+
+    pub fn explore(&self, i: usize) {
+        let args: Value = serde_json::from_str(ARGS).unwrap();
+        let (code, body) = self.apis[i].post(
+            "/api/exploration/start",
+            &json!({"drones": [format!("drone_{i}")], "args": args}),
+        );
+        assert_eq!(code, 200, "node_{i}: {body}");
+    }
+
+    /// Waits until every listed node's exploration has finished; returns their views.
+    pub fn wait_explored(&self, live: &[usize], fake: &Fake) -> Vec<Value> {
+        let deadline = Instant::now() + EXPLORATION_TIMEOUT;
+        loop {
+            let views: Vec<Value> = live
+                .iter()
+                .map(|&i| self.apis[i].get("/api/exploration"))
+                .collect();
+            if views.iter().all(|v| v["progress"]["finished"] == true) {
+                return views;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "not explored within {EXPLORATION_TIMEOUT:?}: {views:?}\n{}\n{}",
+                fake.diagnostics(),
+                self.output()
+            );
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    }
+}
