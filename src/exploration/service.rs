@@ -71,6 +71,9 @@ pub enum ExploreError {
     NoMap,
     #[error("the drone is outside the map")]
     OutsideMap,
+    /// The allocator could not take the question (its thread stopped, too many waiting).
+    #[error("frontier allocator unavailable: {0}")]
+    Unavailable(String),
 }
 
 /// The exploration as operators see it (`GET /api/exploration`).

@@ -12,7 +12,7 @@ use nalgebra::Vector2;
 use serde::Serialize;
 
 use super::config::MapConfig;
-use super::grid::{CellBox, GridSpec, OccupancyGrid};
+use super::grid::{CellBox, GridPatch, GridSpec, OccupancyGrid};
 use super::layers::LayeredMap;
 use super::scan::RangeScan;
 use super::MapError;
@@ -38,6 +38,8 @@ pub struct MapPatch {
 pub struct FleetMap {
     layers: LayeredMap,
     pending: BTreeMap<String, CellBox>,
+    /// Changed regions not yet taken by [`FleetMap::take_unsynced`] (a copy kept elsewhere).
+    unsynced: BTreeMap<String, CellBox>,
     update_period: Duration,
 }
 
@@ -51,6 +53,7 @@ impl FleetMap {
         Ok(FleetMap {
             layers,
             pending: BTreeMap::new(),
+            unsynced: BTreeMap::new(),
             update_period: config.update_period,
         })
     }
@@ -63,8 +66,7 @@ impl FleetMap {
     /// Inserts one of `drone`'s scans into its layer and the merged grid.
     pub fn insert(&mut self, drone: &str, scan: &RangeScan) -> Result<(), MapError> {
         if let Some(changed) = self.layers.insert(drone, scan)? {
-            let slot = self.pending.entry(drone.to_string()).or_insert(changed);
-            *slot = slot.union(changed);
+            self.changed(drone, changed);
         }
         Ok(())
     }
@@ -83,10 +85,27 @@ impl FleetMap {
         region: CellBox,
     ) -> Result<(), MapError> {
         if let Some(changed) = self.layers.copy_region(drone, own, region)? {
-            let slot = self.pending.entry(drone.to_string()).or_insert(changed);
-            *slot = slot.union(changed);
+            self.changed(drone, changed);
         }
         Ok(())
+    }
+
+    fn changed(&mut self, drone: &str, region: CellBox) {
+        for regions in [&mut self.pending, &mut self.unsynced] {
+            let slot = regions.entry(drone.to_string()).or_insert(region);
+            *slot = slot.union(region);
+        }
+    }
+
+    /// The merged grid's regions changed since the last call, one patch per drone, for a copy
+    /// of the grid kept in step elsewhere (the frontier allocator's thread); independent of
+    /// [`FleetMap::take_patches`].
+    pub fn take_unsynced(&mut self) -> Vec<GridPatch> {
+        let grid = &self.layers.global;
+        std::mem::take(&mut self.unsynced)
+            .into_values()
+            .filter_map(|region| grid.patch(region))
+            .collect()
     }
 
     /// Inserts a drone's scans; invalid ones are skipped (the drone's own map counts them).
