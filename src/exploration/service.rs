@@ -115,11 +115,20 @@ struct Claim {
     stamp: Duration,
 }
 
+/// A goal held by a drone another Kestrel process flies: (drone, goal, when it was claimed, on
+/// the clock of the `now` given to [`FrontierService::answer`]).
+pub type RemoteClaim = (Arc<str>, Vec3, Duration);
+
+/// Most remote claims kept.
+const MAX_REMOTE_CLAIMS: usize = 256;
+
 /// The allocator's memory between requests.
 #[derive(Default)]
 pub struct FrontierService {
     space: Option<Space>,
     claims: BTreeMap<Arc<str>, Claim>,
+    /// Goals of drones flown by other processes, as last heard (replaced whole).
+    remote: BTreeMap<Arc<str>, Claim>,
     given_up: Vec<GivenUp>,
 }
 
@@ -136,6 +145,24 @@ impl FrontierService {
                 space
             }
             None => Space::new(grid, &params),
+        }
+    }
+
+    /// The goals held by drones other Kestrel processes fly (the latest set heard, replacing
+    /// the previous one): they keep this fleet's drones away like local claims and lapse the
+    /// same way, [`CLAIM_TTL`] after their stamp. At most [`MAX_REMOTE_CLAIMS`] are kept (the
+    /// newest).
+    pub fn set_remote_claims(&mut self, mut claims: Vec<RemoteClaim>) {
+        claims.sort_by_key(|c| std::cmp::Reverse(c.2));
+        claims.truncate(MAX_REMOTE_CLAIMS);
+        self.remote.clear();
+        for (drone, goal, stamp) in claims {
+            let claim = Claim {
+                goal: goal.xy(),
+                stamp,
+            };
+            // One claim per drone: the newest (the list is sorted newest first).
+            self.remote.entry(drone).or_insert(claim);
         }
     }
 
@@ -163,8 +190,9 @@ impl FrontierService {
                 self.given_up.push(GivenUp { goal, at: now });
             }
         }
-        self.claims
-            .retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
+        for claims in [&mut self.claims, &mut self.remote] {
+            claims.retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
+        }
         let here = request.position_enu_m.xy();
         let reach = Reach::new(space, here).ok_or(ExploreError::OutsideMap)?;
         let open: Vec<_> = space
@@ -224,6 +252,7 @@ impl FrontierService {
         let others: Vec<Vector2<f64>> = self
             .claims
             .iter()
+            .chain(&self.remote)
             .filter(|(id, _)| **id != request.drone)
             .map(|(_, c)| c.goal)
             .collect();
@@ -278,10 +307,11 @@ impl FrontierService {
             .collect()
     }
 
-    /// The goal each drone holds now.
+    /// The goal each drone holds now, this process's drones first, then the others'.
     pub fn claims(&self) -> Vec<ClaimView> {
         self.claims
             .iter()
+            .chain(&self.remote)
             .map(|(d, c)| ClaimView {
                 drone: d.to_string(),
                 goal_enu_m: [c.goal.x, c.goal.y],
@@ -347,6 +377,30 @@ mod tests {
         let later = t + CLAIM_TTL + Duration::from_secs(1);
         let b2 = s.answer(later, &grid, &ask("b", 2.0, 2.0)).unwrap();
         assert!((goal_of(&b2) - ga).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_remote_drones_goal_keeps_a_local_drone_away_until_it_lapses() {
+        let grid = half_known();
+        let t = Duration::from_secs(10);
+        let alone = goal_of(
+            &FrontierService::new()
+                .answer(t, &grid, &ask("a", 2.0, 2.0))
+                .unwrap(),
+        );
+        let mut s = FrontierService::new();
+        s.set_remote_claims(vec![
+            ("far:b".into(), Vec3::new(0.0, 0.0, 1.0), Duration::ZERO),
+            ("far:b".into(), alone, t),
+        ]);
+        let shared = goal_of(&s.answer(t, &grid, &ask("a", 2.0, 2.0)).unwrap());
+        assert!((shared - alone).norm() > 2.0, "{shared:?} {alone:?}");
+        assert_eq!(s.claims().len(), 2, "a's own and b's newest");
+        // Not heard from for the claims' lifetime: the frontier is free again.
+        let later = t + CLAIM_TTL;
+        let freed = goal_of(&s.answer(later, &grid, &ask("a", 2.0, 2.0)).unwrap());
+        assert!((freed - alone).norm() < 1e-9, "{freed:?} {alone:?}");
+        assert_eq!(s.claims().len(), 1);
     }
 
     #[test]

@@ -17,7 +17,9 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use super::service::{Allocation, ClaimView, ExploreError, FrontierService, FrontierView};
+use super::service::{
+    Allocation, ClaimView, ExploreError, FrontierService, FrontierView, RemoteClaim,
+};
 use crate::behavior::services::ExploreJob;
 use crate::mapping::grid::{GridPatch, OccupancyGrid};
 use crate::mapping::merged::FleetMap;
@@ -47,6 +49,8 @@ struct Batch {
     now: Duration,
     grid: GridUpdate,
     jobs: Vec<(usize, ExploreJob)>,
+    /// Other processes' claims, when new ones were heard since the last batch.
+    remote: Option<Vec<RemoteClaim>>,
 }
 
 /// A batch's answers and what the allocator looked like after them.
@@ -68,6 +72,8 @@ pub struct FrontierWorker {
     waiting: Vec<(usize, ExploreJob)>,
     /// Whether the worker's copy of the map is in step; if not, the next batch sends it whole.
     synced: bool,
+    /// Other processes' claims heard since the last batch, sent with the next one.
+    remote: Option<Vec<RemoteClaim>>,
     refused: Vec<FrontierAnswer>,
     delivery: Delivery,
     frontiers: Vec<FrontierView>,
@@ -92,6 +98,7 @@ impl FrontierWorker {
             in_flight: None,
             waiting: Vec::new(),
             synced: false,
+            remote: None,
             refused: Vec::new(),
             delivery,
             frontiers: Vec::new(),
@@ -107,6 +114,12 @@ impl FrontierWorker {
     /// The map was replaced: the next batch carries it whole.
     pub fn resync(&mut self) {
         self.synced = false;
+    }
+
+    /// The goals of drones other Kestrel processes fly, as last heard (see
+    /// [`FrontierService::set_remote_claims`]); they reach the allocator with the next question.
+    pub fn set_remote_claims(&mut self, claims: Vec<RemoteClaim>) {
+        self.remote = Some(claims);
     }
 
     /// Queues this tick's jobs and, unless a batch is still with the worker, sends every job
@@ -156,7 +169,13 @@ impl FrontierWorker {
             .iter()
             .map(|(d, j)| (*d, j.ticket, j.cancel.clone()))
             .collect();
-        match tx.try_send(Batch { now, grid, jobs }) {
+        let remote = self.remote.take();
+        match tx.try_send(Batch {
+            now,
+            grid,
+            jobs,
+            remote,
+        }) {
             Ok(()) => {
                 self.synced = true;
                 self.in_flight = Some(owed);
@@ -263,6 +282,9 @@ fn serve(batches: &Receiver<Batch>, done: &mpsc::Sender<Done>) {
     let mut service = FrontierService::new();
     let mut grid: Option<OccupancyGrid> = None;
     while let Ok(batch) = batches.recv() {
+        if let Some(claims) = batch.remote {
+            service.set_remote_claims(claims);
+        }
         match batch.grid {
             GridUpdate::Whole(whole) => grid = Some(whole),
             GridUpdate::Changed(patches) => {

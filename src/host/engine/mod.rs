@@ -25,7 +25,7 @@ use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
 use crate::exploration::progress::ExplorationRun;
-use crate::exploration::service::ExplorationView;
+use crate::exploration::service::{ExplorationView, RemoteClaim};
 use crate::exploration::worker::FrontierWorker;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
@@ -496,6 +496,12 @@ impl Host {
             }
             self.event(i, EventBody::Alert { message });
         }
+    }
+
+    /// The goals of drones other Kestrel processes fly, for this fleet's frontier allocator:
+    /// (drone, goal, stamp on this host's clock, as [`Host::now`]); each replaces the last set.
+    pub fn set_remote_claims(&mut self, claims: Vec<RemoteClaim>) {
+        self.frontiers.set_remote_claims(claims);
     }
 
     /// The frontiers and the goals the drones hold, as the allocator last saw them.
