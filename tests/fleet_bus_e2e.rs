@@ -28,7 +28,6 @@ const MIN_SEPARATION_M: f64 = 0.5;
 const MAP_LAG: Duration = Duration::from_secs(3);
 
 /// The least clearance to an obstacle of an airborne drone: how much, which, when and where.
-#[derive(Debug)]
 struct Clearance {
     m: f64,
     drone: usize,
@@ -274,7 +273,11 @@ fn three_kestrels_on_one_bus_explore_the_bays_in_less_than_half_the_time_of_one(
     );
     assert!(
         clearance.m > 0.2,
-        "too close to an obstacle: {clearance:?} of {} samples",
+        "drone_{} {:.2} m from an obstacle at {:?}, sample {} of {}",
+        clearance.drone,
+        clearance.m,
+        clearance.at,
+        clearance.sample,
         samples.len()
     );
     assert!(
@@ -393,7 +396,11 @@ fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kes
     let (pair, clearance, _) = judge_tracks(&samples, &w);
     assert!(
         clearance.m > 0.2,
-        "too close to an obstacle: {clearance:?} of {} samples",
+        "drone_{} {:.2} m from an obstacle at {:?}, sample {} of {}",
+        clearance.drone,
+        clearance.m,
+        clearance.at,
+        clearance.sample,
         samples.len()
     );
     assert!(

@@ -171,6 +171,8 @@ const CRUMB_SPACING_M: f64 = 1.0;
 const LANDING_CLEARANCE_M: f64 = 1.5;
 /// Closer than this to its goal, a drone asks for the next one (m).
 const NEAR_GOAL_M: f64 = 1.5;
+/// An allocation is flown only if the drone is still this close to where it asked (m).
+const STALE_ANSWER_M: f64 = 0.3;
 /// A drone that moved less than this ...
 const STUCK_RADIUS_M: f64 = 1.0;
 /// ... for a quarter turn plus this long gives its goal up.
@@ -199,6 +201,8 @@ pub struct Explore {
     child: Option<Box<dyn Behavior>>,
     pending: Option<Ticket>,
     asked_at: Option<Duration>,
+    /// Where the drone was when it asked: the answer's path starts there.
+    asked_from: Vec3,
     /// Since when the allocator has had nothing for this drone.
     done_since: Option<Duration>,
     /// Where and since when the drone has stayed within `STUCK_RADIUS_M`.
@@ -223,6 +227,7 @@ impl Explore {
             child: None,
             pending: None,
             asked_at: None,
+            asked_from: Vec3::zeros(),
             done_since: None,
             anchor: (Vec3::zeros(), Duration::ZERO),
             give_up: None,
@@ -299,6 +304,7 @@ impl Explore {
             give_up: self.give_up.take(),
         }));
         self.asked_at = Some(ctx.now);
+        self.asked_from = ctx.position();
     }
 
     /// Whether to ask the allocator now: with no goal, every `retarget_period`, and when the
@@ -341,6 +347,12 @@ impl Explore {
             }) => {
                 self.frontiers = frontiers;
                 self.done_since = None;
+                // A late answer (a slow allocator on the wall clock) has a path from where the
+                // drone was, not where it is: the way back to its start may not be clear. Asked
+                // again instead; the drone flies on meanwhile.
+                if (ctx.position() - self.asked_from).xy().norm() > STALE_ANSWER_M {
+                    return Ok(false);
+                }
                 let same = self
                     .target
                     .is_some_and(|t| (t - goal_enu_m).norm() < 0.3 && self.child.is_some());
@@ -625,5 +637,51 @@ impl Behavior for Explore {
 
     fn goal_enu_m(&self) -> Option<Vec3> {
         self.target
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::behavior::services::{ServiceAnswer, ServiceCall};
+    use crate::behavior::testing::Scene;
+
+    /// The explorer's question this tick, answered with a goal 5 m east of where it asked.
+    fn answer_with_goal(scene: &Scene) {
+        let calls = scene.services.drain_calls();
+        let Some(ServiceCall::Explore(job)) = calls.into_iter().next() else {
+            panic!("no question to the allocator");
+        };
+        let from = job.request.position_enu_m;
+        let goal = from + Vec3::new(5.0, 0.0, 0.0);
+        let answer = Allocation::Goal {
+            goal_enu_m: goal,
+            path_enu_m: vec![from, goal],
+            frontiers: 1,
+        };
+        scene
+            .services
+            .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
+    }
+
+    #[test]
+    fn a_late_answer_from_where_the_drone_no_longer_is_is_asked_again_not_flown() {
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+        let mut explore = Explore::new(ExploreGoal::default());
+        explore.start_exploring(&scene.ctx(0));
+        let mut requests = Vec::new();
+        explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
+        // The answer comes once the drone has drifted 1 m: its path starts where it was.
+        scene.set_position(Vec3::new(0.0, 1.0, 1.0), Vec3::zeros());
+        answer_with_goal(&scene);
+        explore.explore_tick(&scene.ctx(2), &mut requests).unwrap();
+        assert!(explore.target.is_none() && explore.child.is_none());
+        // It asked again from here; an answer from here is flown.
+        answer_with_goal(&scene);
+        explore.explore_tick(&scene.ctx(3), &mut requests).unwrap();
+        assert_eq!(explore.target, Some(Vec3::new(5.0, 1.0, 1.0)));
+        assert!(explore.child.is_some());
     }
 }

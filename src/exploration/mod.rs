@@ -3,12 +3,14 @@
 //! In: the fleet's merged occupancy grid and each drone's requests. Out: frontiers, the
 //! navigable space around them, allocations (a goal and the path to it) and the watcher's
 //! decisions; the `explore` behavior (`behavior::explore`) flies them, the host runs the
-//! allocator as a fleet-level service ([`service::FrontierService`]).
+//! allocator as a fleet-level service ([`service::FrontierService`]) on a thread of its own
+//! ([`worker::FrontierWorker`]).
 //!
 //! - [`space`]: navigable cells and frontiers of a grid (thesis Algorithm 1).
 //! - [`reach`]: path distances and paths from one drone through navigable space.
 //! - [`allocation`]: which frontier a drone takes (`kestrel`, `thesis`, `nearest`, `farthest`).
 //! - [`service`]: the allocator service: claims, given-up goals, answers.
+//! - [`worker`]: the allocator service on its own thread, fed with the map's changes.
 //! - [`watcher`]: the intra-swarm avoidance decision.
 //! - [`progress`]: an exploration run as operators follow it (area curve, paths, time left).
 //! - [`evaluate`]: metrics of a flight log against the true world (outside the loop).
@@ -21,4 +23,5 @@ pub mod reach;
 pub mod service;
 pub mod space;
 pub mod watcher;
+pub mod worker;
 pub mod worldgen;

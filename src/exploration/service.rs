@@ -35,9 +35,6 @@ const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
 const LOW_GAIN_NEAR_M: f64 = 3.0;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
-/// Two goals this close are one frontier: a drone does not take one a remote drone with a
-/// smaller id holds (m).
-const CONFLICT_RADIUS_M: f64 = 1.5;
 
 /// One drone's question.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,6 +71,9 @@ pub enum ExploreError {
     NoMap,
     #[error("the drone is outside the map")]
     OutsideMap,
+    /// The allocator could not take the question (its thread stopped, too many waiting).
+    #[error("frontier allocator unavailable: {0}")]
+    Unavailable(String),
 }
 
 /// The exploration as operators see it (`GET /api/exploration`).
@@ -113,15 +113,25 @@ struct GivenUp {
 struct Claim {
     goal: Vector2<f64>,
     stamp: Duration,
-    /// Held by a drone another Kestrel flies (heard over the fleet bus).
-    remote: bool,
 }
+
+/// A goal held by a drone another Kestrel process flies: (drone, goal, when it was claimed, on
+/// the clock of the `now` given to [`FrontierService::answer`]).
+pub type RemoteClaim = (Arc<str>, Vec3, Duration);
+
+/// Most remote claims kept.
+const MAX_REMOTE_CLAIMS: usize = 256;
+/// Two goals this close are one frontier: a drone does not take one a remote drone with a
+/// smaller id holds (m).
+const CONFLICT_RADIUS_M: f64 = 1.5;
 
 /// The allocator's memory between requests.
 #[derive(Default)]
 pub struct FrontierService {
     space: Option<Space>,
     claims: BTreeMap<Arc<str>, Claim>,
+    /// Goals of drones flown by other processes, as last heard (replaced whole).
+    remote: BTreeMap<Arc<str>, Claim>,
     given_up: Vec<GivenUp>,
 }
 
@@ -138,6 +148,24 @@ impl FrontierService {
                 space
             }
             None => Space::new(grid, &params),
+        }
+    }
+
+    /// The goals held by drones other Kestrel processes fly (the latest set heard, replacing
+    /// the previous one): they keep this fleet's drones away like local claims and lapse the
+    /// same way, [`CLAIM_TTL`] after their stamp. At most [`MAX_REMOTE_CLAIMS`] are kept (the
+    /// newest).
+    pub fn set_remote_claims(&mut self, mut claims: Vec<RemoteClaim>) {
+        claims.sort_by_key(|c| std::cmp::Reverse(c.2));
+        claims.truncate(MAX_REMOTE_CLAIMS);
+        self.remote.clear();
+        for (drone, goal, stamp) in claims {
+            let claim = Claim {
+                goal: goal.xy(),
+                stamp,
+            };
+            // One claim per drone: the newest (the list is sorted newest first).
+            self.remote.entry(drone).or_insert(claim);
         }
     }
 
@@ -165,8 +193,9 @@ impl FrontierService {
                 self.given_up.push(GivenUp { goal, at: now });
             }
         }
-        self.claims
-            .retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
+        for claims in [&mut self.claims, &mut self.remote] {
+            claims.retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
+        }
         let here = request.position_enu_m.xy();
         let reach = Reach::new(space, here).ok_or(ExploreError::OutsideMap)?;
         let open: Vec<_> = space
@@ -208,9 +237,9 @@ impl FrontierService {
         // drones, and hears the other's claim a moment later): the drone with the larger id
         // leaves it, so both sides settle the same way without talking again.
         let yielded: Vec<Vector2<f64>> = self
-            .claims
+            .remote
             .iter()
-            .filter(|(id, c)| c.remote && **id < request.drone)
+            .filter(|(id, _)| **id < request.drone)
             .map(|(_, c)| c.goal)
             .collect();
         let candidates: Vec<(Candidate, usize)> = open
@@ -241,6 +270,7 @@ impl FrontierService {
         let others: Vec<Vector2<f64>> = self
             .claims
             .iter()
+            .chain(&self.remote)
             .filter(|(id, _)| **id != request.drone)
             .map(|(_, c)| c.goal)
             .collect();
@@ -268,7 +298,6 @@ impl FrontierService {
             Claim {
                 goal: candidate.goal_enu_m,
                 stamp: now,
-                remote: false,
             },
         );
         let goal = Vec3::new(candidate.goal_enu_m.x, candidate.goal_enu_m.y, z);
@@ -277,29 +306,6 @@ impl FrontierService {
             path_enu_m: if path.is_empty() { vec![goal] } else { path },
             frontiers: left,
         })
-    }
-
-    /// The goals drones of other Kestrels hold, as last heard (`drone`, goal ENU m, when heard):
-    /// treated as this host's own drones' claims, and lapse the same way when not heard again.
-    pub fn set_remote_claims(&mut self, claims: &[(Arc<str>, [f64; 2], Duration)]) {
-        for (drone, goal, heard) in claims {
-            if self.claims.get(drone).is_some_and(|c| !c.remote) {
-                continue;
-            }
-            self.claims.insert(
-                drone.clone(),
-                Claim {
-                    goal: Vector2::new(goal[0], goal[1]),
-                    stamp: *heard,
-                    remote: true,
-                },
-            );
-        }
-    }
-
-    /// The goal one drone holds, if any.
-    pub fn claim_of(&self, drone: &str) -> Option<[f64; 2]> {
-        self.claims.get(drone).map(|c| [c.goal.x, c.goal.y])
     }
 
     /// The frontiers as last read, for operators.
@@ -319,10 +325,11 @@ impl FrontierService {
             .collect()
     }
 
-    /// The goal each drone holds now.
+    /// The goal each drone holds now, this process's drones first, then the others'.
     pub fn claims(&self) -> Vec<ClaimView> {
         self.claims
             .iter()
+            .chain(&self.remote)
             .map(|(d, c)| ClaimView {
                 drone: d.to_string(),
                 goal_enu_m: [c.goal.x, c.goal.y],
@@ -391,31 +398,45 @@ mod tests {
     }
 
     #[test]
-    fn a_remote_claim_is_kept_from_drones_with_larger_ids_and_lapses_unheard() {
+    fn a_frontier_a_remote_drone_with_a_smaller_id_holds_is_left_to_it() {
         let grid = half_known();
         let t = Duration::from_secs(1);
-        // What `b` alone would get.
         let alone = goal_of(
             &FrontierService::new()
                 .answer(t, &grid, &ask("b", 2.0, 2.0))
                 .unwrap(),
         );
-        let taken: Arc<str> = "a".into();
         let mut s = FrontierService::new();
-        s.set_remote_claims(&[(taken.clone(), [alone.x, alone.y], t)]);
+        s.set_remote_claims(vec![("a".into(), alone, t)]);
         let b = goal_of(&s.answer(t, &grid, &ask("b", 2.0, 2.0)).unwrap());
         assert!(
             (b - alone).xy().norm() >= CONFLICT_RADIUS_M,
             "{b:?} {alone:?}"
         );
-        assert_eq!(s.claim_of("a"), Some([alone.x, alone.y]));
-        // Not heard again, the claim lapses like a local one.
+    }
+
+    #[test]
+    fn a_remote_drones_goal_keeps_a_local_drone_away_until_it_lapses() {
+        let grid = half_known();
+        let t = Duration::from_secs(10);
+        let alone = goal_of(
+            &FrontierService::new()
+                .answer(t, &grid, &ask("a", 2.0, 2.0))
+                .unwrap(),
+        );
         let mut s = FrontierService::new();
-        s.set_remote_claims(&[(taken, [alone.x, alone.y], t)]);
-        let later = t + CLAIM_TTL + Duration::from_secs(1);
-        let b = goal_of(&s.answer(later, &grid, &ask("b", 2.0, 2.0)).unwrap());
-        assert!((b - alone).norm() < 1e-9);
-        assert_eq!(s.claim_of("a"), None);
+        s.set_remote_claims(vec![
+            ("far:b".into(), Vec3::new(0.0, 0.0, 1.0), Duration::ZERO),
+            ("far:b".into(), alone, t),
+        ]);
+        let shared = goal_of(&s.answer(t, &grid, &ask("a", 2.0, 2.0)).unwrap());
+        assert!((shared - alone).norm() > 2.0, "{shared:?} {alone:?}");
+        assert_eq!(s.claims().len(), 2, "a's own and b's newest");
+        // Not heard from for the claims' lifetime: the frontier is free again.
+        let later = t + CLAIM_TTL;
+        let freed = goal_of(&s.answer(later, &grid, &ask("a", 2.0, 2.0)).unwrap());
+        assert!((freed - alone).norm() < 1e-9, "{freed:?} {alone:?}");
+        assert_eq!(s.claims().len(), 1);
     }
 
     #[test]

@@ -376,6 +376,37 @@ impl OccupancyGrid {
         Some(GridPatch { region, data })
     }
 
+    /// Writes a patch taken from a grid on the same spec back in (a copy kept in step with
+    /// another grid). Refused whole, with nothing written, when the patch leaves the grid or its
+    /// data does not fill its region.
+    pub fn write_patch(&mut self, patch: &GridPatch) -> Result<(), MapError> {
+        let r = patch.region;
+        let full = self.spec.full_box();
+        if r.intersect(full) != Some(r) {
+            return Err(MapError::OutsideMap {
+                x: r.max.x,
+                y: r.max.y,
+            });
+        }
+        let row_len = r.width_cells() as usize;
+        if patch.data.len() != row_len * r.height_cells() as usize {
+            return Err(MapError::InvalidSpec(format!(
+                "a patch of {}x{} cells carries {} values",
+                r.width_cells(),
+                r.height_cells(),
+                patch.data.len()
+            )));
+        }
+        let w = self.spec.width_cells as usize;
+        for (y, src) in (r.min.y..=r.max.y).zip(patch.data.chunks(row_len)) {
+            let start = y as usize * w + r.min.x as usize;
+            if let Some(dst) = self.data.get_mut(start..start + row_len) {
+                dst.copy_from_slice(src);
+            }
+        }
+        Ok(())
+    }
+
     /// Ray-casts a scan into the grid (see the module docs for the rule). Returns a box that
     /// contains every cell whose value changed, `None` if nothing changed. (A cell first missed
     /// then hit by the same scan may end where it started and still be inside the box.)

@@ -12,7 +12,7 @@ use nalgebra::Vector2;
 use serde::Serialize;
 
 use super::config::MapConfig;
-use super::grid::{Cell, CellBox, GridSpec, OccupancyGrid};
+use super::grid::{Cell, CellBox, GridPatch, GridSpec, OccupancyGrid};
 use super::layers::LayeredMap;
 use super::scan::RangeScan;
 use super::MapError;
@@ -38,6 +38,8 @@ pub struct MapPatch {
 pub struct FleetMap {
     layers: LayeredMap,
     pending: BTreeMap<String, CellBox>,
+    /// Changed regions not yet taken by [`FleetMap::take_unsynced`] (a copy kept elsewhere).
+    unsynced: BTreeMap<String, CellBox>,
     update_period: Duration,
     /// This host's drones' layer regions not yet sent on the fleet bus (`None`: no bus).
     bus_pending: Option<BTreeMap<String, CellBox>>,
@@ -64,6 +66,7 @@ impl FleetMap {
         Ok(FleetMap {
             layers,
             pending: BTreeMap::new(),
+            unsynced: BTreeMap::new(),
             update_period: config.update_period,
             bus_pending: None,
         })
@@ -78,7 +81,7 @@ impl FleetMap {
     pub fn insert(&mut self, drone: &str, scan: &RangeScan) -> Result<(), MapError> {
         let (layer, global) = self.layers.insert_both(drone, scan)?;
         if let Some(changed) = global {
-            add(&mut self.pending, drone, changed);
+            self.changed(drone, changed);
         }
         if let (Some(bus), Some(changed)) = (self.bus_pending.as_mut(), layer) {
             add(bus, drone, changed);
@@ -100,7 +103,7 @@ impl FleetMap {
         region: CellBox,
     ) -> Result<(), MapError> {
         if let Some(changed) = self.layers.copy_region(drone, own, region)? {
-            add(&mut self.pending, drone, changed);
+            self.changed(drone, changed);
         }
         if let Some(bus) = self.bus_pending.as_mut() {
             if let Some(r) = region.intersect(self.layers.global.spec().full_box()) {
@@ -185,9 +188,27 @@ impl FleetMap {
             self.layers
                 .set_region(&region.drone, region.region, &region.cells)?
         {
-            add(&mut self.pending, &region.drone, changed);
+            self.changed(&region.drone, changed);
         }
         Ok(())
+    }
+
+    fn changed(&mut self, drone: &str, region: CellBox) {
+        for regions in [&mut self.pending, &mut self.unsynced] {
+            let slot = regions.entry(drone.to_string()).or_insert(region);
+            *slot = slot.union(region);
+        }
+    }
+
+    /// The merged grid's regions changed since the last call, one patch per drone, for a copy
+    /// of the grid kept in step elsewhere (the frontier allocator's thread); independent of
+    /// [`FleetMap::take_patches`].
+    pub fn take_unsynced(&mut self) -> Vec<GridPatch> {
+        let grid = &self.layers.global;
+        std::mem::take(&mut self.unsynced)
+            .into_values()
+            .filter_map(|region| grid.patch(region))
+            .collect()
     }
 
     /// Inserts a drone's scans; invalid ones are skipped (the drone's own map counts them).

@@ -14,6 +14,7 @@ use crate::fleet_bus::remote::{RemoteFleet, SilencePolicy};
 use crate::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
 use crate::mapping::merged::LayerRegion;
 use crate::mission::ExecState;
+use crate::types::Vec3;
 
 impl Host {
     /// Joins a fleet bus: from now on remote drones are heard and this host's map regions kept
@@ -45,7 +46,12 @@ impl Host {
             return Vec::new();
         };
         let refused = remote.apply(msg, now, &local);
-        self.frontiers.set_remote_claims(&remote.claims());
+        let claims = remote
+            .claims()
+            .into_iter()
+            .map(|(drone, goal, heard)| (drone, Vec3::new(goal[0], goal[1], 0.0), heard))
+            .collect();
+        self.frontiers.set_remote_claims(claims);
         refused
     }
 
@@ -101,7 +107,12 @@ impl Host {
                         }
                         .to_string(),
                     ),
-                    claim_enu_m: self.frontiers.claim_of(core.drone_id()),
+                    claim_enu_m: self
+                        .frontiers
+                        .claims()
+                        .iter()
+                        .find(|c| c.drone == core.drone_id())
+                        .map(|c| c.goal_enu_m),
                 }
             })
             .collect();

@@ -278,7 +278,7 @@ impl Host {
             .then(|| {
                 self.frontiers
                     .claims()
-                    .into_iter()
+                    .iter()
                     .find(|c| c.drone == d.drone)
                     .map(|c| c.goal_enu_m)
             })

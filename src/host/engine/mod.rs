@@ -26,7 +26,8 @@ use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
 use crate::exploration::progress::ExplorationRun;
-use crate::exploration::service::{ExplorationView, ExploreError, FrontierService};
+use crate::exploration::service::{ExplorationView, RemoteClaim};
+use crate::exploration::worker::FrontierWorker;
 use crate::fleet_bus::remote::RemoteFleet;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
@@ -113,8 +114,8 @@ pub struct Host {
     planner: PlanWorker,
     /// The fleet view the cores saw this tick.
     fleet_view: Arc<FleetView>,
-    /// The fleet's frontier allocator (exploration), answered after every core ticked.
-    frontiers: FrontierService,
+    /// The fleet's frontier allocator (exploration) on its thread, asked after every core ticked.
+    frontiers: FrontierWorker,
     explore_jobs: Vec<(usize, ExploreJob)>,
     /// The exploration started over the API (`POST /api/exploration/start`), the last one.
     exploration: Option<ExplorationRun>,
@@ -156,7 +157,7 @@ impl Host {
             api_scans: vec![Vec::new(); n],
             planner: PlanWorker::new(Delivery::Lockstep),
             fleet_view: Arc::default(),
-            frontiers: FrontierService::new(),
+            frontiers: FrontierWorker::new(Delivery::Lockstep),
             explore_jobs: Vec::new(),
             exploration: None,
             store: None,
@@ -211,11 +212,15 @@ impl Host {
         }
     }
 
-    /// How plans reach the behaviors: in lock step (the default: simulated time, reproducible)
-    /// or, paced to the wall clock, as soon as they are done and with a deadline.
+    /// How plans and the frontier allocator's answers reach the behaviors: in lock step (the
+    /// default: simulated time, reproducible) or, paced to the wall clock, as soon as they are
+    /// done (plans with a deadline). Set before the first tick: a new allocator starts afresh.
     pub fn set_plan_delivery(&mut self, delivery: Delivery) {
         if self.planner.delivery() != delivery {
             self.planner = PlanWorker::new(delivery);
+        }
+        if self.frontiers.delivery() != delivery {
+            self.frontiers = FrontierWorker::new(delivery);
         }
     }
 
@@ -379,6 +384,11 @@ impl Host {
                 core.deliver_plan(answer);
             }
         }
+        for a in self.frontiers.collect() {
+            if let Some(core) = self.cores.get(a.drone) {
+                core.deliver(a.ticket, ServiceAnswer::Explore(a.result), a.cancel);
+            }
+        }
         // One snapshot of the fleet for every core this tick, as the last tick left it.
         let remote = self.remote.iter().flat_map(|r| r.views(now));
         self.fleet_view = Arc::new(FleetView {
@@ -498,7 +508,8 @@ impl Host {
                 }
             }
         }
-        self.answer_explore_jobs(now);
+        let jobs = std::mem::take(&mut self.explore_jobs);
+        self.frontiers.submit(now, jobs, self.map.as_mut());
         self.record_exploration(now);
         self.commit();
         self.fleet.advance(now, self.tick);
@@ -510,28 +521,17 @@ impl Host {
         }
     }
 
-    /// Answers this tick's questions to the frontier allocator, on the fleet's merged map; the
-    /// drones read the answers on their next tick.
-    fn answer_explore_jobs(&mut self, now: Duration) {
-        for (i, job) in std::mem::take(&mut self.explore_jobs) {
-            if job.cancel.load(std::sync::atomic::Ordering::Relaxed) {
-                continue;
-            }
-            let answer = match self.map.as_ref() {
-                Some(map) => self.frontiers.answer(now, map.merged(), &job.request),
-                None => Err(ExploreError::NoMap),
-            };
-            if let Some(core) = self.cores.get(i) {
-                core.deliver(job.ticket, ServiceAnswer::Explore(answer), job.cancel);
-            }
-        }
+    /// The goals of drones other Kestrel processes fly, for this fleet's frontier allocator:
+    /// (drone, goal, stamp on this host's clock, as [`Host::now`]); each replaces the last set.
+    pub fn set_remote_claims(&mut self, claims: Vec<RemoteClaim>) {
+        self.frontiers.set_remote_claims(claims);
     }
 
     /// The frontiers and the goals the drones hold, as the allocator last saw them.
     pub fn exploration_view(&self) -> ExplorationView {
         ExplorationView {
-            frontiers: self.frontiers.frontiers(),
-            goals: self.frontiers.claims(),
+            frontiers: self.frontiers.frontiers().to_vec(),
+            goals: self.frontiers.claims().to_vec(),
             known_pct: self.map.as_ref().map(|m| known_pct(m.merged())),
             progress: self.exploration_progress(),
         }
