@@ -390,7 +390,8 @@ fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kes
         let (known_pct, _) = judge_map(&fleet.apis[i].get("/api/map"), &w, 0.3);
         assert!(
             known_pct >= 95.0,
-            "node_{i}: {known_pct:.1} % of the floor known"
+            "node_{i}: {known_pct:.1} % of the floor known: {views:?}\n{}",
+            fleet.output()
         );
     }
     let (pair, clearance, _) = judge_tracks(&samples, &w);
