@@ -6,8 +6,8 @@
 //! Every link of the bus passes a TCP proxy of the test's (`BusProxy`), so that the bus can be
 //! cut like a Wi-Fi drop: every connection closed and new ones refused. Judged on the true states
 //! of the fakes (separation, clearance, collisions), the maps each Kestrel serves (the same map
-//! everywhere, the floor known). How fast the fleet is against one drone alone is measured by
-//! `benches/fleet_bus.rs`, not judged here.
+//! everywhere, the floor known). How fast the fleet is against one drone alone is not judged
+//! here: it varied from 0.41 to 0.76 of one drone's time with the machine's load (BENCHMARKS.md).
 //! Needs `sitl/.venv` (`bash sitl/setup.sh`).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
