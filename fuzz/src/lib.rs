@@ -180,8 +180,8 @@ pub fn fleet_wire(data: &[u8]) {
     if let Ok(msg) = StateMsg::decode(data) {
         let mut remote = RemoteFleet::new(SilencePolicy {
             peer_timeout: Duration::from_millis(1500),
-            max_speed_mps: 8.0,
-            keepout_cap_m: 1.5,
+            lost_after: Duration::from_secs(10),
+            keepout_m: 0.5,
         });
         black_box(remote.apply(msg, Duration::from_secs(1), &["drone_0".to_string()]));
         black_box(remote.views(Duration::from_secs(3)).count());
