@@ -3,9 +3,12 @@
 //! idle on the ground and then through a three-drone exploration. Reads each node's bus report
 //! (`fleet_bus` in `GET /api/status`): bytes sent per second for drone states and for map
 //! regions (one drone per node, so per drone), and the latency from a peer sending a state to this
-//! node taking it in, p50 and p99. Needs the fake autopilot's venv (`bash sitl/setup.sh`).
+//! node taking it in, p50 and p99. Then one Kestrel explores the same bays alone with one drone,
+//! and both flights are judged from their flight logs by `kestrel evaluate` (the three nodes'
+//! logs as one flight): time from the first take-off to the last landing, area, and the ratio
+//! of the times. Needs the fake autopilot's venv (`bash sitl/setup.sh`).
 //!
-//!     cargo bench --bench fleet_bus
+//!     cargo bench --bench fleet_bus            (FLEET_BUS_RUNS=N: N rounds, default 1)
 
 #[path = "../tests/mavlink_support/mod.rs"]
 mod mavlink_support;
@@ -15,6 +18,7 @@ mod support;
 use mavlink_support::bus::{Fleet, WORLD};
 use mavlink_support::{repo, Fake};
 use serde_json::Value;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// Each node's bus report and when it was read.
@@ -49,13 +53,22 @@ fn print_phase(name: &str, before: &[(Instant, Value)], after: &[(Instant, Value
     }
 }
 
-fn main() {
-    // `cargo test --all-targets` runs bench binaries too: only `cargo bench` measures.
-    if !std::env::args().any(|a| a == "--bench") {
-        println!("fleet_bus: run it with `cargo bench --bench fleet_bus`");
-        return;
-    }
-    let world = repo().join(WORLD);
+/// One line about a flight judged by `kestrel evaluate`.
+fn judged(name: &str, m: &Value) -> f64 {
+    let time = m["time_s"].as_f64().unwrap_or(f64::NAN);
+    println!(
+        "{name}: first take-off to last landing {time:.1} s, area {:.1} % of the observable, \
+         path {:.0} m, collisions {}, least separation {} m",
+        m["observable_pct"].as_f64().unwrap_or(f64::NAN),
+        m["path_m"].as_f64().unwrap_or(f64::NAN),
+        m["collisions"],
+        m["min_separation_m"],
+    );
+    time
+}
+
+/// Three nodes on the bus, then one drone alone; returns their times (s).
+fn round(world: &Path) -> (f64, f64) {
     let (fake, connections) = Fake::start_px4_fleet(
         3,
         &["--world", world.to_str().unwrap_or(""), "--rangers", "cf4"],
@@ -77,4 +90,41 @@ fn main() {
         &idle_end,
         &end,
     );
+    std::thread::sleep(Duration::from_secs(1));
+    let three = judged("three nodes", &fleet.evaluate(&[0, 1, 2], world));
+    drop(fleet);
+    drop(fake);
+
+    let (fake, connections) = Fake::start_px4_fleet(
+        1,
+        &["--world", world.to_str().unwrap_or(""), "--rangers", "cf4"],
+    );
+    let alone = Fleet::start_alone(&connections[0]);
+    alone.wait_joined(&[0]);
+    alone.explore(0);
+    alone.wait_explored(&[0], &fake);
+    std::thread::sleep(Duration::from_secs(1));
+    let one = judged("one drone alone", &alone.evaluate(&[0], world));
+    (three, one)
+}
+
+fn main() {
+    // `cargo test --all-targets` runs bench binaries too: only `cargo bench` measures.
+    if !std::env::args().any(|a| a == "--bench") {
+        println!("fleet_bus: run it with `cargo bench --bench fleet_bus`");
+        return;
+    }
+    let world = repo().join(WORLD);
+    let rounds: usize = std::env::var("FLEET_BUS_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1);
+    let mut ratios = Vec::new();
+    for r in 0..rounds {
+        println!("== round {} of {rounds}", r + 1);
+        let (three, one) = round(&world);
+        ratios.push(three / one);
+        println!("three nodes / one drone: {:.2}", three / one);
+    }
+    println!("ratios: {ratios:.2?}");
 }

@@ -1,11 +1,12 @@
 //! `kestrel evaluate`: exploration metrics of a flight log against the true world.
 //!
-//! In: a world file and a JSON-lines flight log. Out: a short summary on stdout and, with
-//! `--out`, the full metrics as JSON (`exploration::evaluate::ExplorationMetrics`).
+//! In: a world file and a JSON-lines flight log, or one log per node of a fleet (`--log` again
+//! for each; put on one clock by their `clock` records). Out: a short summary on stdout and,
+//! with `--out`, the full metrics as JSON (`exploration::evaluate::ExplorationMetrics`).
 
 use anyhow::{Context, Result};
 use clap::Args;
-use kestrel::exploration::evaluate::{self, EvalParams, ExplorationMetrics};
+use kestrel::exploration::evaluate::{self, EvalParams, ExplorationMetrics, MergeError};
 use kestrel::sim::world::World;
 use std::path::PathBuf;
 
@@ -17,9 +18,10 @@ pub struct EvaluateArgs {
     /// World file the flight was flown in (JSON).
     #[arg(long)]
     world: PathBuf,
-    /// Flight log (JSON lines, `pose` records).
-    #[arg(long)]
-    log: PathBuf,
+    /// Flight log (JSON lines, `pose` records). Several (`--log A --log B`): the logs of one
+    /// fleet's nodes, evaluated as one flight.
+    #[arg(long, required = true)]
+    log: Vec<PathBuf>,
     /// Where to write the metrics (JSON).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -30,24 +32,45 @@ pub struct EvaluateArgs {
 
 pub fn run(args: EvaluateArgs) -> Result<()> {
     let world = World::load(&args.world)?;
-    let size = std::fs::metadata(&args.log)
-        .with_context(|| format!("reading {}", args.log.display()))?
-        .len();
-    anyhow::ensure!(
-        size <= MAX_LOG_BYTES,
-        "{} is {size} bytes, more than the {MAX_LOG_BYTES} read",
-        args.log.display()
-    );
-    let text = std::fs::read_to_string(&args.log)
-        .with_context(|| format!("reading {}", args.log.display()))?;
-    let samples = evaluate::poses_from_log(&text)
-        .with_context(|| format!("parsing {}", args.log.display()))?;
+    let mut texts = Vec::new();
+    for path in &args.log {
+        let size = std::fs::metadata(path)
+            .with_context(|| format!("reading {}", path.display()))?
+            .len();
+        anyhow::ensure!(
+            size <= MAX_LOG_BYTES,
+            "{} is {size} bytes, more than the {MAX_LOG_BYTES} read",
+            path.display()
+        );
+        texts.push(
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?,
+        );
+    }
+    let names: Vec<String> = args.log.iter().map(|p| p.display().to_string()).collect();
+    let refs: Vec<&str> = texts.iter().map(String::as_str).collect();
+    let samples = evaluate::poses_from_logs(&refs).map_err(|e| match e {
+        MergeError::Log { log, source } => anyhow::anyhow!("parsing {}: {source}", names[log]),
+        MergeError::NoStart { log } => anyhow::anyhow!(
+            "{} has no clock record (only real-time runs write one): it cannot be put on the \
+             other logs' clock",
+            names[log]
+        ),
+        MergeError::DroneTwice {
+            drone,
+            first,
+            second,
+        } => anyhow::anyhow!(
+            "drone {drone} is in both {} and {}: give each drone's log once",
+            names[first],
+            names[second]
+        ),
+    })?;
     let params = EvalParams {
         beam_range_m: args.range_m,
         ..EvalParams::default()
     };
     let metrics = evaluate::evaluate(&world, &samples, &params)
-        .with_context(|| format!("evaluating {}", args.log.display()))?;
+        .with_context(|| format!("evaluating {}", names.join(", ")))?;
     print!("{}", summary(&metrics));
     if let Some(out) = &args.out {
         let json = serde_json::to_string_pretty(&metrics).context("writing the metrics")?;

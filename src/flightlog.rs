@@ -15,6 +15,9 @@
 //! - `command`: a command received from outside (`command` and its `fields`; uploads and
 //!   MissionUpdates carry the mission itself in `fields.mission`).
 //! - `collision` / `error`: what ended or disturbed the flight (`reason`).
+//! - `clock` (`drone` null): `unix_s`, the wall clock (s since 1970, UTC) at this record's `t`;
+//!   written when a real-time run's control loop starts, so the logs of a fleet's nodes can be
+//!   put on one clock (`kestrel evaluate --log A --log B`).
 //!
 //! Outside tools read it line by line; later records never change earlier ones.
 
@@ -128,6 +131,12 @@ impl FlightLog {
 
     pub fn event(&mut self, t: Duration, drone: &str, kind: &str, reason: &str) {
         self.write(json!({ "t": t.as_secs_f64(), "drone": drone, "type": kind, "reason": reason }));
+    }
+
+    pub fn clock(&mut self, t: Duration, unix_s: f64) {
+        self.write(
+            json!({ "t": t.as_secs_f64(), "drone": null, "type": "clock", "unix_s": unix_s }),
+        );
     }
 
     pub fn flush(&mut self) {

@@ -20,7 +20,7 @@ mod motion;
 mod observable;
 mod raster;
 
-pub use log::poses_from_log;
+pub use log::{poses_from_log, poses_from_logs, start_unix_s, MergeError};
 
 use crate::sim::spatial::ShapeIndex;
 use crate::sim::world::World;

@@ -425,6 +425,9 @@ async fn control_loop(
     let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
     let mut wall_start = Instant::now();
     let mut sim_start = host.now();
+    if options.pace == Pace::RealTime {
+        host.log_wall_clock(std::time::SystemTime::now());
+    }
     let mut budget = CommandBudget::new(wake);
     loop {
         // As fast as possible only while something flies: once every flight is over, simulated

@@ -6,6 +6,8 @@ use super::{free_tcp_port, Api, Fake, Kestrel};
 use serde_json::{json, Value};
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
+use std::path::Path;
+use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -150,6 +152,40 @@ impl Fleet {
             proxies,
             _creds: creds,
         }
+    }
+
+    /// One Kestrel alone in the bays with vehicle 0 (the fake's first), no bus: what three nodes
+    /// are measured against.
+    pub fn start_alone(connection: &str) -> Self {
+        let api_port = free_tcp_port();
+        let listen = format!("127.0.0.1:{api_port}");
+        let node = Kestrel::run_config(&config(0, connection, None), &["--listen", &listen]);
+        Fleet {
+            nodes: vec![Some(node)],
+            apis: vec![Api::connect(api_port)],
+            proxies: Vec::new(),
+            _creds: tempfile::tempdir().unwrap(),
+        }
+    }
+
+    /// `kestrel evaluate` over the listed nodes' flight logs, as one flight in `world`: its
+    /// metrics (`exploration::evaluate::ExplorationMetrics`).
+    pub fn evaluate(&self, live: &[usize], world: &Path) -> Value {
+        let out = tempfile::NamedTempFile::new().unwrap();
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_kestrel"));
+        cmd.args(["evaluate", "--world", world.to_str().unwrap()])
+            .args(["--out", out.path().to_str().unwrap()]);
+        for &i in live {
+            let node = self.nodes[i].as_ref().expect("a live node");
+            cmd.args(["--log", node.log.to_str().unwrap()]);
+        }
+        let run = cmd.output().unwrap();
+        assert!(
+            run.status.success(),
+            "kestrel evaluate: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        serde_json::from_str(&std::fs::read_to_string(out.path()).unwrap()).unwrap()
     }
 
     pub fn output(&self) -> String {

@@ -430,6 +430,15 @@ impl Drop for Kestrel {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        // KESTREL_KEEP_LOGS=DIR keeps every flight log and the process's output there, to read
+        // after a run (the temporary directory goes with the process).
+        if let Some(dir) = std::env::var_os("KESTREL_KEEP_LOGS") {
+            let dir = PathBuf::from(dir);
+            let _ = std::fs::create_dir_all(&dir);
+            let name = format!("kestrel-{}", self.child.id());
+            let _ = std::fs::copy(&self.log, dir.join(format!("{name}.jsonl")));
+            let _ = std::fs::write(dir.join(format!("{name}.out")), self.output());
+        }
     }
 }
 

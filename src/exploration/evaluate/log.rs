@@ -4,6 +4,9 @@
 //! In: the log's text. Out: the [`PoseSample`]s in file order. Records of other types and
 //! blank lines are skipped; a line over 1 MiB, a line that is not JSON, or a pose record
 //! missing a numeric field is an error naming the line.
+//!
+//! A fleet flown by several Kestrels (the fleet bus) leaves one log per node:
+//! [`poses_from_logs`] puts them on one clock through each log's first `clock` record.
 
 use super::{EvalError, PoseSample};
 use serde::Deserialize;
@@ -21,6 +24,7 @@ struct Record {
     y: Option<f64>,
     z: Option<f64>,
     yaw: Option<f64>,
+    unix_s: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -84,6 +88,72 @@ pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
     Ok(out)
 }
 
+/// Why several logs could not be put together.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error("log {log}: {source}")]
+    Log { log: usize, source: EvalError },
+    #[error("log {log} has no clock record (a real-time run's): its clock cannot be matched to the others'")]
+    NoStart { log: usize },
+    #[error("drone {drone} is in log {first} and in log {second}: one drone's poses must come from one log")]
+    DroneTwice {
+        drone: String,
+        first: usize,
+        second: usize,
+    },
+}
+
+/// The wall clock (s since 1970) at a log's `t` = 0, from its first `clock` record, if any.
+pub fn start_unix_s(text: &str) -> Option<f64> {
+    text.lines()
+        .filter(|l| l.len() <= MAX_LINE_BYTES && l.contains("\"clock\""))
+        .filter_map(|l| serde_json::from_str::<Record>(l).ok())
+        .find(|r| r.kind.as_ref().and_then(|k| k.as_str()) == Some("clock"))
+        .and_then(|r| Some(r.unix_s? - r.t?))
+        .filter(|s| s.is_finite())
+}
+
+/// The poses of several logs (numbered from 0 in errors) on the clock of the earliest: each
+/// log's `t` is shifted by how much later its `t` = 0 was on the wall clock ([`start_unix_s`]).
+/// One log is read as it is, clock or not.
+pub fn poses_from_logs(texts: &[&str]) -> Result<Vec<PoseSample>, MergeError> {
+    if let [one] = texts {
+        return poses_from_log(one).map_err(|source| MergeError::Log { log: 0, source });
+    }
+    let starts = texts
+        .iter()
+        .enumerate()
+        .map(|(log, t)| start_unix_s(t).ok_or(MergeError::NoStart { log }))
+        .collect::<Result<Vec<f64>, _>>()?;
+    let earliest = starts.iter().copied().fold(f64::INFINITY, f64::min);
+    let mut owner: std::collections::HashMap<String, usize> = Default::default();
+    let mut out = Vec::new();
+    for (log, (text, start)) in texts.iter().zip(&starts).enumerate() {
+        let poses = poses_from_log(text).map_err(|source| MergeError::Log { log, source })?;
+        for p in &poses {
+            match owner.get(&p.drone) {
+                Some(&first) if first != log => {
+                    return Err(MergeError::DroneTwice {
+                        drone: p.drone.clone(),
+                        first,
+                        second: log,
+                    })
+                }
+                Some(_) => {}
+                None => {
+                    owner.insert(p.drone.clone(), log);
+                }
+            }
+        }
+        let shift = start - earliest;
+        out.extend(poses.into_iter().map(|p| PoseSample {
+            t_s: p.t_s + shift,
+            ..p
+        }));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,6 +171,37 @@ mod tests {
         assert_eq!(poses[0].drone, "d0");
         assert_eq!((poses[0].x_m, poses[0].yaw_rad), (1.0, 0.5));
         assert_eq!((poses[1].drone.as_str(), poses[1].z_m), ("3", 1.0));
+    }
+
+    #[test]
+    fn logs_of_several_nodes_are_put_on_the_earliest_clock() {
+        let a = r#"{"t":0,"drone":null,"type":"header"}
+{"t":0.5,"drone":null,"type":"clock","unix_s":1000.75}
+{"t":1.0,"drone":"d0","type":"pose","x":1,"y":2,"z":1,"yaw":0}
+"#;
+        let b = r#"{"t":0.0,"drone":null,"type":"clock","unix_s":1002.0}
+{"t":1.0,"drone":"d1","type":"pose","x":5,"y":2,"z":1,"yaw":0}
+"#;
+        let poses = poses_from_logs(&[a, b]).unwrap();
+        let t: Vec<(&str, f64)> = poses.iter().map(|p| (p.drone.as_str(), p.t_s)).collect();
+        assert_eq!(t, [("d0", 1.0), ("d1", 2.75)]);
+        // One drone in two logs, or a log without a start, cannot be merged.
+        let again = b.replace("d1", "d0");
+        assert!(matches!(
+            poses_from_logs(&[a, &again]),
+            Err(MergeError::DroneTwice {
+                first: 0,
+                second: 1,
+                ..
+            })
+        ));
+        let bare = "{\"t\":1.0,\"drone\":\"d2\",\"x\":0,\"y\":0,\"z\":1,\"yaw\":0}\n";
+        assert!(matches!(
+            poses_from_logs(&[a, bare]),
+            Err(MergeError::NoStart { log: 1 })
+        ));
+        // One log needs no header.
+        assert_eq!(poses_from_logs(&[bare]).unwrap().len(), 1);
     }
 
     #[test]

@@ -224,6 +224,17 @@ impl Host {
         }
     }
 
+    /// Writes the wall clock at this moment's host time to the flight log (a `clock` record).
+    pub fn log_wall_clock(&mut self, now: std::time::SystemTime) {
+        let unix_s = now
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let t = self.now();
+        if let Some(log) = self.log.as_mut() {
+            log.clock(t, unix_s);
+        }
+    }
+
     pub fn set_log(&mut self, log: FlightLog) {
         self.log = Some(log);
     }
