@@ -171,12 +171,6 @@ const CRUMB_SPACING_M: f64 = 1.0;
 const LANDING_CLEARANCE_M: f64 = 1.5;
 /// Closer than this to its goal, a drone asks for the next one (m).
 const NEAR_GOAL_M: f64 = 1.5;
-/// Closer than this to its goal (m), with the goal's frontier not seen cleared yet, a drone asks
-/// for the next goal and flies on without stopping, leaving that frontier to its sweep.
-const PASS_M: f64 = 0.6;
-/// ... but only when the turning beams will have swept every unknown cell of that frontier within
-/// this long (s): the drone is then still well within beam range of it.
-const PASS_SWEEP_S: f64 = 3.0;
 /// An allocation is flown only if the drone is still this close to where it asked (m).
 const STALE_ANSWER_M: f64 = 0.3;
 /// A drone that moved less than this ...
@@ -221,8 +215,6 @@ pub struct Explore {
     started_at: Duration,
     /// Where it flew, newest last (for a landing spot clear of the others).
     crumbs: Vec<Vec3>,
-    /// The goal this drone last asked early about (seen cleared, or passed): once per goal.
-    asked_early_for: Option<Vec3>,
 }
 
 impl Explore {
@@ -244,7 +236,6 @@ impl Explore {
             given_up: 0,
             started_at: Duration::ZERO,
             crumbs: Vec::new(),
-            asked_early_for: None,
         }
     }
 
@@ -289,11 +280,6 @@ impl Explore {
     }
 
     fn ask(&mut self, ctx: &BehaviorContext) {
-        self.ask_passing(ctx, None);
-    }
-
-    /// Asks the allocator; `pass`: the goal it flies past without watching its frontier.
-    fn ask_passing(&mut self, ctx: &BehaviorContext, pass: Option<Vector2<f64>>) {
         let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
         let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
         let space = SpaceParams {
@@ -316,7 +302,6 @@ impl Explore {
             space,
             current_goal_enu_m: self.target.map(|t| t.xy()),
             give_up: self.give_up.take(),
-            pass,
         }));
         self.asked_at = Some(ctx.now);
         self.asked_from = ctx.position();
@@ -333,78 +318,6 @@ impl Explore {
         self.pending.is_none()
             && since_asked >= MIN_ASK_INTERVAL.as_secs_f64()
             && (self.child.is_none() || near_goal || since_asked >= self.goal.retarget_period)
-    }
-
-    /// Whether to ask now, before the goal is reached, so the drone never stops there:
-    /// `Some(None)` when the goal's frontier was seen cleared (the next goal is wanted at once),
-    /// `Some(Some(goal))` when the drone is about to reach its goal and the frontier is still
-    /// there (the next goal is wanted without stopping; the beams still turn over that frontier
-    /// as the drone flies on). Once per goal.
-    fn early_question(&mut self, ctx: &BehaviorContext) -> Option<Option<Vector2<f64>>> {
-        let target = self.target?;
-        if self.pending.is_some()
-            || self.child.is_none()
-            || self
-                .asked_early_for
-                .is_some_and(|t| (t - target).norm() < 1e-6)
-        {
-            return None;
-        }
-        let distance = (target - ctx.position()).xy().norm();
-        if distance >= NEAR_GOAL_M {
-            return None;
-        }
-        let Some(wait_s) = self.sweep_wait_s(ctx, target)? else {
-            self.asked_early_for = Some(target);
-            return Some(None);
-        };
-        if distance < PASS_M && wait_s <= PASS_SWEEP_S {
-            self.asked_early_for = Some(target);
-            return Some(Some(target.xy()));
-        }
-        None
-    }
-
-    /// How long until the turning beams have swept every unknown cell where the frontier at
-    /// `goal` is (within the safety distance plus a cell and a half of it), seen from here:
-    /// `Some(None)` when there is none (the frontier was seen cleared), infinite when the beams
-    /// do not turn steadily or a mapped obstacle hides a cell from here. `None` without a map.
-    fn sweep_wait_s(&self, ctx: &BehaviorContext, goal: Vec3) -> Option<Option<f64>> {
-        let grid = ctx.fleet_map.or(ctx.map.map(|m| m.grid()))?;
-        let resolution_m = grid.spec().resolution_m;
-        let radius_m = self.goal.safety_distance + 1.5 * resolution_m;
-        let steps = (radius_m / resolution_m).ceil() as i64;
-        let here = ctx.position().xy();
-        let quarter = std::f64::consts::FRAC_PI_2;
-        let spinning = self.goal.heading == HeadingMode::Spin && self.goal.spin_rate > 0.0;
-        let occupied = ctx
-            .map
-            .map_or(crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD, |m| {
-                m.occupied_threshold()
-            });
-        let mut wait: Option<f64> = None;
-        for dy in -steps..=steps {
-            for dx in -steps..=steps {
-                let offset = Vector2::new(dx as f64, dy as f64) * resolution_m;
-                if offset.norm() > radius_m {
-                    continue;
-                }
-                let cell = goal.xy() + offset;
-                if grid.get_at(cell) != Some(crate::mapping::grid::UNKNOWN) {
-                    continue;
-                }
-                let w = if spinning && line_of_sight(grid, occupied, here, cell) {
-                    // Four beams a quarter turn apart, turning counter-clockwise: the next one
-                    // reaches this bearing after this much of a turn.
-                    let d = cell - here;
-                    (d.y.atan2(d.x) - ctx.yaw()).rem_euclid(quarter) / self.goal.spin_rate
-                } else {
-                    f64::INFINITY
-                };
-                wait = Some(wait.map_or(w, |m: f64| m.max(w)));
-            }
-        }
-        Some(wait)
     }
 
     /// Takes the allocator's answer; `Ok(true)` when the exploration is over for this drone.
@@ -559,9 +472,7 @@ impl Explore {
         }
         self.drop_crumb(ctx);
         self.check_stuck(ctx);
-        if let Some(pass) = self.early_question(ctx) {
-            self.ask_passing(ctx, pass);
-        } else if self.due_to_ask(ctx) {
+        if self.due_to_ask(ctx) {
             self.ask(ctx);
         }
         let Some(child) = self.child.as_mut() else {
@@ -652,21 +563,6 @@ impl Explore {
             "given_up": self.given_up,
         })
     }
-}
-
-/// Whether no mapped obstacle lies on the straight line from `from` to the cell at `to`.
-fn line_of_sight(
-    grid: &crate::mapping::OccupancyGrid,
-    occupied: i8,
-    from: Vector2<f64>,
-    to: Vector2<f64>,
-) -> bool {
-    let step_m = 0.5 * grid.spec().resolution_m;
-    let steps = ((to - from).norm() / step_m).ceil().max(1.0) as usize;
-    (0..steps).all(|k| {
-        let p = from + (to - from) * (k as f64 / steps as f64);
-        grid.get_at(p).is_none_or(|v| v < occupied)
-    })
 }
 
 /// A debug line per explorer event (`RUST_LOG=kestrel::behavior::explore=debug`), read by
@@ -816,85 +712,5 @@ mod tests {
         explore.explore_tick(&scene.ctx(3), &mut requests).unwrap();
         assert_eq!(explore.target, Some(Vec3::new(5.0, 1.0, 1.0)));
         assert!(explore.child.is_some());
-    }
-
-    /// 10 x 4 m from (-1, -2) at 0.1 m: known free, unknown from x = `unknown_from_m` on.
-    fn grid_unknown_beyond(unknown_from_m: f64) -> crate::mapping::OccupancyGrid {
-        use crate::mapping::grid::{GridSpec, UNKNOWN};
-        let spec = GridSpec {
-            resolution_m: 0.1,
-            width_cells: 100,
-            height_cells: 40,
-            origin_enu_m: Vector2::new(-1.0, -2.0),
-        };
-        let data = (0..40)
-            .flat_map(|_| {
-                (0..100).map(move |x| {
-                    if -1.0 + 0.1 * f64::from(x) >= unknown_from_m {
-                        UNKNOWN
-                    } else {
-                        0
-                    }
-                })
-            })
-            .collect();
-        crate::mapping::OccupancyGrid::from_data(spec, data).unwrap()
-    }
-
-    /// An explorer flying to (5, 0, 1), now at `x` m east of the origin with heading `yaw`; the
-    /// question it asks this tick, if any.
-    fn question_near_goal(
-        x: f64,
-        yaw: f64,
-        grid: &crate::mapping::OccupancyGrid,
-    ) -> Option<ExploreRequest> {
-        let mut scene = Scene::flying();
-        scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
-        let mut explore = Explore::new(ExploreGoal::default());
-        explore.start_exploring(&scene.ctx(0));
-        let mut requests = Vec::new();
-        explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
-        answer_with_goal(&scene);
-        explore
-            .explore_tick(&scene.ctx_at(Duration::from_millis(1050)), &mut requests)
-            .unwrap();
-        assert_eq!(explore.target, Some(Vec3::new(5.0, 0.0, 1.0)));
-        scene.state.pose = crate::types::Pose::from_position_yaw(Vec3::new(x, 0.0, 1.0), yaw);
-        scene.state.velocity_enu_mps = Vec3::new(0.75, 0.0, 0.0);
-        let _ = scene.services.drain_calls();
-        // Too soon after the last question for a regular one: only an early one is asked.
-        let mut ctx = scene.ctx_at(Duration::from_millis(1200));
-        ctx.fleet_map = Some(grid);
-        explore.explore_tick(&ctx, &mut requests).unwrap();
-        scene
-            .services
-            .drain_calls()
-            .into_iter()
-            .find_map(|c| match c {
-                ServiceCall::Explore(job) => Some(job.request),
-                _ => None,
-            })
-    }
-
-    #[test]
-    fn near_its_goal_a_drone_flies_on_when_the_beams_are_about_to_sweep_the_frontier() {
-        // Unknown 0.45 m beyond the goal, straight ahead (within 0.2 rad either side, seen from
-        // 0.5 m short of the goal); the front beam just short of it: all swept in under 3 s, so
-        // the drone asks for the next goal, passing this one.
-        let grid = grid_unknown_beyond(5.45);
-        let asked = question_near_goal(4.5, -0.22, &grid).expect("an early question");
-        assert_eq!(asked.pass, Some(Vector2::new(5.0, 0.0)));
-        // A beam just past it: the sweep is nearly a quarter turn away, so it goes on to the
-        // goal and watches there.
-        assert!(question_near_goal(4.5, 0.3, &grid).is_none());
-        // Farther than `PASS_M` from the goal: not yet.
-        assert!(question_near_goal(4.0, -0.22, &grid).is_none());
-    }
-
-    #[test]
-    fn a_drone_asks_at_once_when_its_goals_frontier_is_seen_cleared() {
-        let grid = grid_unknown_beyond(7.0);
-        let asked = question_near_goal(4.0, 0.3, &grid).expect("an early question");
-        assert_eq!(asked.pass, None);
     }
 }

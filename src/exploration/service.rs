@@ -35,10 +35,6 @@ const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
 const LOW_GAIN_NEAR_M: f64 = 3.0;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
-/// A goal passed without watching is left to the passing drone's sweep for this long.
-pub const PASSED_FOR: Duration = Duration::from_secs(8);
-/// Frontiers whose goal lies this close to a passed goal are left to the sweep (m).
-const PASSED_RADIUS_M: f64 = 1.0;
 
 /// One drone's question.
 #[derive(Debug, Clone, PartialEq)]
@@ -53,10 +49,6 @@ pub struct ExploreRequest {
     pub current_goal_enu_m: Option<Vector2<f64>>,
     /// A goal it reached and watched without the frontier going away: never offered again.
     pub give_up: Option<Vector2<f64>>,
-    /// A goal it is about to reach whose frontier its turning beams have not cleared yet: it
-    /// flies on instead of stopping there to watch, and the frontier is left to the sweep
-    /// (offered to no drone) for [`PASSED_FOR`], unless nothing else is left.
-    pub pass: Option<Vector2<f64>>,
 }
 
 /// What a drone is told.
@@ -141,8 +133,6 @@ pub struct FrontierService {
     /// Goals of drones flown by other processes, as last heard (replaced whole).
     remote: BTreeMap<Arc<str>, Claim>,
     given_up: Vec<GivenUp>,
-    /// Goals passed without watching, and when.
-    passed: Vec<GivenUp>,
 }
 
 impl FrontierService {
@@ -201,13 +191,6 @@ impl FrontierService {
         if let Some(goal) = request.give_up {
             if self.given_up.len() < MAX_GIVEN_UP {
                 self.given_up.push(GivenUp { goal, at: now });
-            }
-        }
-        self.passed
-            .retain(|g| now.saturating_sub(g.at) < PASSED_FOR);
-        if let Some(goal) = request.pass {
-            if self.passed.len() < MAX_GIVEN_UP {
-                self.passed.push(GivenUp { goal, at: now });
             }
         }
         for claims in [&mut self.claims, &mut self.remote] {
@@ -294,17 +277,6 @@ impl FrontierService {
         let me = Requester {
             position_enu_m: here,
             current_goal_enu_m: request.current_goal_enu_m,
-        };
-        // Frontiers a drone just flew past are left to its sweep, unless nothing else is left.
-        let passed = |c: &Candidate| {
-            self.passed
-                .iter()
-                .any(|g| (c.goal_enu_m - g.goal).norm() < PASSED_RADIUS_M)
-        };
-        let candidates: Vec<(Candidate, usize)> = if candidates.iter().all(|(c, _)| passed(c)) {
-            candidates
-        } else {
-            candidates.into_iter().filter(|(c, _)| !passed(c)).collect()
         };
         let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
         let Some(chosen) = choose(request.allocator, &me, &just, &others) else {
@@ -395,7 +367,6 @@ mod tests {
             space: SpaceParams::default(),
             current_goal_enu_m: None,
             give_up: None,
-            pass: None,
         }
     }
 
@@ -534,53 +505,5 @@ mod tests {
         s.answer(later, &grid, &r).unwrap();
         let last = s.answer(later + GIVEN_UP_FOR * 2, &grid, &r2).unwrap();
         assert!(matches!(last, Allocation::Done { .. }), "{last:?}");
-    }
-
-    #[test]
-    fn a_passed_goal_is_left_to_the_sweep_for_a_while_unless_nothing_else_is_left() {
-        let grid = half_known();
-        let mut s = FrontierService::new();
-        let t = Duration::from_secs(1);
-        let first = goal_of(&s.answer(t, &grid, &ask("a", 2.0, 5.0)).unwrap());
-        let mut r = ask("a", 9.0, first.y);
-        r.pass = Some(first.xy());
-        let next = goal_of(&s.answer(t, &grid, &r).unwrap());
-        assert!((next - first).xy().norm() >= PASSED_RADIUS_M, "{next:?}");
-        // Nor is it offered to another drone meanwhile ...
-        let other = goal_of(&s.answer(t, &grid, &ask("b", 9.0, first.y)).unwrap());
-        assert!((other - first).xy().norm() >= PASSED_RADIUS_M, "{other:?}");
-        // ... but once the sweep had its time and the frontier is still there, it is.
-        let later = t + PASSED_FOR + CLAIM_TTL;
-        let again = goal_of(&s.answer(later, &grid, &ask("b", 9.0, first.y)).unwrap());
-        assert!((again - first).xy().norm() < 1e-9, "{again:?}");
-        // The only frontier left is taken even while passed.
-        let mut s = FrontierService::new();
-        let only = half_known_strip();
-        let g = goal_of(&s.answer(t, &only, &ask("a", 2.0, 5.0)).unwrap());
-        let mut r = ask("a", 2.0, 5.0);
-        r.pass = Some(g.xy());
-        assert!((goal_of(&s.answer(t, &only, &r).unwrap()) - g).norm() < 1e-9);
-    }
-
-    /// 20 x 10 m known free but for a short unknown strip at x >= 19.5 m, 4 <= y < 5.5 m.
-    fn half_known_strip() -> OccupancyGrid {
-        let spec = GridSpec {
-            resolution_m: 0.1,
-            width_cells: 200,
-            height_cells: 100,
-            origin_enu_m: Vector2::zeros(),
-        };
-        let data = (0..100)
-            .flat_map(|y| {
-                (0..200).map(move |x| {
-                    if x >= 195 && (40..55).contains(&y) {
-                        UNKNOWN
-                    } else {
-                        0
-                    }
-                })
-            })
-            .collect();
-        OccupancyGrid::from_data(spec, data).unwrap()
     }
 }

@@ -361,7 +361,6 @@ mod tests {
                 space: SpaceParams::default(),
                 current_goal_enu_m: None,
                 give_up: None,
-                pass: None,
             },
             cancel: Arc::new(AtomicBool::new(false)),
         }
