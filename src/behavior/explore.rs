@@ -305,6 +305,7 @@ impl Explore {
         }));
         self.asked_at = Some(ctx.now);
         self.asked_from = ctx.position();
+        trace(ctx, "ask", String::new);
     }
 
     /// Whether to ask the allocator now: with no goal, every `retarget_period`, and when the
@@ -331,6 +332,7 @@ impl Explore {
         match answer {
             Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
             Ok(Allocation::Done { frontiers }) => {
+                trace(ctx, "done", || format!("frontiers={frontiers}"));
                 self.frontiers = frontiers;
                 self.target = None;
                 self.child = None;
@@ -356,6 +358,16 @@ impl Explore {
                 let same = self
                     .target
                     .is_some_and(|t| (t - goal_enu_m).norm() < 0.3 && self.child.is_some());
+                let (here, had_child) = (ctx.position(), self.child.is_some());
+                trace(ctx, if same { "same" } else { "fly" }, || {
+                    format!(
+                        "goal={:.2},{:.2} dist={:.2} had_child={}",
+                        goal_enu_m.x,
+                        goal_enu_m.y,
+                        (goal_enu_m - here).xy().norm(),
+                        had_child
+                    )
+                });
                 if !same {
                     self.fly(ctx, goal_enu_m, &path_enu_m)?;
                 }
@@ -389,6 +401,7 @@ impl Explore {
         }
         if seconds(ctx.now, self.anchor.1) > self.sense_s() + STUCK_EXTRA_S {
             if let Some(t) = self.target.take() {
+                trace(ctx, "giveup", String::new);
                 self.give_up = Some(t.xy());
                 self.given_up += 1;
                 self.child = None;
@@ -443,6 +456,7 @@ impl Explore {
         requests: &mut Vec<PlatformRequest>,
     ) -> Result<Option<MotionReference>, Failure> {
         if self.must_give_way(ctx) {
+            trace(ctx, "giveway", String::new);
             self.phase = Phase::GivingWay {
                 hold: Vec3::new(ctx.position().x, ctx.position().y, self.base_z),
                 returning: false,
@@ -467,10 +481,12 @@ impl Explore {
         match child.run(ctx, requests) {
             Step::Running { reference, .. } => Ok(Some(reference.unwrap_or(ctx.hold_here()))),
             Step::Succeeded => {
+                trace(ctx, "arrive", String::new);
                 self.child = None;
                 Ok(Some(ctx.hold_here()))
             }
             Step::Failed(reason) => {
+                trace(ctx, "pathfail", String::new);
                 tracing::debug!("{}: frontier path failed: {reason}", ctx.drone_id);
                 self.give_up = self.target.take().map(|t| t.xy());
                 self.child = None;
@@ -546,6 +562,19 @@ impl Explore {
             "allocations": self.allocations,
             "given_up": self.given_up,
         })
+    }
+}
+
+/// A debug line per explorer event (`RUST_LOG=kestrel::behavior::explore=debug`), read by
+/// `benches/explore_stops.py` to tell where a drone stops and why.
+fn trace(ctx: &BehaviorContext, event: &str, detail: impl FnOnce() -> String) {
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        tracing::debug!(
+            "EXTRACE t={:.2} d={} ev={event} {}",
+            ctx.now.as_secs_f64(),
+            ctx.drone_id,
+            detail()
+        );
     }
 }
 
