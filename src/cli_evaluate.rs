@@ -28,6 +28,9 @@ pub struct EvaluateArgs {
     /// Beam range of the evaluation sensor (m).
     #[arg(long, default_value_t = 4.0)]
     range_m: f64,
+    /// Time between two points of the area-over-time curve (s, 0.1 to 3600).
+    #[arg(long, default_value_t = 10.0)]
+    curve_step_s: f64,
 }
 
 pub fn run(args: EvaluateArgs) -> Result<()> {
@@ -67,6 +70,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     })?;
     let params = EvalParams {
         beam_range_m: args.range_m,
+        curve_step_s: args.curve_step_s,
         ..EvalParams::default()
     };
     let metrics = evaluate::evaluate(&world, &samples, &params)

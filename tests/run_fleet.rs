@@ -16,8 +16,9 @@ mod mavlink_support;
 mod support;
 
 use kestrel::sim::world::World;
-use kestrel::types::Vec3;
-use mavlink_support::room::{clearance_m, judge_map, wait_explored};
+use mavlink_support::room::{
+    assert_no_collision, judge_map, judge_tracks, wait_explored, MIN_SEPARATION_M,
+};
 use mavlink_support::{free_tcp_port, repo, serial, Api, Fake, Kestrel};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
@@ -26,8 +27,6 @@ const WORLD: &str = "sitl/worlds/room10_fleet.json";
 const DRONES: [&str; 3] = ["drone_0", "drone_1", "drone_2"];
 /// Where the fake starts each vehicle (the world's `starts_xy_yaw` for three, m, ENU).
 const STARTS_ENU_M: [[f64; 3]; 3] = [[-3.0, 0.0, 0.0], [0.0, 0.0, 0.0], [3.0, 1.0, 0.0]];
-/// Least distance between two drones the test accepts (m, centre to centre, 3-D).
-const MIN_SEPARATION_M: f64 = 0.5;
 
 /// The fleet's config: the room's map, PX4's velocity response (as tests/run_explore.rs), and
 /// the three autopilots, each with its connection, system id and frame origin.
@@ -47,15 +46,6 @@ fn config(connections: &[String]) -> String {
         ));
     }
     text
-}
-
-fn position(state: &Value) -> Vec3 {
-    let p = &state["position_enu_m"];
-    Vec3::new(
-        p[0].as_f64().unwrap(),
-        p[1].as_f64().unwrap(),
-        p[2].as_f64().unwrap(),
-    )
 }
 
 /// Waits until `GET /api/status` lists the three drones, each linked and ready to fly.
@@ -167,60 +157,20 @@ fn three_px4_explore_a_room_together_from_one_kestrel_run() {
 
     // The true flights: every vehicle flew, none closer than 0.2 m to an obstacle, no
     // collision logged, and no two ever closer than MIN_SEPARATION_M.
-    let shapes = w.shapes();
-    let mut closest_obstacle = (f64::INFINITY, Vec3::zeros());
-    let mut closest_pair = (f64::INFINITY, 0usize);
-    let mut airborne = [0usize; 3];
-    for (k, sample) in samples.iter().enumerate() {
-        let states = sample.as_array().unwrap();
-        let at: Vec<Vec3> = states.iter().map(position).collect();
-        for (i, p) in at.iter().enumerate() {
-            if p.z > 0.3 {
-                airborne[i] += 1;
-                let c = clearance_m(&shapes, *p);
-                if c < closest_obstacle.0 {
-                    closest_obstacle = (c, *p);
-                }
-            }
-            for q in &at[i + 1..] {
-                let d = (p - q).norm();
-                if d < closest_pair.0 {
-                    closest_pair = (d, k);
-                }
-            }
-        }
-    }
+    let tracks = judge_tracks(&samples, &w);
     assert!(
-        airborne.iter().all(|&n| n > 100),
-        "airborne samples per vehicle: {airborne:?}"
+        tracks.airborne.iter().all(|&n| n > 100),
+        "airborne samples per vehicle: {:?}",
+        tracks.airborne
     );
-    assert!(
-        closest_obstacle.0 > 0.2,
-        "{:.2} m from an obstacle at {:?}",
-        closest_obstacle.0,
-        closest_obstacle.1
-    );
-    assert!(
-        closest_pair.0 >= MIN_SEPARATION_M,
-        "two drones {:.2} m apart: {}",
-        closest_pair.0,
-        samples[closest_pair.1]
-    );
-    for i in 0..DRONES.len() {
-        let log = fake.cmd(json!({"cmd": "log", "vehicle": i}));
-        let collisions: Vec<&Value> = log["entries"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|e| e["kind"] == "collision")
-            .collect();
-        assert!(collisions.is_empty(), "vehicle {i}: {collisions:?}");
-    }
+    tracks.assert_safe(&samples, 0.2, MIN_SEPARATION_M);
+    assert_no_collision(&fake, DRONES.len());
     println!(
         "floor known {known_pct:.1} %, {} stray obstacle cells, closest to an obstacle {:.2} m, \
-         closest two drones {:.2} m, airborne samples {airborne:?}",
+         closest two drones {:.2} m, airborne samples {:?}",
         stray.len(),
-        closest_obstacle.0,
-        closest_pair.0
+        tracks.clearance.m,
+        tracks.closest_pair.0,
+        tracks.airborne
     );
 }

@@ -169,11 +169,12 @@ impl Fleet {
     }
 
     /// `kestrel evaluate` over the listed nodes' flight logs, as one flight in `world`: its
-    /// metrics (`exploration::evaluate::ExplorationMetrics`).
+    /// metrics (`exploration::evaluate::ExplorationMetrics`), the area curve every 0.5 s.
     pub fn evaluate(&self, live: &[usize], world: &Path) -> Value {
         let out = tempfile::NamedTempFile::new().unwrap();
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_kestrel"));
         cmd.args(["evaluate", "--world", world.to_str().unwrap()])
+            .args(["--curve-step-s", "0.5"])
             .args(["--out", out.path().to_str().unwrap()]);
         for &i in live {
             let node = self.nodes[i].as_ref().expect("a live node");

@@ -6,7 +6,7 @@ use super::{Api, Fake, Kestrel};
 use kestrel::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD;
 use kestrel::sim::world::{Shape, World};
 use kestrel::types::Vec3;
-use serde_json::Value;
+use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
 /// The rooms' outer walls are this thick, inside the world's bounds (m).
@@ -72,4 +72,111 @@ pub fn judge_map(map: &Value, w: &World, tolerance_m: f64) -> (f64, Vec<[f64; 2]
         }
     }
     (100.0 * known as f64 / floor.max(1) as f64, stray)
+}
+
+/// Least distance between two drones the tests accept (m, centre to centre, 3-D).
+pub const MIN_SEPARATION_M: f64 = 0.5;
+
+/// The least clearance to an obstacle of an airborne drone: how much, which, when and where.
+pub struct Clearance {
+    pub m: f64,
+    pub drone: usize,
+    pub sample: usize,
+    pub at: Vec3,
+}
+
+/// What the true tracks show: the least distance between two drones (and at which sample), the
+/// least clearance to an obstacle of an airborne drone, and the airborne samples per drone.
+pub struct Tracks {
+    pub closest_pair: (f64, usize),
+    pub clearance: Clearance,
+    pub airborne: Vec<usize>,
+}
+
+/// A fake state's `position_enu_m`.
+pub fn position(state: &Value) -> Vec3 {
+    let p = &state["position_enu_m"];
+    Vec3::new(
+        p[0].as_f64().unwrap(),
+        p[1].as_f64().unwrap(),
+        p[2].as_f64().unwrap(),
+    )
+}
+
+/// Judges the fake's true states (`Fake::poll_fleet_states` samples) against the world.
+pub fn judge_tracks(samples: &[Value], w: &World) -> Tracks {
+    let shapes = w.shapes();
+    let mut t = Tracks {
+        closest_pair: (f64::INFINITY, 0),
+        clearance: Clearance {
+            m: f64::INFINITY,
+            drone: 0,
+            sample: 0,
+            at: Vec3::zeros(),
+        },
+        airborne: Vec::new(),
+    };
+    for (k, sample) in samples.iter().enumerate() {
+        let at: Vec<Vec3> = sample.as_array().unwrap().iter().map(position).collect();
+        t.airborne.resize(t.airborne.len().max(at.len()), 0);
+        for (i, p) in at.iter().enumerate() {
+            if p.z > 0.3 {
+                t.airborne[i] += 1;
+                let c = clearance_m(&shapes, *p);
+                if c < t.clearance.m {
+                    t.clearance = Clearance {
+                        m: c,
+                        drone: i,
+                        sample: k,
+                        at: *p,
+                    };
+                }
+            }
+            for q in &at[i + 1..] {
+                let d = (p - q).norm();
+                if d < t.closest_pair.0 {
+                    t.closest_pair = (d, k);
+                }
+            }
+        }
+    }
+    t
+}
+
+impl Tracks {
+    /// No airborne drone within `min_clearance_m` of an obstacle and no two drones closer than
+    /// `min_separation_m`; panics saying where otherwise.
+    pub fn assert_safe(&self, samples: &[Value], min_clearance_m: f64, min_separation_m: f64) {
+        let c = &self.clearance;
+        assert!(
+            c.m > min_clearance_m,
+            "drone_{} {:.2} m from an obstacle at {:?}, sample {} of {}",
+            c.drone,
+            c.m,
+            c.at,
+            c.sample,
+            samples.len()
+        );
+        let (d, k) = self.closest_pair;
+        assert!(
+            d >= min_separation_m,
+            "two drones {d:.2} m apart at sample {k} of {}: {}",
+            samples.len(),
+            samples[k]
+        );
+    }
+}
+
+/// No collision in the fake's log of any of its first `vehicles`.
+pub fn assert_no_collision(fake: &Fake, vehicles: usize) {
+    for i in 0..vehicles {
+        let log = fake.cmd(json!({"cmd": "log", "vehicle": i}));
+        let collisions: Vec<&Value> = log["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["kind"] == "collision")
+            .collect();
+        assert!(collisions.is_empty(), "vehicle {i}: {collisions:?}");
+    }
 }
