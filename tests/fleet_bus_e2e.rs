@@ -114,10 +114,12 @@ fn three_kestrels_on_one_bus_explore_the_bays_together() {
         );
     }
     // The three nodes' flight logs, put on one clock by `kestrel evaluate`, judged as one
-    // flight against the true world: every drone flew, nothing was hit, the floor was seen.
+    // flight against the true world: every drone flew and the floor was seen. Clearance and
+    // collisions are judged below on the fake's true states and its collision log: the logs hold
+    // Kestrel's estimates, which under load trail the truth (one CI run had four logged poses a
+    // few centimetres inside a wall).
     let metrics = fleet.evaluate(&[0, 1, 2], &world_path);
     assert_eq!(metrics["drones_flown"], 3, "{metrics}");
-    assert_eq!(metrics["collisions"], 0, "{metrics}");
     let observable = metrics["observable_pct"].as_f64().unwrap();
     assert!(
         observable >= 95.0,
@@ -127,8 +129,10 @@ fn three_kestrels_on_one_bus_explore_the_bays_together() {
     // (benches/fleet_bus.rs flies one drone alone too; under CI's other flight tests it varies).
     println!(
         "three Kestrels explored the bays in {took:?} (API start to the last disarm); \
-         first take-off to last landing {:.1} s, {observable:.1} % of the observable area",
-        metrics["time_s"].as_f64().unwrap()
+         first take-off to last landing {:.1} s, {observable:.1} % of the observable area; \
+         least clearance in the logs {} m",
+        metrics["time_s"].as_f64().unwrap(),
+        metrics["min_obstacle_clearance_m"]
     );
 
     // Every Kestrel serves the same merged map, within the bus's lag, with the floor known.
