@@ -600,15 +600,7 @@ impl Behavior for Explore {
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
         let reference = match &mut self.phase {
             Phase::TakingOff(takeoff) => match takeoff.run(ctx, requests) {
-                // Above half the height the beams start sweeping, so the first frontiers are
-                // known by the time the climb ends (no quarter turn in place then).
-                Step::Running { reference, .. } => {
-                    let up_m = ctx.position().z - ctx.home_enu_m.map_or(0.0, |h| h.z);
-                    match reference {
-                        Some(r) if up_m > 0.5 * self.goal.height => Some(self.heading(ctx, r)),
-                        other => other,
-                    }
-                }
+                Step::Running { reference, .. } => reference,
                 Step::Succeeded => {
                     self.start_exploring(ctx);
                     Some(self.heading(ctx, ctx.hold_here()))
@@ -683,7 +675,6 @@ mod tests {
     use super::*;
     use crate::behavior::services::{ServiceAnswer, ServiceCall};
     use crate::behavior::testing::Scene;
-    use crate::types::FlightStatus;
 
     /// The explorer's question this tick, answered with a goal 5 m east of where it asked.
     fn answer_with_goal(scene: &Scene) {
@@ -701,38 +692,6 @@ mod tests {
         scene
             .services
             .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
-    }
-
-    fn yaw_of(step: &Step) -> Option<YawTarget> {
-        match step {
-            Step::Running {
-                reference: Some(MotionReference::Position { yaw, .. }),
-                ..
-            } => Some(*yaw),
-            _ => None,
-        }
-    }
-
-    #[test]
-    fn the_beams_start_sweeping_halfway_up_the_climb() {
-        let mut scene = Scene::flying();
-        scene.platform.flight = FlightStatus::Landed;
-        let goal = ExploreGoal::default();
-        let mut explore = Explore::new(goal.clone());
-        explore.activate(&scene.ctx(0)).unwrap();
-        let mut requests = Vec::new();
-        let mut yaw_at = |scene: &mut Scene, z: f64, t: u64| {
-            scene.set_position(Vec3::new(0.0, 0.0, z), Vec3::new(0.0, 0.0, 0.5));
-            let step = explore.run(&scene.ctx(t), &mut requests);
-            yaw_of(&step)
-        };
-        // Armed and in offboard on the ground: climbing, heading held.
-        yaw_at(&mut scene, 0.0, 1);
-        scene.platform.flight = FlightStatus::TakingOff;
-        let low = yaw_at(&mut scene, 0.3, 2);
-        assert!(matches!(low, Some(YawTarget::Angle(_))), "{low:?}");
-        let high = yaw_at(&mut scene, 0.6, 3);
-        assert_eq!(high, Some(YawTarget::Rate(goal.spin_rate)));
     }
 
     #[test]
