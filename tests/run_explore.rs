@@ -16,9 +16,9 @@ mod support;
 use kestrel::exploration::evaluate::{self, EvalParams};
 use kestrel::sim::world::World;
 use kestrel::types::Vec3;
-use mavlink_support::room::{clearance_m, judge_map, wait_explored};
+use mavlink_support::room::{assert_no_collision, clearance_m, judge_map, wait_explored};
 use mavlink_support::{free_tcp_port, repo, serial, Api, Fake, Kestrel, Personality};
-use serde_json::{json, Value};
+use serde_json::json;
 use std::time::{Duration, Instant};
 
 const WORLD: &str = "sitl/worlds/room10_explore.json";
@@ -123,14 +123,7 @@ fn px4_explores_a_walled_room_with_its_range_beams_and_lands() {
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .unwrap();
     assert!(closest > 0.2, "{closest:.2} m from an obstacle at {at:?}");
-    let log = fake.cmd(json!({"cmd": "log"}));
-    let collisions: Vec<&Value> = log["entries"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["kind"] == "collision")
-        .collect();
-    assert!(collisions.is_empty(), "{collisions:?}");
+    assert_no_collision(&fake, 1);
 
     // The outside evaluator on Kestrel's own flight log (poses at 10 Hz).
     let text = std::fs::read_to_string(&kestrel.log).unwrap();
