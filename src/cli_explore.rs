@@ -89,7 +89,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     let world = World::load(&args.world)?;
     // Drones give way to each other through the explore behavior's watcher (2.0 m, climbing
     // 1 m); the safety stage is the last line behind it, at the 0.5 m the exploration must
-    // never go below (its guard, twice that, stays inside the watcher's trigger).
+    // never go below (braking to stop 0.2 m outside it, well inside the watcher's trigger).
     if args.config.is_none() {
         config.safety.min_separation_m = 0.5;
     }

@@ -45,6 +45,8 @@ pub struct Config {
 pub struct SafetySection {
     /// Least distance kept between two flying drones of the fleet (m, centre to centre).
     pub min_separation_m: f64,
+    /// Drones brake to stop this much farther out than `min_separation_m` (m).
+    pub separation_margin_m: f64,
     /// A target beyond the geofence is held this far inside it (m).
     pub geofence_margin_m: f64,
 }
@@ -53,6 +55,7 @@ impl Default for SafetySection {
     fn default() -> Self {
         Self {
             min_separation_m: 1.0,
+            separation_margin_m: 0.2,
             geofence_margin_m: 0.5,
         }
     }
@@ -259,6 +262,7 @@ impl Config {
             geofence: self.geofence.clone(),
             geofence_margin_m: self.safety.geofence_margin_m,
             min_separation_m: self.safety.min_separation_m,
+            separation_margin_m: self.safety.separation_margin_m,
             limits: self.controller,
             braking_mps2: self.behaviors.max_acceleration_mps2,
         }
@@ -428,6 +432,12 @@ impl Config {
         non_negative(
             "safety.min_separation_m",
             self.safety.min_separation_m,
+            100.0,
+            "m",
+        )?;
+        non_negative(
+            "safety.separation_margin_m",
+            self.safety.separation_margin_m,
             100.0,
             "m",
         )?;

@@ -24,6 +24,9 @@ pub struct SafetyConfig {
     pub geofence_margin_m: f64,
     /// Least distance kept from another flying drone (m, centre to centre).
     pub min_separation_m: f64,
+    /// Drones slow down to stop this much farther out than `min_separation_m` (m): room for
+    /// what the braking model leaves out (the tick, the estimate, the other drone's own lag).
+    pub separation_margin_m: f64,
     /// Speed and turn-rate limits; a setpoint beyond them by more than 10 % is scaled back.
     pub limits: ControllerConfig,
     /// Braking acceleration used to look ahead of a velocity setpoint (m/s^2).
@@ -36,6 +39,7 @@ impl Default for SafetyConfig {
             geofence: GeofenceSection::default(),
             geofence_margin_m: 0.5,
             min_separation_m: 1.0,
+            separation_margin_m: 0.2,
             limits: ControllerConfig::default(),
             braking_mps2: 2.0,
         }
@@ -69,6 +73,38 @@ pub struct SafetyStage {
 
 /// Headroom over the controller's own limits before a setpoint counts as beyond them.
 const LIMIT_HEADROOM: f64 = 1.1;
+
+/// Reaction time of the separation cap beyond the controller's velocity lag (s): a tick or two
+/// of the control loop and of the fleet view's age.
+const REACTION_EXTRA_S: f64 = 0.05;
+
+/// One other drone's cap on the closing speed along `away` (unit, from it to this drone).
+struct Closing {
+    away: Vec3,
+    allowed_mps: f64,
+    /// A silent drone: no sliding around its spot, only stopping.
+    stop_only: bool,
+}
+
+/// Whether the straight-line motion `w` from relative position `offset` comes nearer than `r`.
+fn passes_within(offset: &Vec3, w: &Vec3, r: f64) -> bool {
+    let approach = offset.dot(w);
+    let w2 = w.norm_squared();
+    if approach >= 0.0 || w2 < 1e-12 {
+        return offset.norm() < r;
+    }
+    let t = -approach / w2;
+    (offset + w * t).norm() < r
+}
+
+/// The highest closing speed that can still be braked to zero within `room_m`, reacting after
+/// `react_s` and braking at `brake_mps2`: `c * react_s + c^2 / (2 brake) = room_m`.
+fn stoppable_mps(room_m: f64, react_s: f64, brake_mps2: f64) -> f64 {
+    if room_m <= 0.0 {
+        return 0.0;
+    }
+    brake_mps2 * (-react_s + (react_s * react_s + 2.0 * room_m / brake_mps2).sqrt())
+}
 
 impl SafetyStage {
     pub fn new(config: SafetyConfig) -> Self {
@@ -183,8 +219,20 @@ impl SafetyStage {
         Some((target_at(stop, yaw), OverrideKind::Geofence, why))
     }
 
-    /// Takes out the part of the motion that closes in on a drone nearer than the guard
-    /// distance, and pushes apart inside the minimum separation.
+    /// Keeps this drone from closing in on any other flying drone faster than it can stop short
+    /// of `min_separation_m + separation_margin_m`, on the 3-D line between them, and pushes
+    /// apart inside `min_separation_m`.
+    ///
+    /// A drone is a constraint when the straight-line motion relative to it (commanded or
+    /// actual, the other drone's velocity included) would pass nearer than the kept distance,
+    /// or when it is nearer already. Then the closing speed along the 3-D line between them
+    /// (climbs and descents included) is capped to what can still be braked away within the room
+    /// left, after the reaction time and the other drone's own closing during it:
+    /// `c * t_r + c^2 / (2 a) <= d - keep - c_other * t_r`. A motion that passes the other one
+    /// far enough (a descent beside a drone a metre away) is left alone; one that would end
+    /// nearer (a climb into a drone holding half a metre to the side) is slowed and slid along
+    /// the kept sphere, away from the other drone. Every drone around counts, not only the
+    /// nearest; when the caps cannot all be met, the drone stops.
     fn separated(
         &self,
         me: &str,
@@ -194,47 +242,88 @@ impl SafetyStage {
     ) -> Option<(Setpoint, OverrideKind, String)> {
         let here = state.pose.position_m;
         let min = self.config.min_separation_m;
-        // A remote drone may be up to its uncertainty nearer than where it was heard.
-        let (other, d) = fleet.nearest_flying(me, &here)?;
-        let d = d - other.uncertainty_m;
-        // From a silent one, whose uncertainty already holds everywhere it could have gone,
-        // only the separation itself is kept (no slowing margin on top).
-        let guard = if other.silent { min } else { 2.0 * min };
-        if d >= guard {
-            return None;
-        }
-        // Apart sideways where the drones are side by side (a climb or a descent is never
-        // turned into a sideways drift toward obstacles); along the line between them when one
-        // is right above the other.
-        let offset = here - other.position_enu_m;
-        let sideways = Vec3::new(offset.x, offset.y, 0.0);
-        let away = if sideways.norm() > 0.5 * offset.norm() {
-            sideways.try_normalize(1e-6)
-        } else {
-            offset.try_normalize(1e-6)
-        }
-        .unwrap_or_else(|| Vec3::new(1.0, 0.0, 0.0));
-        let (mut v, yaw) =
+        let keep = min + self.config.separation_margin_m.max(0.0);
+        let react_s = self.config.limits.velocity_lag_s.max(0.0) + REACTION_EXTRA_S;
+        let brake = self.config.braking_mps2.max(0.1);
+        let (asked, yaw) =
             intended_velocity(&sp, here, self.config.limits.max_horizontal_speed_mps);
-        let closing = -v.dot(&away);
-        if closing <= 0.0 && d >= min {
-            return None;
-        }
-        if closing > 0.0 {
-            if other.silent {
-                // Around a silent drone's spot nothing guides a sideways slide clear of
-                // obstacles: stop instead.
-                v = Vec3::zeros();
+        let actual = state.velocity_enu_mps;
+        let mut limits: Vec<Closing> = Vec::new();
+        let mut push = Vec3::zeros();
+        let mut nearest: Option<(f64, &str)> = None;
+        for other in fleet.others(me).filter(|d| d.flying) {
+            let offset = here - other.position_enu_m;
+            // A remote drone may be up to its uncertainty nearer than where it was heard; a
+            // silent one's uncertainty already holds wherever it could have gone.
+            let d = offset.norm() - other.uncertainty_m;
+            let other_v = if other.silent {
+                Vec3::zeros()
             } else {
-                v += away * closing;
+                other.velocity_enu_mps
+            };
+            let reach = keep + other.uncertainty_m;
+            let heading_in = passes_within(&offset, &(asked - other_v), reach)
+                || passes_within(&offset, &(actual - other_v), reach);
+            if !heading_in && d >= keep {
+                continue;
+            }
+            let away = offset
+                .try_normalize(1e-6)
+                .unwrap_or_else(|| Vec3::new(1.0, 0.0, 0.0));
+            let other_closing = other_v.dot(&away).max(0.0);
+            let room = d - keep - other_closing * react_s;
+            limits.push(Closing {
+                away,
+                allowed_mps: stoppable_mps(room, react_s, brake),
+                stop_only: other.silent,
+            });
+            // Pushed apart only from a drone heard now: from a silent one's last position,
+            // pushing could as well be toward it. Sideways where the drones are side by side.
+            if d < min && !other.silent {
+                let sideways = Vec3::new(offset.x, offset.y, 0.0);
+                let dir = if sideways.norm() > 0.5 * offset.norm() {
+                    sideways.try_normalize(1e-6).unwrap_or(away)
+                } else {
+                    away
+                };
+                push += dir * (min - d).min(min);
+            }
+            if nearest.is_none_or(|(n, _)| d < n) {
+                nearest = Some((d, &other.id));
             }
         }
-        // Pushed apart only from a drone heard now: from a silent one's last position, pushing
-        // could as well be toward it.
-        if d < min && !other.silent {
-            v += away * (min - d).min(min);
+        let (d, id) = nearest?;
+        let mut v = asked;
+        // Sliding along one drone's sphere can close in on another: a few rounds, then a stop.
+        for _ in 0..4 {
+            let mut changed = false;
+            for l in &limits {
+                let closing = -v.dot(&l.away);
+                if closing > l.allowed_mps + 1e-9 {
+                    changed = true;
+                    if l.stop_only {
+                        // Around a silent drone's spot nothing guides a slide: stop instead.
+                        v = Vec3::zeros();
+                    } else {
+                        v += l.away * (closing - l.allowed_mps);
+                    }
+                }
+            }
+            if !changed {
+                break;
+            }
         }
-        let why = format!("{:.2} m from {}: keeping at least {min:.1} m", d, other.id);
+        if limits
+            .iter()
+            .any(|l| -v.dot(&l.away) > l.allowed_mps + 1e-6)
+        {
+            v = Vec3::zeros();
+        }
+        v += push;
+        if (v - asked).norm() < 1e-9 {
+            return None;
+        }
+        let why = format!("{d:.2} m from {id}: keeping at least {min:.1} m");
         Some((
             Setpoint::Velocity {
                 velocity_enu_mps: v,
