@@ -17,6 +17,7 @@ use crate::cli_serve::ServeOptions;
 use crate::cli_startup::{prepare, Overrides, PlatformPlan, Startup, VehiclePlan};
 use anyhow::{Context, Result};
 use clap::Args;
+use kestrel::config::vehicles::same_endpoint;
 use kestrel::config::Config;
 use kestrel::control::{AcceptedSetpoints, Setpoint};
 use kestrel::core::{CoreConfig, DroneCore};
@@ -25,7 +26,7 @@ use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
 use kestrel::host::vehicle::vehicle_host;
-use kestrel::platform::mavlink::{LinkConfig, MavlinkPlatform};
+use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use kestrel::sim::{Environment, SimWorld};
@@ -135,12 +136,66 @@ impl Platform for RealtimeSim {
     }
 }
 
+/// Connections several vehicles share (the config checked that each names its system id), each
+/// opened once, for the first vehicle on it.
+#[derive(Default)]
+struct SharedLinks {
+    shared: Vec<String>,
+    open: Vec<(String, LinkHub)>,
+}
+
+impl SharedLinks {
+    fn new(plans: &[VehiclePlan]) -> Self {
+        let shared = plans
+            .iter()
+            .filter(|p| matches!(p.platform, PlatformPlan::Mavlink(_)))
+            .filter(|p| {
+                plans
+                    .iter()
+                    .filter(|q| same_endpoint(&q.connection, &p.connection))
+                    .count()
+                    > 1
+            })
+            .map(|p| p.connection.clone())
+            .collect();
+        SharedLinks {
+            shared,
+            open: Vec::new(),
+        }
+    }
+
+    /// The hub of `link`'s connection when vehicles share it (opened on first use).
+    fn hub(&mut self, link: &LinkConfig) -> Result<Option<&LinkHub>> {
+        if !self
+            .shared
+            .iter()
+            .any(|c| same_endpoint(c, &link.connection))
+        {
+            return Ok(None);
+        }
+        let at = match self
+            .open
+            .iter()
+            .position(|(c, _)| same_endpoint(c, &link.connection))
+        {
+            Some(i) => i,
+            None => {
+                let hub = start_hub(link.clone())?;
+                self.open.push((link.connection.clone(), hub));
+                self.open.len() - 1
+            }
+        };
+        Ok(Some(&self.open[at].1))
+    }
+}
+
 /// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]: (platform,
 /// readiness timeout, estimator by default). `several`: name the vehicle in the banner.
 fn start_platform(
     config: &Config,
     plan: VehiclePlan,
     several: bool,
+    links: &mut SharedLinks,
 ) -> Result<(Box<dyn Platform>, Duration, EstimatorPlugin)> {
     let VehiclePlan {
         id,
@@ -192,8 +247,18 @@ fn start_platform(
                 forward,
                 peers,
             };
-            let platform = MavlinkPlatform::start(*profile, session, link)
-                .with_context(|| format!("vehicle {id}"))?;
+            let platform = match links.hub(&link)? {
+                Some(hub) => {
+                    println!(
+                        "kestrel run: {who}system {} on the shared {}",
+                        target_system.map_or(0, u32::from),
+                        link.connection
+                    );
+                    MavlinkPlatform::start_shared(*profile, session, hub)
+                }
+                None => MavlinkPlatform::start(*profile, session, link),
+            }
+            .with_context(|| format!("vehicle {id}"))?;
             (
                 Box::new(platform),
                 ready_timeout,
@@ -236,9 +301,10 @@ async fn run_async(args: RunArgs) -> Result<()> {
     let several = vehicles.len() > 1 || !config.vehicles.is_empty();
     let mut fleet = Vec::with_capacity(vehicles.len());
     let mut ready_timeout = Duration::ZERO;
+    let mut links = SharedLinks::new(&vehicles);
     for plan in vehicles {
         let id = plan.id.clone();
-        let (platform, ready, estimator) = start_platform(&config, plan, several)?;
+        let (platform, ready, estimator) = start_platform(&config, plan, several, &mut links)?;
         ready_timeout = ready_timeout.max(ready);
         let mut core_config = CoreConfig::new(&id);
         core_config.estimator = config.estimator.plugin.unwrap_or(estimator);

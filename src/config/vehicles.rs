@@ -1,10 +1,12 @@
 //! The `[[vehicle]]` list of the config file: several autopilots flown by one `kestrel run`,
-//! each over its own MAVLink connection, each with its own core and mission executor.
+//! each over its own MAVLink connection or several behind one (a telemetry radio,
+//! mavlink-router: told apart by system id), each with its own core and mission executor.
 //!
 //! In: TOML (unknown keys refused) and the `[mavlink]` section the vehicles share the rest of
 //! their link settings with. Out: the checked list; `Err((field, message))` naming the entry
-//! (`vehicle[2].connection`) for an empty or repeated id, a connection that does not parse, two
-//! vehicles on one connection (not supported yet), or a frame origin out of bounds.
+//! (`vehicle[2].connection`) for an empty or repeated id, a connection that does not parse,
+//! vehicles sharing a connection without each naming its autopilot's system id (or with
+//! different `forward` lists), or a frame origin out of bounds.
 //!
 //! Without the list the config flies one vehicle: `[drone] id` over `[mavlink]`, as always.
 
@@ -26,10 +28,11 @@ pub struct VehicleSection {
     /// Autopilot profile (as `mavlink.platform`); absent = `mavlink.platform`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub platform: Option<String>,
-    /// This vehicle's MAVLink connection (as `mavlink.connection`); one per vehicle.
+    /// This vehicle's MAVLink connection (as `mavlink.connection`). Several vehicles may share
+    /// one when each names its `target_system`.
     pub connection: String,
     /// The autopilot's MAVLink system id: only this one is followed on the connection; absent =
-    /// the first autopilot heard (as `mavlink.target_system`).
+    /// the first autopilot heard (as `mavlink.target_system`). Required on a shared connection.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_system: Option<u8>,
     /// Where the autopilot's local frame origin (where its estimator started, usually where it
@@ -39,7 +42,8 @@ pub struct VehicleSection {
     #[serde(default)]
     pub origin_enu_m: [f64; 3],
     /// Ground station endpoints that get this vehicle's stream (`[mavlink] forward` is for the
-    /// single-vehicle config only: two vehicles cannot bind one `udpin` endpoint).
+    /// single-vehicle config only: two vehicles cannot bind one `udpin` endpoint). Vehicles
+    /// sharing a connection list the same endpoints: they get the whole connection's stream.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub forward: Vec<String>,
 }
@@ -87,22 +91,45 @@ pub fn validate(
         for f in &v.forward {
             address("forward", f)?;
         }
-        if let Some(j) = vehicles[..i]
-            .iter()
-            .position(|w| same_endpoint(&w.connection, &v.connection))
-        {
-            let message = if v.target_system.is_some()
-                && vehicles.get(j).and_then(|w| w.target_system) != v.target_system
-            {
-                format!(
-                    "`{}` is also vehicle[{j}]'s: several vehicles behind one connection \
-                     (distinguished by system id) are not supported yet; give each its own",
-                    v.connection
-                )
-            } else {
-                format!("`{}` is also vehicle[{j}]'s connection", v.connection)
-            };
-            return Err((key("connection"), message));
+        // Vehicles behind one connection (a radio, mavlink-router) are told apart by the
+        // autopilots' system ids: every one must name its own.
+        for (j, w) in vehicles[..i].iter().enumerate() {
+            if !same_endpoint(&w.connection, &v.connection) {
+                continue;
+            }
+            match (w.target_system, v.target_system) {
+                (Some(a), Some(b)) if a == b => {
+                    return Err((
+                        key("target_system"),
+                        format!(
+                            "{b} is also vehicle[{j}]'s, on the same connection `{}`",
+                            v.connection
+                        ),
+                    ))
+                }
+                (Some(_), Some(_)) => {}
+                _ => {
+                    return Err((
+                        key("connection"),
+                        format!(
+                            "`{}` is also vehicle[{j}]'s connection: vehicles sharing a \
+                             connection are told apart by system id, give each its autopilot's \
+                             `target_system`",
+                            v.connection
+                        ),
+                    ))
+                }
+            }
+            if w.forward != v.forward {
+                return Err((
+                    key("forward"),
+                    format!(
+                        "vehicles sharing `{}` must list the same `forward` (it forwards the \
+                         connection, every vehicle on it): vehicle[{j}] lists {:?}",
+                        v.connection, w.forward
+                    ),
+                ));
+            }
         }
         if v.target_system == Some(0) {
             return Err((key("target_system"), "must be 1..=255".into()));
@@ -122,7 +149,7 @@ pub fn validate(
 
 /// The same transport endpoint: the strings compared with the bind-all address and `localhost`
 /// taken for loopback, so `udpin:0.0.0.0:14540` and `udpin:127.0.0.1:14540` collide.
-fn same_endpoint(a: &str, b: &str) -> bool {
+pub fn same_endpoint(a: &str, b: &str) -> bool {
     let norm = |s: &str| {
         s.trim()
             .replace("0.0.0.0", "127.0.0.1")
@@ -164,16 +191,30 @@ mod tests {
     }
 
     #[test]
-    fn one_connection_for_two_vehicles_is_refused_with_the_reason() {
+    fn one_connection_is_shared_only_by_vehicles_naming_distinct_system_ids() {
         let same = TWO.replace("14541", "14540");
         let (field, message) = validate(&parse(&same), &MavlinkSection::default()).unwrap_err();
         assert_eq!(field, "vehicle[1].connection");
         assert!(message.contains("vehicle[0]"), "{message}");
+        assert!(message.contains("target_system"), "{message}");
         let by_sysid = same
             .replace("id = \"a\"\n", "id = \"a\"\ntarget_system = 1\n")
             .replace("id = \"b\"\n", "id = \"b\"\ntarget_system = 2\n");
-        let (_, message) = validate(&parse(&by_sysid), &MavlinkSection::default()).unwrap_err();
-        assert!(message.contains("not supported yet"), "{message}");
+        assert_eq!(
+            validate(&parse(&by_sysid), &MavlinkSection::default()),
+            Ok(())
+        );
+        let one_sysid = by_sysid.replace("target_system = 2", "target_system = 1");
+        let (field, message) =
+            validate(&parse(&one_sysid), &MavlinkSection::default()).unwrap_err();
+        assert_eq!(field, "vehicle[1].target_system");
+        assert!(message.contains("vehicle[0]"), "{message}");
+        let forwards = by_sysid.replace(
+            "target_system = 2\n",
+            "target_system = 2\nforward = [\"udpout:127.0.0.1:14550\"]\n",
+        );
+        let (field, _) = validate(&parse(&forwards), &MavlinkSection::default()).unwrap_err();
+        assert_eq!(field, "vehicle[1].forward");
         let loopback = TWO.replace("0.0.0.0:14541", "127.0.0.1:14540");
         assert!(validate(&parse(&loopback), &MavlinkSection::default()).is_err());
     }

@@ -5,6 +5,7 @@
 
 pub mod bus;
 pub mod room;
+pub mod router;
 
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Write};

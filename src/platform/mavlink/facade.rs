@@ -4,6 +4,7 @@
 //! Out: the latest snapshot (`watch`) plus the scans and request results queued since the last
 //! poll. Create it inside a tokio runtime; dropping it stops its tasks.
 
+use super::hub::{HubTasks, LinkHub, TransportEnds};
 use super::link::{
     self, Control, Event, SessionIo, Snapshot, CONTROL_QUEUE, EVENT_QUEUE, INBOUND_QUEUE,
     OUTBOUND_QUEUE,
@@ -15,6 +16,7 @@ use super::session::{Session, SessionConfig};
 use super::udp_in;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use crate::types::Setpoint;
+use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
@@ -36,6 +38,12 @@ pub enum LinkError {
     Address(String, String),
     #[error("the MAVLink platform needs a tokio runtime")]
     NoRuntime,
+    #[error(
+        "a vehicle behind a shared connection needs its autopilot's system id (target_system)"
+    )]
+    SharedWithoutSystem,
+    #[error("shared connection: {0}")]
+    Shared(String),
 }
 
 pub struct MavlinkPlatform {
@@ -45,6 +53,8 @@ pub struct MavlinkPlatform {
     events: mpsc::Receiver<Event>,
     dropped_controls: u64,
     tasks: Vec<JoinHandle<()>>,
+    /// The shared connection's tasks, when behind one ([`start_hub`]).
+    _hub: Option<Arc<HubTasks>>,
 }
 
 impl MavlinkPlatform {
@@ -56,68 +66,159 @@ impl MavlinkPlatform {
         link_config: LinkConfig,
     ) -> Result<Self, LinkError> {
         let handle = tokio::runtime::Handle::try_current().map_err(|_| LinkError::NoRuntime)?;
-        mavlink::ConnectionAddress::parse_address(&link_config.connection)
-            .map_err(|e| LinkError::Address(link_config.connection.clone(), e.to_string()))?;
-        for f in &link_config.forward {
-            mavlink::ConnectionAddress::parse_address(f)
-                .map_err(|e| LinkError::Address(f.clone(), e.to_string()))?;
-        }
-        let session = Session::new(profile, session_config);
-        let capabilities = session.capabilities();
+        check_addresses(&link_config)?;
         let (inbound_tx, inbound_rx) = mpsc::channel(INBOUND_QUEUE);
         let (outbound_tx, outbound_rx) = mpsc::channel(OUTBOUND_QUEUE);
-        let (control_tx, control_rx) = mpsc::channel(CONTROL_QUEUE);
         let (transport_tx, transport_rx) = mpsc::channel(8);
+        let ends = TransportEnds {
+            inbound: inbound_tx,
+            outbound: outbound_rx,
+            transport: transport_tx,
+        };
+        let tasks = spawn_transport(&handle, link_config, ends, &outbound_tx);
+        let io = (inbound_rx, transport_rx, outbound_tx);
+        Ok(Self::with_session(
+            &handle,
+            profile,
+            session_config,
+            io,
+            tasks,
+            None,
+        ))
+    }
+
+    /// Starts one vehicle of several behind one connection ([`LinkHub`], from [`start_hub`]):
+    /// its session hears only its autopilot (`session_config.target_system`, required).
+    pub fn start_shared(
+        profile: Profile,
+        session_config: SessionConfig,
+        hub: &LinkHub,
+    ) -> Result<Self, LinkError> {
+        let handle = tokio::runtime::Handle::try_current().map_err(|_| LinkError::NoRuntime)?;
+        let system = session_config
+            .target_system
+            .ok_or(LinkError::SharedWithoutSystem)?;
+        let attached = hub
+            .attach(system)
+            .map_err(|e| LinkError::Shared(e.to_string()))?;
+        let io = (attached.inbound, attached.transport, attached.outbound);
+        Ok(Self::with_session(
+            &handle,
+            profile,
+            session_config,
+            io,
+            Vec::new(),
+            Some(attached.keep),
+        ))
+    }
+
+    fn with_session(
+        handle: &tokio::runtime::Handle,
+        profile: Profile,
+        session_config: SessionConfig,
+        (inbound, transport, outbound): SessionEnds,
+        mut tasks: Vec<JoinHandle<()>>,
+        hub: Option<Arc<HubTasks>>,
+    ) -> Self {
+        let session = Session::new(profile, session_config);
+        let capabilities = session.capabilities();
+        let (control_tx, control_rx) = mpsc::channel(CONTROL_QUEUE);
         let (snapshot_tx, snapshot_rx) = watch::channel(Snapshot::default());
         let (events_tx, events_rx) = mpsc::channel(EVENT_QUEUE);
-        let router = (!link_config.forward.is_empty()).then(|| broadcast::channel(ROUTER_QUEUE).0);
-        let mut tasks = Vec::new();
-        for endpoint in &link_config.forward {
-            if let Some(r) = &router {
-                tasks.push(handle.spawn(router::endpoint_task(
-                    endpoint.clone(),
-                    r.subscribe(),
-                    outbound_tx.clone(),
-                )));
-            }
-        }
-        // `udpin` is Kestrel's own (the peer pinned); the crate's connection for the rest.
-        let transport = match link_config.connection.strip_prefix("udpin:") {
-            Some(bind) => handle.spawn(udp_in::task(
-                bind.to_string(),
-                link_config.peers,
-                inbound_tx,
-                outbound_rx,
-                transport_tx,
-                router,
-            )),
-            None => handle.spawn(link::connection_task(
-                link_config.connection,
-                inbound_tx,
-                outbound_rx,
-                transport_tx,
-                router,
-            )),
-        };
-        tasks.push(transport);
         let io = SessionIo {
-            inbound: inbound_rx,
+            inbound,
             control: control_rx,
-            transport: transport_rx,
-            outbound: outbound_tx,
+            transport,
+            outbound,
             snapshot: snapshot_tx,
             events: events_tx,
         };
         tasks.push(handle.spawn(link::session_task(session, io)));
-        Ok(Self {
+        Self {
             capabilities,
             control: control_tx,
             snapshot: snapshot_rx,
             events: events_rx,
             dropped_controls: 0,
             tasks,
-        })
+            _hub: hub,
+        }
     }
+}
+
+/// A session's ends of its transport: frames in, transport events, frames out.
+type SessionEnds = (
+    mpsc::Receiver<link::Inbound>,
+    mpsc::Receiver<link::TransportEvent>,
+    mpsc::Sender<link::Outbound>,
+);
+
+/// Opens one connection for several vehicles, told apart by system id: attach each with
+/// [`MavlinkPlatform::start_shared`].
+pub fn start_hub(link_config: LinkConfig) -> Result<LinkHub, LinkError> {
+    let handle = tokio::runtime::Handle::try_current().map_err(|_| LinkError::NoRuntime)?;
+    check_addresses(&link_config)?;
+    // Every vehicle's autopilot may pin the `udpin` peer (the radio or router they are behind).
+    let mut link_config = link_config;
+    link_config.peers.target_system = None;
+    let (hub, ends) = LinkHub::new();
+    let outbound = hub.outbound();
+    for task in spawn_transport(&handle, link_config, ends, &outbound) {
+        hub.keep(task);
+    }
+    Ok(hub)
+}
+
+fn check_addresses(link_config: &LinkConfig) -> Result<(), LinkError> {
+    for a in std::iter::once(&link_config.connection).chain(&link_config.forward) {
+        mavlink::ConnectionAddress::parse_address(a)
+            .map_err(|e| LinkError::Address(a.clone(), e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// Spawns the connection's transport task, and a router per ground-station endpoint.
+fn spawn_transport(
+    handle: &tokio::runtime::Handle,
+    link_config: LinkConfig,
+    ends: TransportEnds,
+    outbound: &mpsc::Sender<link::Outbound>,
+) -> Vec<JoinHandle<()>> {
+    let router = (!link_config.forward.is_empty()).then(|| broadcast::channel(ROUTER_QUEUE).0);
+    let mut tasks = Vec::new();
+    if let Some(r) = &router {
+        for endpoint in &link_config.forward {
+            tasks.push(handle.spawn(router::endpoint_task(
+                endpoint.clone(),
+                r.subscribe(),
+                outbound.clone(),
+            )));
+        }
+    }
+    let TransportEnds {
+        inbound,
+        outbound: outbound_rx,
+        transport,
+    } = ends;
+    // `udpin` is Kestrel's own (the peer pinned); the crate's connection for the rest.
+    tasks.push(match link_config.connection.strip_prefix("udpin:") {
+        Some(bind) => handle.spawn(udp_in::task(
+            bind.to_string(),
+            link_config.peers,
+            inbound,
+            outbound_rx,
+            transport,
+            router,
+        )),
+        None => handle.spawn(link::connection_task(
+            link_config.connection,
+            inbound,
+            outbound_rx,
+            transport,
+            router,
+        )),
+    });
+    tasks
 }
 
 impl Drop for MavlinkPlatform {

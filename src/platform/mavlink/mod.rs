@@ -16,6 +16,7 @@
 //!   writing and ground-station forwarding;
 //! - [`peer`], [`udp_in`]: Kestrel's own `udpin` transport, answering only the autopilot's
 //!   address (pinned from its HEARTBEAT), never whoever sent the last datagram;
+//! - [`hub`]: several vehicles behind one connection, told apart by system id;
 //! - [`facade`]: [`MavlinkPlatform`], the synchronous `Platform` over those tasks;
 //! - [`tlog`]: reading recorded captures for replay tests and benchmarks.
 
@@ -26,6 +27,7 @@ pub mod config;
 pub mod events;
 pub mod facade;
 pub mod frames;
+pub mod hub;
 mod legacy;
 pub mod link;
 pub mod model;
@@ -39,6 +41,7 @@ mod testutil;
 pub mod tlog;
 pub mod udp_in;
 
-pub use facade::{LinkConfig, LinkError, MavlinkPlatform};
+pub use facade::{start_hub, LinkConfig, LinkError, MavlinkPlatform};
+pub use hub::LinkHub;
 pub use profile::{Profile, ProfileError};
 pub use session::{Session, SessionConfig};
