@@ -1,6 +1,7 @@
 //! Benchmark (BENCHMARKS.md, "Fleet bus"): three `kestrel run` processes, each with its own fake
-//! PX4, on one fleet bus over localhost (sitl/worlds/bays18_fleet.json, as tests/fleet_bus_e2e.rs),
-//! idle on the ground and then through a three-drone exploration. Reads each node's bus report
+//! PX4, on one fleet bus over localhost, idle on the ground and then through a three-drone
+//! exploration of three bays (`FLEET_BUS_ARENA`: `bays30`, three 10 x 10 m bays, the default;
+//! `bays18`, the 6 x 6 m bays of tests/fleet_bus_e2e.rs). Reads each node's bus report
 //! (`fleet_bus` in `GET /api/status`): bytes sent per second for drone states and for map
 //! regions (one drone per node, so per drone), and the latency from a peer sending a state to this
 //! node taking it in, p50 and p99. Then one Kestrel explores the same bays alone with one drone,
@@ -8,17 +9,17 @@
 //! logs as one flight): time from the first take-off to the last landing, area, and the ratio
 //! of the times. Needs the fake autopilot's venv (`bash sitl/setup.sh`).
 //!
-//!     cargo bench --bench fleet_bus            (FLEET_BUS_RUNS=N: N rounds, default 1)
+//!     cargo bench --bench fleet_bus     (FLEET_BUS_RUNS=N: N rounds, default 1;
+//!                                         FLEET_BUS_ARENA=bays18|bays30)
 
 #[path = "../tests/mavlink_support/mod.rs"]
 mod mavlink_support;
 #[path = "../tests/support/mod.rs"]
 mod support;
 
-use mavlink_support::bus::{Fleet, WORLD};
+use mavlink_support::bus::{Arena, Fleet, BAYS, BAYS30};
 use mavlink_support::{repo, Fake};
 use serde_json::Value;
-use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// Each node's bus report and when it was read.
@@ -86,12 +87,14 @@ fn judged(name: &str, m: &Value) -> (f64, f64) {
 }
 
 /// Three nodes on the bus, then one drone alone; returns their times (s).
-fn round(world: &Path) -> ((f64, f64), (f64, f64)) {
+fn round(arena: &Arena) -> ((f64, f64), (f64, f64)) {
+    let world_path = repo().join(arena.world);
+    let world = world_path.as_path();
     let (fake, connections) = Fake::start_px4_fleet(
         3,
         &["--world", world.to_str().unwrap_or(""), "--rangers", "cf4"],
     );
-    let fleet = Fleet::start(&connections);
+    let fleet = Fleet::start(arena, &connections);
     fleet.wait_joined(&[0, 1, 2]);
     let idle_start = reports(&fleet);
     std::thread::sleep(Duration::from_secs(20));
@@ -117,7 +120,7 @@ fn round(world: &Path) -> ((f64, f64), (f64, f64)) {
         1,
         &["--world", world.to_str().unwrap_or(""), "--rangers", "cf4"],
     );
-    let alone = Fleet::start_alone(&connections[0]);
+    let alone = Fleet::start_alone(arena, &connections[0]);
     alone.wait_joined(&[0]);
     alone.explore(0);
     alone.wait_explored(&[0], &fake);
@@ -132,7 +135,12 @@ fn main() {
         println!("fleet_bus: run it with `cargo bench --bench fleet_bus`");
         return;
     }
-    let world = repo().join(WORLD);
+    let arena = match std::env::var("FLEET_BUS_ARENA").as_deref() {
+        Ok("bays18") => BAYS,
+        Ok("bays30") | Err(_) => BAYS30,
+        Ok(other) => panic!("FLEET_BUS_ARENA: unknown arena `{other}`: use bays18 or bays30"),
+    };
+    println!("arena: {}", arena.world);
     let rounds: usize = std::env::var("FLEET_BUS_RUNS")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -140,7 +148,7 @@ fn main() {
     let mut ratios = Vec::new();
     for r in 0..rounds {
         println!("== round {} of {rounds}", r + 1);
-        let (three, one) = round(&world);
+        let (three, one) = round(&arena);
         let ratio = (three.0 / one.0, three.1 / one.1);
         ratios.push(ratio);
         println!(

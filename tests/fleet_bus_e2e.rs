@@ -16,7 +16,7 @@ mod mavlink_support;
 mod support;
 
 use kestrel::sim::world::World;
-use mavlink_support::bus::{config, credentials, Fleet, WORLD};
+use mavlink_support::bus::{config, credentials, Fleet, BAYS};
 use mavlink_support::room::{
     assert_no_collision, judge_map, judge_tracks, position, MIN_SEPARATION_M,
 };
@@ -54,13 +54,13 @@ fn map_difference_pct(a: &Value, b: &Value) -> f64 {
 #[test]
 fn three_kestrels_on_one_bus_explore_the_bays_together() {
     let _beside = alongside();
-    let w = World::load(&repo().join(WORLD)).unwrap();
-    let world_path = repo().join(WORLD);
+    let w = World::load(&repo().join(BAYS.world)).unwrap();
+    let world_path = repo().join(BAYS.world);
     let (fake, connections) = Fake::start_px4_fleet(
         3,
         &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
     );
-    let fleet = Fleet::start(&connections);
+    let fleet = Fleet::start(&BAYS, &connections);
     fleet.wait_joined(&[0, 1, 2]);
     // Each Kestrel shows the others' drones, marked as flown elsewhere, and refuses to command
     // them, with the reason.
@@ -179,13 +179,13 @@ fn three_kestrels_on_one_bus_explore_the_bays_together() {
 #[test]
 fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kestrel() {
     let _beside = alongside();
-    let w = World::load(&repo().join(WORLD)).unwrap();
-    let world_path = repo().join(WORLD);
+    let w = World::load(&repo().join(BAYS.world)).unwrap();
+    let world_path = repo().join(BAYS.world);
     let (fake, connections) = Fake::start_px4_fleet(
         3,
         &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
     );
-    let mut fleet = Fleet::start(&connections);
+    let mut fleet = Fleet::start(&BAYS, &connections);
     fleet.wait_joined(&[0, 1, 2]);
     let poller = fake.poll_fleet_states(3);
     for i in 0..3 {
@@ -312,7 +312,7 @@ fn a_node_without_the_fleets_credentials_is_not_heard() {
         let api_port = free_tcp_port();
         let listen = format!("127.0.0.1:{api_port}");
         nodes.push(Kestrel::run_config(
-            &config(id, &connection, Some(&fleet)),
+            &config(&BAYS, id, &connection, Some(&fleet)),
             &["--listen", &listen],
         ));
         apis.push(Api::connect(api_port));

@@ -1,6 +1,7 @@
 //! Three `kestrel run` processes on one fleet bus (tests/fleet_bus_e2e.rs, benches/fleet_bus.rs):
-//! the bays world, each node's config, TCP proxies in front of the bus ports that a test can cut
-//! like a Wi-Fi drop, and waiting for the fleet to join and to finish an exploration.
+//! the arenas (worlds of three bays), each node's config, TCP proxies in front of the bus ports
+//! that a test can cut like a Wi-Fi drop, and waiting for the fleet to join and to finish an
+//! exploration.
 
 use super::{free_tcp_port, Api, Fake, Kestrel};
 use serde_json::{json, Value};
@@ -12,13 +13,36 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-pub const WORLD: &str = "sitl/worlds/bays18_fleet.json";
-/// Where the fake starts each vehicle: the world's `starts_xy_yaw` for three (one per bay).
-pub const STARTS_ENU_M: [[f64; 3]; 3] = [[-6.0, -1.0, 0.0], [0.0, 1.0, 0.0], [6.0, -1.0, 0.0]];
+/// A world three vehicles explore, one per bay, and what every node's config needs of it.
+#[derive(Debug, Clone, Copy)]
+pub struct Arena {
+    pub world: &'static str,
+    /// Where the fake starts each vehicle: the world's `starts_xy_yaw` for three.
+    pub starts_enu_m: [[f64; 3]; 3],
+    /// The map grid every node shares (m, centred on the origin).
+    pub map_size_m: [f64; 2],
+    /// Longest one exploration may take, take-off to the last disarm (wall clock).
+    pub exploration_timeout: Duration,
+}
+
+/// Three 6 x 6 m bays (tests/fleet_bus_e2e.rs).
+pub const BAYS: Arena = Arena {
+    world: "sitl/worlds/bays18_fleet.json",
+    starts_enu_m: [[-6.0, -1.0, 0.0], [0.0, 1.0, 0.0], [6.0, -1.0, 0.0]],
+    map_size_m: [20.0, 8.0],
+    exploration_timeout: Duration::from_secs(240),
+};
+
+/// Three 10 x 10 m bays with three poles each (benches/fleet_bus.rs: an exploration long enough
+/// that the climb, the first sweep and the landing are not most of it).
+pub const BAYS30: Arena = Arena {
+    world: "sitl/worlds/bays30_fleet.json",
+    starts_enu_m: [[-10.0, -2.0, 0.0], [0.0, 2.0, 0.0], [10.0, -2.0, 0.0]],
+    map_size_m: [32.0, 12.0],
+    exploration_timeout: Duration::from_secs(900),
+};
 /// The explorer's arguments, as tests/run_fleet.rs.
 pub const ARGS: &str = r#"{"spin_rate": 0.4, "safety_distance": 0.5}"#;
-/// One exploration, take-off to the last disarm (wall clock).
-pub const EXPLORATION_TIMEOUT: Duration = Duration::from_secs(240);
 
 /// A TCP proxy in front of one Kestrel's bus port, which the test can cut.
 pub struct BusProxy {
@@ -84,12 +108,13 @@ fn pipe(mut from: TcpStream, mut to: TcpStream) {
     });
 }
 
-/// The config every Kestrel of the bays shares (the map grid must be the same on every node),
+/// The config every Kestrel of the arena shares (the map grid must be the same on every node),
 /// with its own vehicle and, when on a fleet, its bus section.
-pub fn config(id: usize, connection: &str, fleet: Option<&str>) -> String {
-    let o = STARTS_ENU_M[id];
+pub fn config(arena: &Arena, id: usize, connection: &str, fleet: Option<&str>) -> String {
+    let o = arena.starts_enu_m[id];
+    let [w, h] = arena.map_size_m;
     let mut text = format!(
-        "[map]\nsize_m = [20.0, 8.0]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+        "[map]\nsize_m = [{w:.1}, {h:.1}]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
          [mavlink]\nplatform = \"platforms/px4.toml\"\n\n\
          [[vehicle]]\nid = \"drone_{id}\"\nconnection = \"{connection}\"\n\
          target_system = {}\norigin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
@@ -115,6 +140,7 @@ pub fn credentials(dir: &std::path::Path, name: &str, line: &str) -> String {
 /// Three Kestrels on one bus, each listening on its own port and reaching the others through
 /// proxies: node 1 connects to node 0, node 2 to nodes 0 and 1.
 pub struct Fleet {
+    pub arena: Arena,
     pub nodes: Vec<Option<Kestrel>>,
     pub apis: Vec<Api>,
     pub proxies: Vec<BusProxy>,
@@ -122,7 +148,7 @@ pub struct Fleet {
 }
 
 impl Fleet {
-    pub fn start(connections: &[String]) -> Self {
+    pub fn start(arena: &Arena, connections: &[String]) -> Self {
         let creds = tempfile::tempdir().unwrap();
         let file = credentials(creds.path(), "fleet-credentials", "bays:s3cret-shared");
         let name = format!("bays-{}", std::process::id());
@@ -141,12 +167,13 @@ impl Fleet {
             let api_port = free_tcp_port();
             let listen = format!("127.0.0.1:{api_port}");
             nodes.push(Some(Kestrel::run_config(
-                &config(id, &connections[id], Some(&fleet)),
+                &config(arena, id, &connections[id], Some(&fleet)),
                 &["--listen", &listen],
             )));
             apis.push(Api::connect(api_port));
         }
         Fleet {
+            arena: *arena,
             nodes,
             apis,
             proxies,
@@ -154,13 +181,14 @@ impl Fleet {
         }
     }
 
-    /// One Kestrel alone in the bays with vehicle 0 (the fake's first), no bus: what three nodes
+    /// One Kestrel alone in the arena with vehicle 0 (the fake's first), no bus: what three nodes
     /// are measured against.
-    pub fn start_alone(connection: &str) -> Self {
+    pub fn start_alone(arena: &Arena, connection: &str) -> Self {
         let api_port = free_tcp_port();
         let listen = format!("127.0.0.1:{api_port}");
-        let node = Kestrel::run_config(&config(0, connection, None), &["--listen", &listen]);
+        let node = Kestrel::run_config(&config(arena, 0, connection, None), &["--listen", &listen]);
         Fleet {
+            arena: *arena,
             nodes: vec![Some(node)],
             apis: vec![Api::connect(api_port)],
             proxies: Vec::new(),
@@ -250,7 +278,8 @@ impl Fleet {
 
     /// Waits until every listed node's exploration has finished; returns their views.
     pub fn wait_explored(&self, live: &[usize], fake: &Fake) -> Vec<Value> {
-        let deadline = Instant::now() + EXPLORATION_TIMEOUT;
+        let timeout = self.arena.exploration_timeout;
+        let deadline = Instant::now() + timeout;
         loop {
             let views: Vec<Value> = live
                 .iter()
@@ -261,7 +290,7 @@ impl Fleet {
             }
             assert!(
                 Instant::now() < deadline,
-                "not explored within {EXPLORATION_TIMEOUT:?}: {views:?}\n{}\n{}",
+                "not explored within {timeout:?}: {views:?}\n{}\n{}",
                 fake.diagnostics(),
                 self.output()
             );
