@@ -306,17 +306,34 @@ fn a_vehicle_list_is_summarised_one_line_per_vehicle() {
 }
 
 #[test]
-fn two_vehicles_behind_one_connection_are_refused_as_not_supported_yet() {
+fn vehicles_behind_one_connection_need_their_own_system_ids_and_one_forward_list() {
     let site = Site::new();
-    let config = site.config(&fleet_sections(&site, "udpin:127.0.0.1:14540"));
+    let shared = fleet_sections(&site, "udpin:127.0.0.1:14540");
+    // The forward belongs to the connection: every vehicle on it lists the same.
+    let config = site.config(&shared);
     both_refuse(
         &site,
         &config,
         &[
             &format!("{}", config.display()),
-            "vehicle[1].connection",
-            "not supported yet",
+            "vehicle[1].forward",
+            "must list the same `forward`",
         ],
+    );
+    let shared = shared.replace("forward = [\"udpout:127.0.0.1:14550\"]\n", "");
+    // Told apart by system id: each must name its own.
+    let config = site.config(&shared.replace("target_system = 2\n", ""));
+    both_refuse(&site, &config, &["vehicle[1].connection", "target_system"]);
+    let config = site.config(&shared.replace("target_system = 2\n", "target_system = 1\n"));
+    both_refuse(&site, &config, &["vehicle[1].target_system", "vehicle[0]"]);
+    let config = site.config(&shared);
+    let out = site.check(&config);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("lifter: ArduPilot Copter")
+            && text(&out).contains("over udpin:127.0.0.1:14540, system id 2"),
+        "{}",
+        text(&out)
     );
 }
 
