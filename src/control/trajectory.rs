@@ -52,7 +52,13 @@ pub struct PathTrajectory {
     v: f64,
     /// Acceleration of the last step, along the path.
     a: f64,
+    /// Points before the waypoints besides the start: 1 when the reference brakes first.
+    lead_in: usize,
 }
+
+/// Moving slower than this, a vehicle turns onto a reversed path without braking along its motion
+/// first (m/s).
+const REVERSAL_MIN_SPEED_MPS: f64 = 0.2;
 
 impl PathTrajectory {
     /// `start` is where the vehicle is now; the path runs start -> waypoints[0] -> ... .
@@ -63,7 +69,9 @@ impl PathTrajectory {
 
     /// The same from a vehicle already moving at `velocity_enu_mps`: the reference starts at the
     /// part of that velocity along the first segment (at most the cruise speed, and no more than
-    /// allows stopping at the end), so a new path taken in flight does not brake first.
+    /// allows stopping at the end), so a new path taken in flight does not brake first. A path
+    /// that starts against the motion (a turn of more than 90 degrees) starts with the braking
+    /// along the motion, then turns back.
     pub fn moving(
         start: Vec3,
         velocity_enu_mps: Vec3,
@@ -71,6 +79,21 @@ impl PathTrajectory {
         limits: TrajectoryLimits,
     ) -> Self {
         let mut points = vec![start];
+        // A vehicle moving against the first leg cannot turn on the spot: the reference first
+        // brakes along the motion (where the vehicle goes anyway) and comes back, so the vehicle
+        // follows it instead of cutting across from where it overshot to where the reference
+        // went (a corner cut that can take it inside the path's clearance).
+        let speed = velocity_enu_mps.norm().min(limits.cruise_speed_mps);
+        let first_leg = waypoints
+            .iter()
+            .map(|w| w - start)
+            .find(|leg| leg.norm() > 1e-6);
+        let brakes_first = speed > REVERSAL_MIN_SPEED_MPS
+            && first_leg.is_some_and(|leg| leg.dot(&velocity_enu_mps) < 0.0);
+        if brakes_first {
+            let braking_m = speed * speed / (2.0 * limits.max_acceleration_mps2.max(0.1));
+            points.push(start + velocity_enu_mps.normalize() * braking_m);
+        }
         for w in waypoints {
             if points.last().is_none_or(|p| (p - w).norm() > 1e-6) {
                 points.push(*w);
@@ -98,6 +121,7 @@ impl PathTrajectory {
             s: 0.0,
             v,
             a: 0.0,
+            lead_in: usize::from(brakes_first),
         }
     }
 
@@ -109,9 +133,9 @@ impl PathTrajectory {
         (self.length_m() - self.s).max(0.0)
     }
 
-    /// Number of input waypoints (excluding the start point).
+    /// Number of input waypoints (excluding the start point and a braking lead-in).
     pub fn waypoint_count(&self) -> usize {
-        self.points.len().saturating_sub(1)
+        self.points.len().saturating_sub(1 + self.lead_in)
     }
 
     pub fn final_point(&self) -> Vec3 {
@@ -143,7 +167,7 @@ impl PathTrajectory {
             position_enu_m: self.position_at(self.s),
             velocity_enu_mps: direction * self.v,
             acceleration_enu_mps2: direction * self.a,
-            next_waypoint: seg,
+            next_waypoint: seg.saturating_sub(self.lead_in),
             finished: self.s >= self.length_m() - 1e-9,
         }
     }
@@ -400,5 +424,40 @@ mod tests {
             "ran away to {}",
             s.position_enu_m.x
         );
+    }
+    #[test]
+    fn a_path_against_the_motion_brakes_along_it_first_then_turns_back() {
+        let limits = TrajectoryLimits {
+            cruise_speed_mps: 0.75,
+            ..TrajectoryLimits::default()
+        };
+        let back = [Vec3::new(-3.0, 0.0, 0.0)];
+        let mut traj =
+            PathTrajectory::moving(Vec3::zeros(), Vec3::new(0.75, 0.0, 0.0), &back, limits);
+        assert_eq!(traj.waypoint_count(), 1);
+        let first = traj.sample();
+        assert!((first.velocity_enu_mps.x - 0.75).abs() < 1e-9, "{first:?}");
+        let (samples, _) = fly_perfectly(&mut traj, 0.01);
+        let farthest = samples
+            .iter()
+            .map(|s| s.position_enu_m.x)
+            .fold(f64::NEG_INFINITY, f64::max);
+        // 0.75^2 / (2 * 1.5) = 0.1875 m of braking, and never sideways.
+        assert!((farthest - 0.1875).abs() < 0.01, "{farthest}");
+        assert!(samples.iter().all(|s| s.position_enu_m.y.abs() < 1e-9));
+        let last = samples.last().unwrap();
+        assert!(last.finished && (last.position_enu_m.x + 3.0).abs() < 1e-6);
+        assert!(samples.iter().all(|s| s.next_waypoint == 0));
+        // Moving along the path, or a turn of less than 90 degrees: no lead-in.
+        let ahead = PathTrajectory::moving(
+            Vec3::zeros(),
+            Vec3::new(0.0, 0.5, 0.0),
+            &[Vec3::new(2.0, 1.0, 0.0)],
+            limits,
+        );
+        assert!((ahead.length_m() - 5.0_f64.sqrt()).abs() < 1e-9);
+        // Slower than the threshold: no lead-in either.
+        let slow = PathTrajectory::moving(Vec3::zeros(), Vec3::new(0.1, 0.0, 0.0), &back, limits);
+        assert!((slow.length_m() - 3.0).abs() < 1e-9);
     }
 }
