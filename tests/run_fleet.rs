@@ -19,8 +19,10 @@ use kestrel::sim::world::World;
 use mavlink_support::room::{
     assert_no_collision, judge_map, judge_tracks, wait_explored, MIN_SEPARATION_M,
 };
-use mavlink_support::{free_tcp_port, repo, serial, Api, Fake, Kestrel};
-use serde_json::{json, Value};
+use mavlink_support::{
+    free_tcp_port, repo, serial, vehicle_section, wait_fleet_ready, Api, Fake, Kestrel,
+};
+use serde_json::json;
 use std::time::{Duration, Instant};
 
 const WORLD: &str = "sitl/worlds/room10_fleet.json";
@@ -35,39 +37,9 @@ fn config(connections: &[String]) -> String {
                     [mavlink]\nplatform = \"platforms/px4.toml\"\n"
         .to_string();
     for (i, (connection, origin)) in connections.iter().zip(STARTS_ENU_M).enumerate() {
-        text.push_str(&format!(
-            "\n[[vehicle]]\nid = \"{}\"\nconnection = \"{connection}\"\ntarget_system = {}\n\
-             origin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
-            DRONES[i],
-            i + 1,
-            origin[0],
-            origin[1],
-            origin[2]
-        ));
+        text.push_str(&vehicle_section(DRONES[i], connection, i + 1, origin));
     }
     text
-}
-
-/// Waits until `GET /api/status` lists the three drones, each linked and ready to fly.
-fn wait_ready(api: &Api, kestrel: &Kestrel) -> Value {
-    let deadline = Instant::now() + Duration::from_secs(40);
-    loop {
-        let status = api.get("/api/status");
-        let drones = status["drones"].as_array().cloned().unwrap_or_default();
-        let ready = drones
-            .iter()
-            .filter(|d| d["link"] == "ok" && d["ready_to_fly"] == true)
-            .count();
-        if ready == DRONES.len() {
-            return status;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "autopilots not ready: {status}\n{}",
-            kestrel.output()
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    }
 }
 
 #[test]
@@ -97,7 +69,7 @@ fn three_px4_explore_a_room_together_from_one_kestrel_run() {
     let api = Api::connect(port);
 
     // The API shows the whole fleet, each drone where its autopilot stands in the room.
-    let status = wait_ready(&api, &kestrel);
+    let status = wait_fleet_ready(&api, &kestrel, DRONES.len());
     let drones = status["drones"].as_array().unwrap();
     let ids: Vec<&str> = drones
         .iter()

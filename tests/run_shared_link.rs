@@ -12,7 +12,9 @@ mod mavlink_support;
 mod support;
 
 use mavlink_support::router::UdpRouter;
-use mavlink_support::{free_tcp_port, serial, Api, Fake, Kestrel};
+use mavlink_support::{
+    free_tcp_port, serial, vehicle_section, wait_fleet_ready, Api, Fake, Kestrel,
+};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 use support::free_udp_port;
@@ -26,15 +28,7 @@ const TARGETS_ENU_M: [[f64; 3]; 2] = [[-1.0, 4.0, 1.5], [5.0, -3.0, 2.0]];
 fn config(connection: &str) -> String {
     let mut text = "[mavlink]\nplatform = \"platforms/px4.toml\"\n".to_string();
     for (i, origin) in STARTS_ENU_M.iter().enumerate() {
-        text.push_str(&format!(
-            "\n[[vehicle]]\nid = \"{}\"\nconnection = \"{connection}\"\ntarget_system = {}\n\
-             origin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
-            DRONES[i],
-            i + 1,
-            origin[0],
-            origin[1],
-            origin[2]
-        ));
+        text.push_str(&vehicle_section(DRONES[i], connection, i + 1, *origin));
     }
     text
 }
@@ -48,27 +42,6 @@ fn mission(drone: &str, target: [f64; 3]) -> Value {
             {"behavior": "land", "args": {"speed": 0.5}}
         ]
     })
-}
-
-fn wait_ready(api: &Api, kestrel: &Kestrel) -> Value {
-    let deadline = Instant::now() + Duration::from_secs(40);
-    loop {
-        let status = api.get("/api/status");
-        let ready = status["drones"].as_array().map_or(0, |d| {
-            d.iter()
-                .filter(|d| d["link"] == "ok" && d["ready_to_fly"] == true)
-                .count()
-        });
-        if ready == DRONES.len() {
-            return status;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "autopilots not ready: {status}\n{}",
-            kestrel.output()
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    }
 }
 
 /// The mission state of `drone` in `GET /api/status`.
@@ -95,7 +68,7 @@ fn two_px4_behind_one_connection_each_fly_their_own_mission() {
     );
     let api = Api::connect(api_port);
     // Each drone shows its own autopilot: where that one stands.
-    let status = wait_ready(&api, &kestrel);
+    let status = wait_fleet_ready(&api, &kestrel, DRONES.len());
     for (drone, start) in DRONES.iter().zip(STARTS_ENU_M) {
         let d = status["drones"]
             .as_array()

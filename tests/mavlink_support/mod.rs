@@ -616,3 +616,36 @@ pub fn demo_mission() -> Value {
         kestrel::host::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0),
     )
 }
+
+/// One `[[vehicle]]` entry of a `kestrel run` config: id, connection, the autopilot's system id
+/// and where its local frame starts in the shared frame (m, ENU).
+pub fn vehicle_section(id: &str, connection: &str, system: usize, origin: [f64; 3]) -> String {
+    format!(
+        "\n[[vehicle]]\nid = \"{id}\"\nconnection = \"{connection}\"\ntarget_system = {system}\n\
+         origin_enu_m = [{:.1}, {:.1}, {:.1}]\n",
+        origin[0], origin[1], origin[2]
+    )
+}
+
+/// Waits up to 40 s until `GET /api/status` lists `n` drones, each linked and ready to fly;
+/// returns that status.
+pub fn wait_fleet_ready(api: &Api, kestrel: &Kestrel, n: usize) -> Value {
+    let deadline = Instant::now() + Duration::from_secs(40);
+    loop {
+        let status = api.get("/api/status");
+        let ready = status["drones"].as_array().map_or(0, |d| {
+            d.iter()
+                .filter(|d| d["link"] == "ok" && d["ready_to_fly"] == true)
+                .count()
+        });
+        if ready == n {
+            return status;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "autopilots not ready: {status}\n{}",
+            kestrel.output()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
