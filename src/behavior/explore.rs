@@ -14,7 +14,8 @@
 //! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
 //! The exploration ends when the allocator has had no reachable frontier for this drone for a
-//! quarter turn of sensing; the drone then lands (`land_when_done`; first back along its own
+//! quarter turn of sensing (and, while frontiers are left that others hold, until a failed
+//! drone's claims would have lapsed); the drone then lands (`land_when_done`; first back along its own
 //! track when another drone, flying or landed, is within 1.5 m) and the behavior succeeds.
 //! When another flying drone comes closer than `drone_safety_distance` at the same height, the
 //! one nearer its goal climbs 1 m and holds until they are 1.2 times that apart, then returns.
@@ -30,7 +31,7 @@ use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::EARTH;
 use crate::exploration::allocation::AllocatorKind;
-use crate::exploration::service::{Allocation, ExploreRequest};
+use crate::exploration::service::{Allocation, ExploreRequest, CLAIM_TTL};
 use crate::exploration::space::SpaceParams;
 use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
 use crate::types::{PlatformRequest, Vec3};
@@ -173,6 +174,9 @@ const LANDING_CLEARANCE_M: f64 = 1.5;
 const NEAR_GOAL_M: f64 = 1.5;
 /// An allocation is flown only if the drone is still this close to where it asked (m).
 const STALE_ANSWER_M: f64 = 0.3;
+/// With frontiers left that others hold, a drone waits this long past the claims' lifetime
+/// before it ends (s): a failed drone's claims lapse and its frontiers are offered first.
+const CLAIM_LAPSE_EXTRA_S: f64 = 2.0;
 /// A drone that moved less than this ...
 const STUCK_RADIUS_M: f64 = 1.0;
 /// ... for a quarter turn plus this long gives its goal up.
@@ -337,10 +341,14 @@ impl Explore {
                 self.target = None;
                 self.child = None;
                 // No frontier anywhere after a full sweep: over. Frontiers this drone cannot
-                // reach (yet): another sweep first, space may open up.
+                // reach or that others hold: another sweep first (space may open up), and long
+                // enough for the claims of a drone that failed to lapse, so its part is taken.
                 let swept = seconds(ctx.now, self.started_at) >= self.sense_s();
                 let since = *self.done_since.get_or_insert(ctx.now);
-                Ok((frontiers == 0 && swept) || seconds(ctx.now, since) >= self.sense_s())
+                let wait_s = self
+                    .sense_s()
+                    .max(CLAIM_TTL.as_secs_f64() + CLAIM_LAPSE_EXTRA_S);
+                Ok((frontiers == 0 && swept) || seconds(ctx.now, since) >= wait_s)
             }
             Ok(Allocation::Goal {
                 goal_enu_m,

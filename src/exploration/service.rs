@@ -26,7 +26,7 @@ use crate::mapping::grid::OccupancyGrid;
 use crate::types::Vec3;
 
 /// A claim lapses when its drone has not asked for this long.
-const CLAIM_TTL: Duration = Duration::from_secs(6);
+pub const CLAIM_TTL: Duration = Duration::from_secs(6);
 /// Frontiers whose goal lies this close to a given-up goal are left out (m).
 const GIVEN_UP_RADIUS_M: f64 = 0.8;
 /// A goal given up once is offered again after this long.
