@@ -5,8 +5,13 @@
 //! In: the goal (height, speed, spin rate, safety distances, allocator) and each tick the
 //! context: the fleet view (for the drone watcher) and the allocator's answers. Out: the
 //! children's references with the heading replaced by a steady turn (the four beams sweep all
-//! around while the drone flies, so there is no stop to sense), feedback `phase`, `goal`,
+//! around while the drone flies, so there is no stop to sense; clockwise or counter-clockwise as
+//! the allocator says, so the side the unknown lies on is swept best), feedback `phase`, `goal`,
 //! `frontiers`, `allocations`, `given_up`.
+//!
+//! A long frontier is flown along from end to end (`sweep_along`), so the beams clear it on the
+//! way instead of while the drone waits at its middle; one sweep usually ends where the next
+//! begins, and the known space grows in bands about a beam range wide.
 //!
 //! The drone asks the fleet's frontier allocator (a service: asked on one tick, answered on a
 //! later one) for a goal and the path to it through space observed free with the safety
@@ -67,10 +72,15 @@ pub struct ExploreGoal {
     /// Frontiers shorter than this (m) are not flown to while longer ones are left (the
     /// thesis drops them: 1.5 m).
     pub min_frontier_length: f64,
-    /// Frontiers shorter than this (m) are never flown to; between this and
+    /// Frontiers shorter than this (m) are never flown to, unless at least half as long and
+    /// leading on to a large unknown region (a gap between obstacles); between this and
     /// `min_frontier_length` they are explored last. Lower it (to 0.5 m) for a more thorough
     /// end at the cost of time.
     pub end_frontier_length: f64,
+    /// Fly along frontiers of 2 m or more from end to end, turning the way that sweeps the
+    /// unknown side best (the beams clear them on the way), instead of to their middle and
+    /// waiting there for the turn to sweep them.
+    pub sweep_along: bool,
 }
 
 /// How the explorer turns its beams.
@@ -99,6 +109,7 @@ impl Default for ExploreGoal {
             heading: HeadingMode::default(),
             min_frontier_length: 1.5,
             end_frontier_length: 1.0,
+            sweep_along: true,
         }
     }
 }
@@ -219,6 +230,8 @@ pub struct Explore {
     started_at: Duration,
     /// Where it flew, newest last (for a landing spot clear of the others).
     crumbs: Vec<Vec3>,
+    /// Turn clockwise (the allocator's choice for the current sweep).
+    clockwise: bool,
 }
 
 impl Explore {
@@ -240,6 +253,7 @@ impl Explore {
             given_up: 0,
             started_at: Duration::ZERO,
             crumbs: Vec::new(),
+            clockwise: false,
         }
     }
 
@@ -269,6 +283,7 @@ impl Explore {
                 let folded = error - quarter * (error / quarter).round();
                 YawTarget::Rate((2.0 * folded).clamp(-rate, rate))
             }
+            _ if self.clockwise => YawTarget::Rate(-rate),
             _ => YawTarget::Rate(rate),
         };
         with_yaw(reference, yaw)
@@ -306,6 +321,7 @@ impl Explore {
             space,
             current_goal_enu_m: self.target.map(|t| t.xy()),
             give_up: self.give_up.take(),
+            sweep_along: self.goal.sweep_along,
         }));
         self.asked_at = Some(ctx.now);
         self.asked_from = ctx.position();
@@ -354,7 +370,12 @@ impl Explore {
                 goal_enu_m,
                 path_enu_m,
                 frontiers,
+                clockwise,
             }) => {
+                // A sweep says which way to turn; any other goal keeps the turn as it is.
+                if let Some(clockwise) = clockwise {
+                    self.clockwise = clockwise;
+                }
                 self.frontiers = frontiers;
                 self.done_since = None;
                 // A late answer (a slow allocator on the wall clock) has a path from where the
@@ -696,6 +717,7 @@ mod tests {
             goal_enu_m: goal,
             path_enu_m: vec![from, goal],
             frontiers: 1,
+            clockwise: None,
         };
         scene
             .services

@@ -6,9 +6,10 @@
 //! path, shortened to the corners a straight line cannot cut. One search serves the allocator
 //! (path distance to every frontier at once) and the flight (the path to the chosen one).
 //!
-//! The drone's own neighbourhood (the safety distance around it, obstacles excepted) counts as
-//! navigable, so a drone that hovers where it has not mapped yet (just after takeoff) can
-//! leave it. Costs are 10 per straight step and 14 per diagonal, searched with a bucket queue
+//! The drone's own neighbourhood (the safety distance around it) counts as navigable where it
+//! is no closer to an obstacle than the drone already is, so a drone that hovers where it has
+//! not mapped yet (just after takeoff) can leave it, and one that has come close to an obstacle
+//! leaves it without grazing it. Costs are 10 per straight step and 14 per diagonal, searched with a bucket queue
 //! (O(cells)).
 
 use nalgebra::Vector2;
@@ -37,12 +38,16 @@ impl Reach {
         let start = space.index_at(from_enu_m)?;
         let s = space.safety_cells() as i64;
         let (sx, sy) = ((start % w) as i64, (start / w) as i64);
+        // Near the start: never closer to an obstacle than the drone already is.
+        let start_margin = space.obstacle_margin(start);
+        let near_start_ok =
+            |i: usize| space.is_clear(i) && space.obstacle_margin(i) >= start_margin;
         let passable = |i: usize| {
             if space.is_navigable(i) {
                 return true;
             }
             let (x, y) = ((i % w) as i64, (i / w) as i64);
-            (x - sx).abs() <= s && (y - sy).abs() <= s && space.is_clear(i)
+            (x - sx).abs() <= s && (y - sy).abs() <= s && near_start_ok(i)
         };
         let mut cost = vec![UNREACHED; w * h];
         let mut parent = vec![u32::MAX; w * h];
@@ -150,7 +155,7 @@ impl Reach {
 
     /// Whether every cell on the segment between two cells is navigable (or the start's own
     /// neighbourhood).
-    fn line_clear(&self, space: &Space, a: usize, b: usize) -> bool {
+    pub fn line_clear(&self, space: &Space, a: usize, b: usize) -> bool {
         let w = self.width as i64;
         let (mut x, mut y) = ((a as i64) % w, (a as i64) / w);
         let (x1, y1) = ((b as i64) % w, (b as i64) / w);
@@ -182,7 +187,10 @@ impl Reach {
         let s = space.safety_cells() as i64;
         let (x, y) = ((i as i64) % w, (i as i64) / w);
         let (sx, sy) = ((self.start as i64) % w, (self.start as i64) / w);
-        (x - sx).abs() <= s && (y - sy).abs() <= s && space.is_clear(i)
+        (x - sx).abs() <= s
+            && (y - sy).abs() <= s
+            && space.is_clear(i)
+            && space.obstacle_margin(i) >= space.obstacle_margin(self.start)
     }
 }
 
@@ -252,5 +260,35 @@ mod tests {
         );
         let unknown = space.index_at(Vector2::new(1.0, 0.5)).unwrap();
         assert!(reach.distance_m(unknown).is_none());
+    }
+
+    #[test]
+    fn a_drone_near_an_obstacle_leaves_without_coming_closer_to_it() {
+        // All known free but an obstacle cell at (5.05, 2.05); the drone 0.3 m east of it,
+        // within the safety distance (so in no navigable cell).
+        let g = grid(100, 40, |x, y| if (x, y) == (50, 20) { 100 } else { 0 });
+        let space = Space::new(&g, &SpaceParams::default());
+        let from = Vector2::new(5.35, 2.05);
+        assert!(!space.is_navigable(space.index_at(from).unwrap()));
+        let reach = Reach::new(&space, from).unwrap();
+        let closer = space.index_at(Vector2::new(5.25, 2.05)).unwrap();
+        assert!(
+            reach.distance_m(closer).is_none(),
+            "0.2 m from the obstacle"
+        );
+        let away = space.index_at(Vector2::new(5.75, 2.05)).unwrap();
+        assert!(reach.distance_m(away).is_some());
+        // The way to the far side goes round at the safety distance.
+        let far_side = space.index_at(Vector2::new(4.45, 2.05)).unwrap();
+        let path = reach.path_to(&space, far_side).unwrap();
+        let obstacle = Vector2::new(5.05, 2.05);
+        let mut at = from;
+        for p in &path {
+            for k in 0..=20 {
+                let q = at + (p - at) * (f64::from(k) / 20.0);
+                assert!((q - obstacle).norm() > 0.19, "{q:?} on {path:?}");
+            }
+            at = *p;
+        }
     }
 }

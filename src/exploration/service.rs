@@ -10,6 +10,9 @@
 //! only a small pocket of unknown (`SpaceParams::min_gain_cells`) are offered only to a drone a
 //! few metres away: a visit adds little, so they are worth no more than a short detour, and they
 //! do not keep the exploration going.
+//! With `sweep_along`, a frontier of 2 m or more is given as a sweep: the path goes to its end
+//! nearer by path, then along it to the other end (the goal), and the drone is told which way to
+//! turn so that the unknown side is the one its beams sweep best.
 //! The navigable space is kept between requests and re-read only around the cells that changed.
 
 use std::collections::BTreeMap;
@@ -49,6 +52,9 @@ pub struct ExploreRequest {
     pub current_goal_enu_m: Option<Vector2<f64>>,
     /// A goal it reached and watched without the frontier going away: never offered again.
     pub give_up: Option<Vector2<f64>>,
+    /// Fly along a long frontier, end to end, instead of to its middle (the beams sweep it
+    /// on the way).
+    pub sweep_along: bool,
 }
 
 /// What a drone is told.
@@ -60,6 +66,9 @@ pub enum Allocation {
         path_enu_m: Vec<Vec3>,
         /// Frontiers left in the map (all drones').
         frontiers: usize,
+        /// For a sweep, which way to turn while flying it: clockwise (the unknown on the left)
+        /// or not; `None`: as before.
+        clockwise: Option<bool>,
     },
     /// No frontier this drone can reach (`frontiers`: those left that it cannot).
     Done { frontiers: usize },
@@ -124,6 +133,67 @@ const MAX_REMOTE_CLAIMS: usize = 256;
 /// Two goals this close are one frontier: a drone does not take one a remote drone with a
 /// smaller id holds (m).
 const CONFLICT_RADIUS_M: f64 = 1.5;
+
+/// Frontiers at least this long are swept end to end when asked (m).
+const SWEEP_MIN_M: f64 = 2.0;
+/// A frontier end this close to the drone's current goal is still that goal (m).
+const SWEEP_KEEP_M: f64 = 1.0;
+
+/// How to sweep `frontier`: (entry, exit, clockwise). From the end nearer by path to the
+/// other, turning so that the unknown lies on the side the turning beams sweep best: on the
+/// right of the travel when turning counter-clockwise, on the left when turning clockwise.
+fn sweep_ends(
+    space: &Space,
+    reach: &Reach,
+    frontier: &Frontier,
+    current: Option<Vector2<f64>>,
+) -> (usize, usize, bool) {
+    let [a, b] = frontier.end_indices;
+    let at = |i: usize| space.center_of(i).unwrap_or(frontier.goal_enu_m);
+    let far = |i: usize| reach.distance_m(i).unwrap_or(f64::INFINITY);
+    let unknown_on_left = |from: usize, to: usize| {
+        let along = at(to) - at(from);
+        space
+            .unknown_side(frontier)
+            .is_some_and(|u| along.x * u.y - along.y * u.x > 0.0)
+    };
+    let bound = |i: usize| current.is_some_and(|g| (at(i) - g).norm() < SWEEP_KEEP_M);
+    let (entry, exit) = if bound(b) || (!bound(a) && far(a) <= far(b)) {
+        (a, b)
+    } else {
+        (b, a)
+    };
+    (entry, exit, unknown_on_left(entry, exit))
+}
+
+/// The path that sweeps `frontier` from `entry` to `exit`: to the entry, then along through
+/// the frontier's middle (straight where that is navigable, else the shortest path to the
+/// exit). A drone already bound for the exit flies straight on to it, so a sweep is not
+/// turned back. `None` when the exit cannot be reached.
+fn sweep_path(
+    space: &Space,
+    reach: &Reach,
+    frontier: &Frontier,
+    (entry, exit, _): (usize, usize, bool),
+    current: Option<Vector2<f64>>,
+) -> Option<Vec<Vector2<f64>>> {
+    let at = |i: usize| space.center_of(i).unwrap_or(frontier.goal_enu_m);
+    let direct = || reach.path_to(space, exit);
+    if current.is_some_and(|g| (at(exit) - g).norm() < SWEEP_KEEP_M) {
+        return direct();
+    }
+    let mid = frontier.goal_index;
+    match reach.path_to(space, entry) {
+        Some(mut path)
+            if reach.line_clear(space, entry, mid) && reach.line_clear(space, mid, exit) =>
+        {
+            path.push(at(mid));
+            path.push(at(exit));
+            Some(path)
+        }
+        _ => direct(),
+    }
+}
 
 /// The allocator's memory between requests.
 #[derive(Default)]
@@ -242,11 +312,12 @@ impl FrontierService {
             .filter(|(id, _)| **id < request.drone)
             .map(|(_, c)| c.goal)
             .collect();
-        let candidates: Vec<(Candidate, usize)> = open
+        let sweeping = |f: &Frontier| request.sweep_along && f.size_m >= SWEEP_MIN_M;
+        let candidates: Vec<(Candidate, &Frontier)> = open
             .iter()
             .zip(&paths)
             .filter_map(|(f, p)| {
-                let path_m = (*p)?;
+                let mut path_m = (*p)?;
                 if f.small && !only_small {
                     return None;
                 }
@@ -256,14 +327,21 @@ impl FrontierService {
                 {
                     return None;
                 }
+                // A frontier swept end to end is reached at its entry.
+                let mut goal_enu_m = f.goal_enu_m;
+                if sweeping(f) {
+                    let (entry, _, _) = sweep_ends(space, &reach, f, request.current_goal_enu_m);
+                    path_m = reach.distance_m(entry).unwrap_or(path_m);
+                    goal_enu_m = space.center_of(entry).unwrap_or(goal_enu_m);
+                }
                 Some((
                     Candidate {
                         centroid_enu_m: f.centroid_enu_m,
-                        goal_enu_m: f.goal_enu_m,
+                        goal_enu_m,
                         size_m: f.size_m,
                         path_m,
                     },
-                    f.goal_index,
+                    *f,
                 ))
             })
             .collect();
@@ -283,28 +361,46 @@ impl FrontierService {
             self.claims.remove(&request.drone);
             return Ok(Allocation::Done { frontiers: left });
         };
-        let Some(&(candidate, goal_index)) = candidates.get(chosen) else {
+        let Some(&(_, frontier)) = candidates.get(chosen) else {
             return Ok(Allocation::Done { frontiers: left });
         };
         let z = request.flight_height_m;
-        let path: Vec<Vec3> = reach
-            .path_to(space, goal_index)
-            .unwrap_or_default()
-            .into_iter()
-            .map(|p| Vec3::new(p.x, p.y, z))
-            .collect();
+        let to_middle = || {
+            (
+                frontier.goal_enu_m,
+                reach
+                    .path_to(space, frontier.goal_index)
+                    .unwrap_or_default(),
+                None,
+            )
+        };
+        let (goal_xy, path, clockwise) = if sweeping(frontier) {
+            let ends = sweep_ends(space, &reach, frontier, request.current_goal_enu_m);
+            match sweep_path(space, &reach, frontier, ends, request.current_goal_enu_m) {
+                Some(path) if !path.is_empty() => (
+                    space.center_of(ends.1).unwrap_or(frontier.goal_enu_m),
+                    path,
+                    Some(ends.2),
+                ),
+                _ => to_middle(),
+            }
+        } else {
+            to_middle()
+        };
+        let path: Vec<Vec3> = path.into_iter().map(|p| Vec3::new(p.x, p.y, z)).collect();
         self.claims.insert(
             request.drone.clone(),
             Claim {
-                goal: candidate.goal_enu_m,
+                goal: frontier.goal_enu_m,
                 stamp: now,
             },
         );
-        let goal = Vec3::new(candidate.goal_enu_m.x, candidate.goal_enu_m.y, z);
+        let goal = Vec3::new(goal_xy.x, goal_xy.y, z);
         Ok(Allocation::Goal {
             goal_enu_m: goal,
             path_enu_m: if path.is_empty() { vec![goal] } else { path },
             frontiers: left,
+            clockwise,
         })
     }
 
@@ -367,6 +463,7 @@ mod tests {
             space: SpaceParams::default(),
             current_goal_enu_m: None,
             give_up: None,
+            sweep_along: false,
         }
     }
 
@@ -505,5 +602,51 @@ mod tests {
         s.answer(later, &grid, &r).unwrap();
         let last = s.answer(later + GIVEN_UP_FOR * 2, &grid, &r2).unwrap();
         assert!(matches!(last, Allocation::Done { .. }), "{last:?}");
+    }
+
+    #[test]
+    fn a_long_frontier_is_swept_end_to_end_turning_so_the_unknown_is_swept_best() {
+        let grid = half_known();
+        let t = Duration::from_secs(1);
+        let mut r = ask("a", 2.0, 2.0);
+        r.sweep_along = true;
+        let a = FrontierService::new().answer(t, &grid, &r).unwrap();
+        let Allocation::Goal {
+            goal_enu_m,
+            path_enu_m,
+            clockwise,
+            ..
+        } = a
+        else {
+            panic!("{a:?}")
+        };
+        // The frontier runs north-south along x = 9.55 m (the unknown east of it): the path
+        // ends with a leg along it, from one end through its middle to the other (the goal).
+        let n = path_enu_m.len();
+        assert!(n >= 3, "{path_enu_m:?}");
+        assert_eq!(path_enu_m[n - 1], goal_enu_m);
+        let along = &path_enu_m[n - 3..];
+        assert!(along.iter().all(|p| (p.x - 9.55).abs() < 0.15), "{along:?}");
+        let leg = along[2] - along[0];
+        assert!(leg.y.abs() > 2.0, "{along:?}");
+        // Northward the unknown is on the right: counter-clockwise; southward, clockwise.
+        assert_eq!(clockwise, Some(leg.y < 0.0));
+        // Asked again on the way, the drone keeps its goal (the sweep is not turned back).
+        let mut again = ask("a", along[1].x, along[1].y);
+        again.sweep_along = true;
+        again.current_goal_enu_m = Some(goal_enu_m.xy());
+        let mut s = FrontierService::new();
+        assert_eq!(goal_of(&s.answer(t, &grid, &again).unwrap()), goal_enu_m);
+        // Without sweeping the goal is the frontier's middle and the turn is left as it is.
+        let plain = FrontierService::new()
+            .answer(t, &grid, &ask("a", 2.0, 2.0))
+            .unwrap();
+        assert!(matches!(
+            plain,
+            Allocation::Goal {
+                clockwise: None,
+                ..
+            }
+        ));
     }
 }

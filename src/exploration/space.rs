@@ -28,9 +28,10 @@ pub struct SpaceParams {
     pub safety_distance_m: f64,
     /// Frontiers with fewer cells are left for the end (the thesis drops them: 15 cells).
     pub min_cells: usize,
-    /// Frontiers with fewer cells are dropped for good; those between this and `min_cells`
-    /// are explored only once no frontier of `min_cells` is left (none by default, as the
-    /// thesis).
+    /// Frontiers with fewer cells are dropped for good (but for a gap: one of at least half
+    /// as many with `min_gain_cells` of unknown behind it is kept, as small); those between
+    /// this and `min_cells` are explored only once no frontier of `min_cells` is left (none by
+    /// default, as the thesis).
     pub min_final_cells: usize,
     /// Frontiers of at least twice this many cells are split into parts of about this many.
     pub split_cells: usize,
@@ -77,6 +78,8 @@ pub struct Frontier {
     /// Index of the goal cell (navigable, nearest the centroid).
     pub goal_index: usize,
     pub goal_enu_m: Vector2<f64>,
+    /// Indices of its two end cells along the long axis (navigable, as every frontier cell).
+    pub end_indices: [usize; 2],
     /// Shorter than `min_cells`: explored only once no longer frontier is left.
     pub small: bool,
     /// Borders fewer than `min_gain_cells` unknown cells: a small enclosed pocket.
@@ -91,6 +94,9 @@ pub struct Space {
     /// The grid this was read from, to find what changed.
     data: Vec<i8>,
     navigable: Vec<bool>,
+    /// How far each cell is from the nearest obstacle: 0 within half the safety distance, 1
+    /// within it, 2 beyond.
+    margin: Vec<u8>,
     frontier: Vec<bool>,
     safety_cells: usize,
     pub frontiers: Vec<Frontier>,
@@ -115,6 +121,7 @@ impl Space {
             params: *params,
             data: grid.data().to_vec(),
             navigable: vec![false; w * h],
+            margin: vec![0; w * h],
             frontier: vec![false; w * h],
             safety_cells: params.safety_cells(spec.resolution_m),
             frontiers: Vec::new(),
@@ -203,6 +210,7 @@ impl Space {
             .collect();
         let occ_s = dilate_disc(&occupied, cw, ch, s);
         let occ_s1 = dilate_disc(&occupied, cw, ch, s + 1);
+        let occ_half = dilate_disc(&occupied, cw, ch, s.div_ceil(2));
         let unk_s = dilate_disc(&unknown, cw, ch, s);
         let unk_s1 = dilate_disc(&unknown, cw, ch, s + 1);
         // The map's edge counts as an obstacle.
@@ -212,6 +220,13 @@ impl Space {
                 let j = (y - c.y0) * cw + (x - c.x0);
                 let navigable = closed_free[j] && !occ_s[j] && !unk_s[j] && !edge_within(x, y, s);
                 self.navigable[y * w + x] = navigable;
+                self.margin[y * w + x] = if occ_half[j] {
+                    0
+                } else if occ_s[j] {
+                    1
+                } else {
+                    2
+                };
                 // The edge is no obstacle to see past: unknown cells along it make frontiers.
                 self.frontier[y * w + x] = navigable && unk_s1[j] && !occ_s1[j];
             }
@@ -224,12 +239,18 @@ impl Space {
             self.spec.height_cells as usize,
         );
         let components = components(&self.frontier, w, h);
+        let least = self.params.min_final_cells.min(self.params.min_cells);
+        let gain = self.params.min_gain_cells;
         self.frontiers = components
             .into_iter()
-            .filter(|c| c.len() >= self.params.min_final_cells.min(self.params.min_cells))
+            // Shorter than the least length, a frontier is kept only when a large unknown
+            // region lies behind it (a gap between obstacles that leads on), down to half that.
+            .filter(|c| {
+                c.len() >= least
+                    || (gain > 0 && 2 * c.len() >= least && self.unknown_behind(c, gain) >= gain)
+            })
             .flat_map(|c| {
                 let small = c.len() < self.params.min_cells;
-                let gain = self.params.min_gain_cells;
                 let low_gain = gain > 0 && self.unknown_behind(&c, gain) < gain;
                 let mut parts = split(c, &self.spec, self.params.split_cells);
                 for p in &mut parts {
@@ -288,6 +309,37 @@ impl Space {
         &self.spec
     }
 
+    /// Unit vector from `frontier` toward the unknown it borders (from its middle and its
+    /// ends: the mean offset to the unknown cells within the safety distance plus two cells);
+    /// `None` when none is found.
+    pub fn unknown_side(&self, frontier: &Frontier) -> Option<Vector2<f64>> {
+        let w = self.spec.width_cells as i64;
+        let h = self.spec.height_cells as i64;
+        let r = self.safety_cells as i64 + 2;
+        let mut sum = Vector2::zeros();
+        for i in [
+            frontier.goal_index,
+            frontier.end_indices[0],
+            frontier.end_indices[1],
+        ] {
+            let (x, y) = ((i as i64) % w, (i as i64) / w);
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx >= 0
+                        && ny >= 0
+                        && nx < w
+                        && ny < h
+                        && self.data[(ny * w + nx) as usize] == UNKNOWN
+                    {
+                        sum += Vector2::new(dx as f64, dy as f64);
+                    }
+                }
+            }
+        }
+        (sum.norm() > 0.0).then(|| sum.normalize())
+    }
+
     pub fn is_navigable(&self, index: usize) -> bool {
         self.navigable.get(index).copied().unwrap_or(false)
     }
@@ -297,6 +349,12 @@ impl Space {
         self.data
             .get(index)
             .is_some_and(|&v| v < self.params.occupied_threshold)
+    }
+
+    /// How far cell `index` is from obstacles: 0 within half the safety distance, 1 within
+    /// it, 2 beyond.
+    pub fn obstacle_margin(&self, index: usize) -> u8 {
+        self.margin.get(index).copied().unwrap_or(0)
     }
 
     pub fn safety_cells(&self) -> usize {
@@ -474,6 +532,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
                     .total_cmp(&(center(b.1) - centroid).norm_squared())
                     .then(a.1.cmp(&b.1))
             })?;
+            let ends = [chunk.first()?.1, chunk.last()?.1];
             let mut orientation = axis.y.atan2(axis.x);
             if orientation > std::f64::consts::FRAC_PI_2 {
                 orientation -= std::f64::consts::PI;
@@ -487,6 +546,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
                 size_m: chunk.len() as f64 * spec.resolution_m,
                 goal_index,
                 goal_enu_m: center(goal_index),
+                end_indices: ends,
                 small: false,
                 low_gain: false,
             })
@@ -700,5 +760,50 @@ pub(crate) mod tests {
             assert_eq!(space.frontier, fresh.frontier, "round {round}");
             assert_eq!(space.frontiers, fresh.frontiers, "round {round}");
         }
+    }
+
+    #[test]
+    fn a_frontier_knows_its_ends_and_which_side_the_unknown_lies() {
+        // x < 50 known free, x >= 50 unknown: one frontier along x = 4.55 m.
+        let g = grid(100, 60, |x, _| if x < 50 { 0 } else { UNKNOWN });
+        let space = Space::new(&g, &SpaceParams::default());
+        assert_eq!(space.frontiers.len(), 1, "{:?}", space.frontiers);
+        let f = &space.frontiers[0];
+        let [a, b] = f.end_indices.map(|i| space.center_of(i).unwrap());
+        assert!(
+            (a.y - b.y).abs() > 4.0,
+            "the ends span the frontier: {a:?} {b:?}"
+        );
+        assert!((a.x - f.goal_enu_m.x).abs() < 0.11 && (b.x - f.goal_enu_m.x).abs() < 0.11);
+        assert!(f.end_indices.iter().all(|&i| space.is_navigable(i)));
+        let u = space.unknown_side(f).unwrap();
+        assert!(u.x > 0.9, "the unknown lies east: {u:?}");
+    }
+
+    #[test]
+    fn a_short_frontier_is_kept_only_where_a_large_unknown_lies_behind_it() {
+        // Known free west of a wall at x = 50 with a 1.6 m gap (y 22..38); unknown east of it.
+        let g = grid(100, 60, |x, y| match x {
+            50 if !(22..38).contains(&y) => 100,
+            x if x > 50 => UNKNOWN,
+            _ => 0,
+        });
+        let params = |min_gain_cells| SpaceParams {
+            min_gain_cells,
+            ..SpaceParams::default()
+        };
+        let in_gap = |space: &Space| {
+            space
+                .frontiers
+                .iter()
+                .filter(|f| (f.centroid_enu_m - Vector2::new(4.65, 3.0)).norm() < 0.6)
+                .count()
+        };
+        // The gap's frontier is shorter than the least length (15 cells)...
+        assert_eq!(in_gap(&Space::new(&g, &params(0))), 0);
+        // ...but leads on to a large unknown region, so it is kept (as small: explored last).
+        let space = Space::new(&g, &params(50));
+        assert_eq!(in_gap(&space), 1, "{:?}", space.frontiers);
+        assert!(space.frontiers.iter().all(|f| f.small));
     }
 }

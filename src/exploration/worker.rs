@@ -361,6 +361,7 @@ mod tests {
                 space: SpaceParams::default(),
                 current_goal_enu_m: None,
                 give_up: None,
+                sweep_along: false,
             },
             cancel: Arc::new(AtomicBool::new(false)),
         }
