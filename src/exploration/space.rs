@@ -641,6 +641,13 @@ pub(crate) mod tests {
         assert_eq!(f.cells, 40 - 2 * 4);
         assert!((f.orientation_rad.abs() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
         assert!(space.is_navigable(f.goal_index));
+        // Its ends are the column's first and last cells; the unknown lies east.
+        let [a, b] = f.end_indices.map(|i| space.center_of(i).unwrap());
+        assert!((a.y - b.y).abs() > 3.0, "{a:?} {b:?}");
+        assert!((a.x - f.goal_enu_m.x).abs() < 1e-9 && (b.x - f.goal_enu_m.x).abs() < 1e-9);
+        assert!(f.end_indices.iter().all(|&i| space.is_navigable(i)));
+        let u = space.unknown_side(f).unwrap();
+        assert!(u.x > 0.9, "{u:?}");
         // Nothing navigable within the safety distance of the unknown half.
         for y in 0..40 {
             for x in 26..60 {
@@ -760,24 +767,6 @@ pub(crate) mod tests {
             assert_eq!(space.frontier, fresh.frontier, "round {round}");
             assert_eq!(space.frontiers, fresh.frontiers, "round {round}");
         }
-    }
-
-    #[test]
-    fn a_frontier_knows_its_ends_and_which_side_the_unknown_lies() {
-        // x < 50 known free, x >= 50 unknown: one frontier along x = 4.55 m.
-        let g = grid(100, 60, |x, _| if x < 50 { 0 } else { UNKNOWN });
-        let space = Space::new(&g, &SpaceParams::default());
-        assert_eq!(space.frontiers.len(), 1, "{:?}", space.frontiers);
-        let f = &space.frontiers[0];
-        let [a, b] = f.end_indices.map(|i| space.center_of(i).unwrap());
-        assert!(
-            (a.y - b.y).abs() > 4.0,
-            "the ends span the frontier: {a:?} {b:?}"
-        );
-        assert!((a.x - f.goal_enu_m.x).abs() < 0.11 && (b.x - f.goal_enu_m.x).abs() < 0.11);
-        assert!(f.end_indices.iter().all(|&i| space.is_navigable(i)));
-        let u = space.unknown_side(f).unwrap();
-        assert!(u.x > 0.9, "the unknown lies east: {u:?}");
     }
 
     #[test]
