@@ -26,7 +26,7 @@
 //! one nearer its goal climbs 1 m and holds until they are 1.2 times that apart, then returns.
 
 use super::follow_path::{FollowPath, FollowPathGoal};
-use super::goal::{check_positive, YawArgs};
+use super::goal::{check_positive, YawArgs, YawMode};
 use super::land::{Land, LandGoal};
 use super::navigate_to::with_yaw;
 use super::registry::{BehaviorSpec, Goal, Resource};
@@ -406,12 +406,7 @@ impl Explore {
     }
 
     fn fly(&mut self, ctx: &BehaviorContext, goal: Vec3, path: &[Vec3]) -> Result<(), Failure> {
-        let follow = FollowPathGoal {
-            path: path.iter().map(|p| [p.x, p.y, p.z]).collect(),
-            speed: self.goal.speed,
-            yaw: YawArgs::default(),
-            frame_id: Some(EARTH.to_string()),
-        };
+        let follow = self.path_goal(path);
         follow.check().map_err(Failure::invalid)?;
         let mut child = FollowPath::new(follow);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
@@ -419,6 +414,22 @@ impl Explore {
         self.target = Some(goal);
         self.allocations += 1;
         Ok(())
+    }
+
+    /// A path flown at the exploring speed. The heading is the explorer's own turn
+    /// ([`Self::heading`]), so the path asks for none: one held at its start would keep the
+    /// path from ending until the turn came round to it (up to a full turn, 42 s at the
+    /// thesis's rate), which held drones over their landing spots at the end of a run.
+    fn path_goal(&self, path: &[Vec3]) -> FollowPathGoal {
+        FollowPathGoal {
+            path: path.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            speed: self.goal.speed,
+            yaw: YawArgs {
+                yaw_mode: YawMode::PathFacing,
+                ..YawArgs::default()
+            },
+            frame_id: Some(EARTH.to_string()),
+        }
     }
 
     /// Gives the goal up when the drone has stayed in one place for a full sweep with it.
@@ -540,13 +551,16 @@ impl Explore {
     }
 
     /// Lands here, or first flies back along its own track to the last point clear of every
-    /// other drone (flying or landed) when one is closer than `LANDING_CLEARANCE_M`: a drone
-    /// never lands on another.
+    /// other drone (flying at its height or lower, or landed) when one is closer than
+    /// `LANDING_CLEARANCE_M`: a drone never lands on another.
     fn go_land(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        // Drones out of the way above (giving way) are no reason to move: this one descends
+        // away from them.
         let clear = |p: &Vec3| {
-            ctx.fleet
-                .others(ctx.drone_id)
-                .all(|d| (d.position_enu_m - p).xy().norm() > LANDING_CLEARANCE_M)
+            ctx.fleet.others(ctx.drone_id).all(|d| {
+                (d.position_enu_m - p).xy().norm() > LANDING_CLEARANCE_M
+                    || d.position_enu_m.z > p.z + 0.5
+            })
         };
         if clear(&ctx.position()) {
             let mut land = Land::new(LandGoal { speed: 0.5 });
@@ -564,12 +578,7 @@ impl Explore {
                 "no clear place to land: another drone is below",
             ));
         }
-        let follow = FollowPathGoal {
-            path: back.iter().map(|p| [p.x, p.y, p.z]).collect(),
-            speed: self.goal.speed,
-            yaw: YawArgs::default(),
-            frame_id: Some(EARTH.to_string()),
-        };
+        let follow = self.path_goal(&back);
         let mut child = FollowPath::new(follow);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
         self.phase = Phase::Relocating(Box::new(child));
@@ -722,6 +731,52 @@ mod tests {
         scene
             .services
             .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
+    }
+
+    fn other(x: f64, z: f64) -> crate::behavior::fleet::DroneView {
+        crate::behavior::fleet::DroneView {
+            id: "other".into(),
+            position_enu_m: Vec3::new(x, 0.0, z),
+            velocity_enu_mps: Vec3::zeros(),
+            yaw_rad: 0.0,
+            flying: z > 0.1,
+            link: crate::types::LinkHealth::Ok,
+            motion_behavior: None,
+            goal_enu_m: None,
+            stamp: Duration::ZERO,
+            local: true,
+            uncertainty_m: 0.0,
+            silent: false,
+            unaccounted: false,
+        }
+    }
+
+    #[test]
+    fn a_drone_lands_beside_one_giving_way_above_but_moves_away_from_one_level_or_landed() {
+        let landing_from = |other_drone: crate::behavior::fleet::DroneView| {
+            let mut scene = Scene::flying();
+            scene.fleet.drones.push(other_drone);
+            let mut explore = Explore::new(ExploreGoal::default());
+            // It came from 3 m west, along its track.
+            for x in [-3.0, -2.0, -1.0, 0.0] {
+                scene.set_position(Vec3::new(x, 0.0, 1.0), Vec3::zeros());
+                explore.drop_crumb(&scene.ctx(0));
+            }
+            explore.start_exploring(&scene.ctx(0));
+            explore.go_land(&scene.ctx(1)).unwrap();
+            explore.phase
+        };
+        // 1 m aside and 1 m up (giving way): it descends away from it, here.
+        assert!(matches!(landing_from(other(1.0, 2.0)), Phase::Landing(_)));
+        // Level with it, or landed there: back along its track first.
+        assert!(matches!(
+            landing_from(other(1.0, 1.0)),
+            Phase::Relocating(_)
+        ));
+        assert!(matches!(
+            landing_from(other(1.0, 0.0)),
+            Phase::Relocating(_)
+        ));
     }
 
     #[test]
