@@ -174,6 +174,9 @@ pub fn spec() -> BehaviorSpec {
 /// is 0.02 % of the thesis's 50 x 50 m world, and the watch at a pocket that never clears (a
 /// quarter turn and more) took the end of every run.
 const POCKET_AREA_M2: f64 = 0.5;
+/// Frontiers bordering at least this much unknown (m^2) are worth a trip from anywhere;
+/// smaller regions only from nearer, the nearer the smaller (the allocator's rule).
+const WORTH_ANY_TRIP_M2: f64 = 4.0;
 /// Shortest time between two questions to the allocator.
 const MIN_ASK_INTERVAL: Duration = Duration::from_millis(500);
 /// Track points kept for finding a landing spot, and their spacing (m).
@@ -306,6 +309,7 @@ impl Explore {
             min_cells: cells(self.goal.min_frontier_length),
             min_final_cells: cells(self.goal.end_frontier_length),
             min_gain_cells: (POCKET_AREA_M2 / (resolution_m * resolution_m)).round() as usize,
+            gain_cap_cells: (WORTH_ANY_TRIP_M2 / (resolution_m * resolution_m)).round() as usize,
             occupied_threshold: ctx
                 .map
                 .map_or(SpaceParams::default().occupied_threshold, |m| {

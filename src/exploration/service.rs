@@ -9,7 +9,9 @@
 //! offered again once after a while, left for good the second time). Frontiers that border
 //! only a small pocket of unknown (`SpaceParams::min_gain_cells`) are offered only to a drone a
 //! few metres away: a visit adds little, so they are worth no more than a short detour, and they
-//! do not keep the exploration going.
+//! do not keep the exploration going. Those with under `SpaceParams::gain_cap_cells` of unknown
+//! near their goal are worth a trip that grows with it. When every frontier is held, a drone
+//! farther from one than its holder is told `Done` rather than sent to crowd it.
 //! With `sweep_along`, a frontier of 2 m or more is given as a sweep: the path goes to its end
 //! nearer by path, then along it to the other end (the goal), and the drone is told which way to
 //! turn so that the unknown side is the one its beams sweep best.
@@ -22,7 +24,7 @@ use std::time::Duration;
 use nalgebra::Vector2;
 use serde::Serialize;
 
-use super::allocation::{choose, AllocatorKind, Candidate, Requester};
+use super::allocation::{choose, AllocatorKind, Candidate, Requester, CLAIM_RADIUS_M};
 use super::reach::Reach;
 use super::space::{Frontier, Space, SpaceParams};
 use crate::mapping::grid::OccupancyGrid;
@@ -36,6 +38,9 @@ const GIVEN_UP_RADIUS_M: f64 = 0.8;
 const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
 /// Pockets (frontiers with little unknown behind) are flown to only this close (m of path).
 const LOW_GAIN_NEAR_M: f64 = 3.0;
+/// A frontier bordering an unknown region smaller than `SpaceParams::gain_cap_cells` is flown
+/// to from at most `LOW_GAIN_NEAR_M` plus this many metres of path per square metre of it.
+const TRIP_M_PER_M2: f64 = 8.0;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
 
@@ -122,6 +127,8 @@ struct GivenUp {
 struct Claim {
     goal: Vector2<f64>,
     stamp: Duration,
+    /// Where its drone was when it last asked (unknown for another process's drones).
+    from: Option<Vector2<f64>>,
 }
 
 /// A goal held by a drone another Kestrel process flies: (drone, goal, when it was claimed, on
@@ -233,6 +240,7 @@ impl FrontierService {
             let claim = Claim {
                 goal: goal.xy(),
                 stamp,
+                from: None,
             };
             // One claim per drone: the newest (the list is sorted newest first).
             self.remote.entry(drone).or_insert(claim);
@@ -287,7 +295,18 @@ impl FrontierService {
             .collect();
         // Pockets (little unknown behind) only when near: a visit adds little, so it is worth
         // only a short detour.
-        let worth = |f: &Frontier, path_m: f64| !f.low_gain || path_m <= LOW_GAIN_NEAR_M;
+        // A region smaller than the cap is worth a trip of a length that grows with its area.
+        let cap_m2 = {
+            let res = space.spec().resolution_m;
+            request.space.gain_cap_cells as f64 * res * res
+        };
+        let worth = |f: &Frontier, path_m: f64| {
+            if f.low_gain {
+                path_m <= LOW_GAIN_NEAR_M
+            } else {
+                f.gain_m2 >= cap_m2 || path_m <= LOW_GAIN_NEAR_M + TRIP_M_PER_M2 * f.gain_m2
+            }
+        };
         let paths: Vec<Option<f64>> = open
             .iter()
             .map(|f| reach.distance_m(f.goal_index).filter(|&d| worth(f, d)))
@@ -313,7 +332,7 @@ impl FrontierService {
             .map(|(_, c)| c.goal)
             .collect();
         let sweeping = |f: &Frontier| request.sweep_along && f.size_m >= SWEEP_MIN_M;
-        let candidates: Vec<(Candidate, &Frontier)> = open
+        let mut candidates: Vec<(Candidate, &Frontier)> = open
             .iter()
             .zip(&paths)
             .filter_map(|(f, p)| {
@@ -352,6 +371,24 @@ impl FrontierService {
             .filter(|(id, _)| **id != request.drone)
             .map(|(_, c)| c.goal)
             .collect();
+        // Every frontier held: one whose drone is nearer it than this one would only be
+        // crowded (and one of the two would have to give way); this drone waits instead, and
+        // ends if nothing frees up.
+        let holder_m = |c: &Candidate| {
+            self.claims
+                .iter()
+                .chain(&self.remote)
+                .filter(|(id, _)| **id != request.drone)
+                .find(|(_, h)| (c.centroid_enu_m - h.goal).norm() <= CLAIM_RADIUS_M)
+                .map(|(_, h)| h.from.map(|p| (p - h.goal).norm()))
+        };
+        if candidates.iter().all(|(c, _)| holder_m(c).is_some()) {
+            candidates.retain(|(c, _)| {
+                holder_m(c)
+                    .flatten()
+                    .is_none_or(|holder_m| c.path_m < holder_m)
+            });
+        }
         let me = Requester {
             position_enu_m: here,
             current_goal_enu_m: request.current_goal_enu_m,
@@ -393,6 +430,7 @@ impl FrontierService {
             Claim {
                 goal: frontier.goal_enu_m,
                 stamp: now,
+                from: Some(here),
             },
         );
         let goal = Vec3::new(goal_xy.x, goal_xy.y, z);
@@ -536,9 +574,8 @@ mod tests {
         assert_eq!(s.claims().len(), 1);
     }
 
-    #[test]
-    fn a_pocket_is_flown_to_only_from_nearby() {
-        // 20 x 10 m known free but for a 0.5 x 0.5 m unknown pocket around (15.25, 5.05).
+    /// 20 x 10 m known free but for a square unknown pocket of `side` cells from (15, 4.8).
+    fn pocket(side: usize) -> OccupancyGrid {
         let spec = GridSpec {
             resolution_m: 0.1,
             width_cells: 200,
@@ -548,7 +585,7 @@ mod tests {
         let data = (0..100)
             .flat_map(|y| {
                 (0..200).map(move |x| {
-                    let pocket = (150..155).contains(&x) && (48..53).contains(&y);
+                    let pocket = (150..150 + side).contains(&x) && (48..48 + side).contains(&y);
                     if pocket {
                         UNKNOWN
                     } else {
@@ -557,7 +594,13 @@ mod tests {
                 })
             })
             .collect();
-        let grid = OccupancyGrid::from_data(spec, data).unwrap();
+        OccupancyGrid::from_data(spec, data).unwrap()
+    }
+
+    #[test]
+    fn a_pocket_is_flown_to_only_from_nearby() {
+        // A 0.5 x 0.5 m pocket around (15.25, 5.05).
+        let grid = pocket(5);
         let with_gain = |mut r: ExploreRequest| {
             r.space.min_gain_cells = 50;
             r
@@ -574,6 +617,45 @@ mod tests {
         let mut s = FrontierService::new();
         let any = s.answer(t, &grid, &ask("a", 2.0, 5.0)).unwrap();
         assert!((goal_of(&any).xy() - Vector2::new(15.25, 5.05)).norm() < 1.5);
+    }
+
+    #[test]
+    fn a_small_unknown_region_is_worth_a_trip_that_grows_with_its_area() {
+        // A 1 x 1 m region around (15.5, 5.3): worth LOW_GAIN_NEAR_M + 8 m of path, so from
+        // 5 m away but not from 13 m.
+        let grid = pocket(10);
+        let capped = |mut r: ExploreRequest| {
+            r.space.min_gain_cells = 50;
+            r.space.gain_cap_cells = 400;
+            r
+        };
+        let t = Duration::from_secs(1);
+        let mut s = FrontierService::new();
+        let far = s.answer(t, &grid, &capped(ask("a", 2.0, 5.0))).unwrap();
+        assert!(matches!(far, Allocation::Done { .. }), "{far:?}");
+        let near = s.answer(t, &grid, &capped(ask("a", 10.0, 5.0))).unwrap();
+        assert!((goal_of(&near).xy() - Vector2::new(15.5, 5.3)).norm() < 1.8);
+        // A region of the cap or more (here: no cap) is worth any trip.
+        let any = FrontierService::new()
+            .answer(t, &grid, &ask("a", 2.0, 5.0))
+            .unwrap();
+        assert!((goal_of(&any).xy() - Vector2::new(15.5, 5.3)).norm() < 1.8);
+    }
+
+    #[test]
+    fn with_every_frontier_held_a_drone_farther_than_its_holder_waits_instead_of_crowding() {
+        let grid = half_known();
+        let t = Duration::from_secs(1);
+        let mut s = FrontierService::new();
+        // Two drones 1.5 m from the frontier at x = 10 m take its two parts.
+        let a = goal_of(&s.answer(t, &grid, &ask("a", 8.0, 2.5)).unwrap());
+        let b = goal_of(&s.answer(t, &grid, &ask("b", 8.0, 7.5)).unwrap());
+        assert!((a - b).norm() > 3.0, "{a:?} {b:?}");
+        let far = s.answer(t, &grid, &ask("c", 1.0, 5.0)).unwrap();
+        assert_eq!(far, Allocation::Done { frontiers: 2 });
+        // Nearer a part than its holder: it may share it.
+        let near = goal_of(&s.answer(t, &grid, &ask("d", a.x, a.y - 0.5)).unwrap());
+        assert!((near - a).norm() < 1e-9, "{near:?} {a:?}");
     }
 
     #[test]

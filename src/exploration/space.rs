@@ -21,6 +21,9 @@ use nalgebra::Vector2;
 
 use crate::mapping::grid::{GridSpec, OccupancyGrid, UNKNOWN};
 
+/// A frontier's gain is the unknown within this distance of its goal (m).
+const GAIN_RADIUS_M: f64 = 2.5;
+
 /// How the space is read.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpaceParams {
@@ -41,6 +44,9 @@ pub struct SpaceParams {
     /// up to this many) are marked `low_gain`: a pocket behind a pole or in a corner that a
     /// visit could add only this little to. 0: none is.
     pub min_gain_cells: usize,
+    /// The unknown near each frontier is counted up to this many cells into
+    /// `Frontier::gain_m2`.
+    pub gain_cap_cells: usize,
 }
 
 impl Default for SpaceParams {
@@ -52,6 +58,7 @@ impl Default for SpaceParams {
             split_cells: 35,
             occupied_threshold: crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD,
             min_gain_cells: 0,
+            gain_cap_cells: 0,
         }
     }
 }
@@ -84,6 +91,8 @@ pub struct Frontier {
     pub small: bool,
     /// Borders fewer than `min_gain_cells` unknown cells: a small enclosed pocket.
     pub low_gain: bool,
+    /// The unknown within 2.5 m of its goal (m^2), counted up to `gain_cap_cells`.
+    pub gain_m2: f64,
 }
 
 /// The navigable cells and the frontiers of one grid.
@@ -253,13 +262,41 @@ impl Space {
                 let small = c.len() < self.params.min_cells;
                 let low_gain = gain > 0 && self.unknown_behind(&c, gain) < gain;
                 let mut parts = split(c, &self.spec, self.params.split_cells);
+                let cell_m2 = self.spec.resolution_m * self.spec.resolution_m;
                 for p in &mut parts {
                     p.small = small;
                     p.low_gain = low_gain;
+                    p.gain_m2 = self.unknown_near(p.goal_index, self.params.gain_cap_cells) as f64
+                        * cell_m2;
                 }
                 parts
             })
             .collect();
+    }
+
+    /// How many unknown cells lie within `GAIN_RADIUS_M` of cell `center`, counted up to
+    /// `cap`: what a visit could add. A disc, not the connected unknown region: the rays that
+    /// crossed a large unknown region cut it into pieces that each look small.
+    fn unknown_near(&self, center: usize, cap: usize) -> usize {
+        let w = self.spec.width_cells as i64;
+        let h = self.spec.height_cells as i64;
+        let r = (GAIN_RADIUS_M / self.spec.resolution_m).round() as i64;
+        let (cx, cy) = (center as i64 % w, center as i64 / w);
+        let mut count = 0;
+        for y in (cy - r).max(0)..=(cy + r).min(h - 1) {
+            let dy = y - cy;
+            let half = ((r * r - dy * dy) as f64).sqrt() as i64;
+            let row = (y * w) as usize;
+            for x in (cx - half).max(0)..=(cx + half).min(w - 1) {
+                if self.data[row + x as usize] == UNKNOWN {
+                    count += 1;
+                    if count >= cap {
+                        return count;
+                    }
+                }
+            }
+        }
+        count
     }
 
     /// How many unknown cells the frontier `cells` borders, counted up to `cap`: the unknown
@@ -549,6 +586,7 @@ fn split(cells: Vec<usize>, spec: &GridSpec, split_cells: usize) -> Vec<Frontier
                 end_indices: ends,
                 small: false,
                 low_gain: false,
+                gain_m2: 0.0,
             })
         })
         .collect()
