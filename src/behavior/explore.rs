@@ -738,21 +738,7 @@ mod tests {
     }
 
     fn other(x: f64, z: f64) -> crate::behavior::fleet::DroneView {
-        crate::behavior::fleet::DroneView {
-            id: "other".into(),
-            position_enu_m: Vec3::new(x, 0.0, z),
-            velocity_enu_mps: Vec3::zeros(),
-            yaw_rad: 0.0,
-            flying: z > 0.1,
-            link: crate::types::LinkHealth::Ok,
-            motion_behavior: None,
-            goal_enu_m: None,
-            stamp: Duration::ZERO,
-            local: true,
-            uncertainty_m: 0.0,
-            silent: false,
-            unaccounted: false,
-        }
+        crate::behavior::fleet::DroneView::at_rest("other", Vec3::new(x, 0.0, z), z > 0.1)
     }
 
     #[test]

@@ -74,13 +74,12 @@ impl FleetView {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn drone(id: &str, x: f64, flying: bool) -> DroneView {
+impl DroneView {
+    /// This Kestrel's drone `id`, at rest at `position_enu_m` and heard at time zero (for tests).
+    pub fn at_rest(id: &str, position_enu_m: Vec3, flying: bool) -> Self {
         DroneView {
             id: id.into(),
-            position_enu_m: Vec3::new(x, 0.0, 1.0),
+            position_enu_m,
             velocity_enu_mps: Vec3::zeros(),
             yaw_rad: 0.0,
             flying,
@@ -93,6 +92,15 @@ mod tests {
             silent: false,
             unaccounted: false,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drone(id: &str, x: f64, flying: bool) -> DroneView {
+        DroneView::at_rest(id, Vec3::new(x, 0.0, 1.0), flying)
     }
 
     #[test]

@@ -1,7 +1,6 @@
 use super::*;
 use crate::behavior::fleet::DroneView;
-use crate::types::{LinkHealth, Pose, Validity};
-use std::time::Duration;
+use crate::types::{Pose, Validity};
 
 fn at(x: f64, y: f64, z: f64) -> EstimatedState {
     EstimatedState {
@@ -27,21 +26,7 @@ fn velocity(x: f64, y: f64, z: f64) -> Setpoint {
 }
 
 fn drone(id: &str, x: f64, y: f64) -> DroneView {
-    DroneView {
-        id: id.into(),
-        position_enu_m: Vec3::new(x, y, 2.0),
-        velocity_enu_mps: Vec3::zeros(),
-        yaw_rad: 0.0,
-        flying: true,
-        link: LinkHealth::Ok,
-        motion_behavior: None,
-        goal_enu_m: None,
-        stamp: Duration::ZERO,
-        local: true,
-        uncertainty_m: 0.0,
-        silent: false,
-        unaccounted: false,
-    }
+    DroneView::at_rest(id, Vec3::new(x, y, 2.0), true)
 }
 
 fn check(
