@@ -18,9 +18,10 @@
 //! distance all around, so it never flies where it has not seen; it asks again every
 //! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
-//! The exploration ends when the allocator has had no reachable frontier for this drone for a
-//! quarter turn of sensing (and, while frontiers are left that others hold, until a failed
-//! drone's claims would have lapsed); the drone then lands (`land_when_done`; first back along its own
+//! The exploration ends for this drone when the allocator has nothing for it and no other drone
+//! holds a frontier, once it has flown to one (it turns all the time, so its beams swept all
+//! around on the way); before that, or while others hold frontiers, after a quarter turn of
+//! sensing and until a failed drone's claims would have lapsed. It then lands (`land_when_done`; first back along its own
 //! track when another drone, flying or landed, is within 1.5 m) and the behavior succeeds.
 //! When another flying drone comes closer than `drone_safety_distance` at the same height, the
 //! one nearer its goal climbs 1 m and holds until they are 1.2 times that apart, then returns.
@@ -355,20 +356,25 @@ impl Explore {
         self.pending = None;
         match answer {
             Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
-            Ok(Allocation::Done { frontiers }) => {
-                trace(ctx, "done", || format!("frontiers={frontiers}"));
+            Ok(Allocation::Done { frontiers, held }) => {
+                trace(ctx, "done", || format!("frontiers={frontiers} held={held}"));
                 self.frontiers = frontiers;
                 self.target = None;
                 self.child = None;
-                // No frontier anywhere after a full sweep: over. Frontiers this drone cannot
-                // reach or that others hold: another sweep first (space may open up), and long
-                // enough for the claims of a drone that failed to lapse, so its part is taken.
+                // Nothing left anywhere after a full sweep, or nothing left for it after a
+                // flight (it turns all the time): over. Before its first flight (space may
+                // open up as it turns), or with frontiers that others hold: a quarter turn, and
+                // long enough for the claims of a drone that failed to lapse, so its part is
+                // taken.
                 let swept = seconds(ctx.now, self.started_at) >= self.sense_s();
                 let since = *self.done_since.get_or_insert(ctx.now);
                 let wait_s = self
                     .sense_s()
                     .max(CLAIM_TTL.as_secs_f64() + CLAIM_LAPSE_EXTRA_S);
-                Ok((frontiers == 0 && swept) || seconds(ctx.now, since) >= wait_s)
+                // Having flown to a frontier, its beams swept all around on the way here.
+                let flown = self.allocations > 0;
+                Ok((swept && (frontiers == 0 || (held == 0 && flown)))
+                    || seconds(ctx.now, since) >= wait_s)
             }
             Ok(Allocation::Goal {
                 goal_enu_m,
@@ -737,6 +743,18 @@ mod tests {
             .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
     }
 
+    /// The explorer's question this tick, answered `Done`.
+    fn answer_done(scene: &Scene, frontiers: usize, held: usize) {
+        let calls = scene.services.drain_calls();
+        let Some(ServiceCall::Explore(job)) = calls.into_iter().next() else {
+            panic!("no question to the allocator");
+        };
+        let answer = Allocation::Done { frontiers, held };
+        scene
+            .services
+            .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
+    }
+
     fn other(x: f64, z: f64) -> crate::behavior::fleet::DroneView {
         crate::behavior::fleet::DroneView::at_rest("other", Vec3::new(x, 0.0, z), z > 0.1)
     }
@@ -787,5 +805,29 @@ mod tests {
         explore.explore_tick(&scene.ctx(3), &mut requests).unwrap();
         assert_eq!(explore.target, Some(Vec3::new(5.0, 1.0, 1.0)));
         assert!(explore.child.is_some());
+    }
+
+    #[test]
+    fn with_nothing_left_for_it_a_drone_ends_at_once_unless_others_hold_frontiers() {
+        // (frontiers left, held by others) -> whether the first answer ends the exploration.
+        let ends_at_once = |frontiers: usize, held: usize, flown: u32| {
+            let scene = Scene::flying();
+            let mut explore = Explore::new(ExploreGoal::default());
+            explore.start_exploring(&scene.ctx(0));
+            explore.allocations = flown;
+            let mut requests = Vec::new();
+            // After the first quarter turn (10.5 s at the thesis's rate).
+            explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
+            answer_done(&scene, frontiers, held);
+            explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
+            matches!(explore.phase, Phase::Landing(_) | Phase::Relocating(_))
+        };
+        assert!(ends_at_once(0, 0, 0));
+        // Left only frontiers it cannot reach or that are not worth its trip, after a flight to
+        // a frontier: over. Before any (space may open up as it turns): it waits.
+        assert!(ends_at_once(3, 0, 1));
+        assert!(!ends_at_once(3, 0, 0));
+        // Frontiers others hold: it waits (a failed drone's claims lapse, its part comes back).
+        assert!(!ends_at_once(3, 1, 1));
     }
 }

@@ -16,8 +16,11 @@
 //! - `kestrel` (the default): the shortest *flown* distance (path length through known free
 //!   space, not a straight line through poles and unknown space), less a bonus for long frontiers
 //!   (more to see), plus a penalty for frontiers within two beam ranges of another drone's goal
-//!   (that drone will see them), with a hysteresis that keeps the current goal unless another is
-//!   clearly better (no dithering between two equal frontiers).
+//!   (that drone will see them) and one for each metre by which another drone, going on from its
+//!   goal, would be there first (it takes that frontier next; this drone goes where no one else
+//!   is near, so the fleet spreads over the last, scattered frontiers instead of queueing at
+//!   one), with a hysteresis that keeps the current goal unless another is clearly better (no
+//!   dithering between two equal frontiers).
 
 use nalgebra::Vector2;
 use schemars::JsonSchema;
@@ -71,21 +74,49 @@ pub struct Requester {
     pub current_goal_enu_m: Option<Vector2<f64>>,
 }
 
+/// A goal another drone holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Held {
+    pub goal_enu_m: Vector2<f64>,
+    /// How far its drone was from it when it last asked (m, straight); `None` when unknown (a
+    /// drone of another Kestrel: its claim does not carry its position).
+    pub remaining_m: Option<f64>,
+}
+
+impl Held {
+    /// A goal held by a drone whose position is not known.
+    pub fn at(goal_enu_m: Vector2<f64>) -> Self {
+        Self {
+            goal_enu_m,
+            remaining_m: None,
+        }
+    }
+
+    /// How far its drone flies to `point` going on from its goal (at least; m), if known.
+    fn reach_m(&self, point: Vector2<f64>) -> Option<f64> {
+        self.remaining_m
+            .map(|r| r + (point - self.goal_enu_m).norm())
+    }
+}
+
 /// Kestrel's weights (m of flown distance each).
 const SIZE_BONUS_PER_M: f64 = 1.0;
 const SIZE_BONUS_CAP_M: f64 = 3.5;
 const OTHERS_PENALTY_M: f64 = 12.0;
 const OTHERS_RADIUS_M: f64 = 8.0;
 const KEEP_BONUS_M: f64 = 2.0;
+/// For each metre by which another drone would reach a frontier first (m per m).
+const BEHIND_PENALTY_PER_M: f64 = 1.0;
 const KEEP_RADIUS_M: f64 = 1.0;
 
-/// Picks a frontier for `me` among `candidates`, given the goals `others` hold.
+/// Picks a frontier for `me` among `candidates`, given the goals `held` by the other drones.
 pub fn choose(
     kind: AllocatorKind,
     me: &Requester,
     candidates: &[Candidate],
-    others: &[Vector2<f64>],
+    held: &[Held],
 ) -> Option<usize> {
+    let others: Vec<Vector2<f64>> = held.iter().map(|h| h.goal_enu_m).collect();
     let unclaimed: Vec<usize> = (0..candidates.len())
         .filter(|&i| {
             others
@@ -140,7 +171,12 @@ pub fn choose(
                     .current_goal_enu_m
                     .filter(|g| (c.goal_enu_m - g).norm() < KEEP_RADIUS_M)
                     .map_or(0.0, |_| KEEP_BONUS_M);
-                -(c.path_m - bonus + crowd - keep)
+                let first_m = held
+                    .iter()
+                    .filter_map(|h| h.reach_m(c.centroid_enu_m))
+                    .fold(f64::INFINITY, f64::min);
+                let behind = BEHIND_PENALTY_PER_M * (c.path_m - first_m).max(0.0);
+                -(c.path_m - bonus + crowd + behind - keep)
             }
         }
     };
@@ -194,7 +230,7 @@ mod tests {
     #[test]
     fn kestrel_leaves_frontiers_near_another_drones_goal_to_it() {
         let c = [at(5.0, 0.0, 5.0, 2.0), at(-7.0, 0.0, 7.0, 2.0)];
-        let other_goal = [Vector2::new(6.0, 1.0)];
+        let other_goal = [Held::at(Vector2::new(6.0, 1.0))];
         assert_eq!(
             choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &other_goal),
             Some(1)
@@ -218,7 +254,7 @@ mod tests {
     #[test]
     fn a_frontier_another_drone_holds_is_taken_only_when_nothing_else_is_left() {
         let c = [at(1.0, 0.0, 1.0, 2.0), at(20.0, 0.0, 20.0, 2.0)];
-        let held = [Vector2::new(1.2, 0.0)];
+        let held = [Held::at(Vector2::new(1.2, 0.0))];
         for kind in [
             AllocatorKind::Kestrel,
             AllocatorKind::Thesis,
@@ -245,13 +281,41 @@ mod tests {
         let c = [at(-4.0, -4.0, 6.0, 2.0), at(8.0, 8.0, 12.0, 2.0)];
         let mut r = me(0.0, 0.0);
         r.current_goal_enu_m = Some(Vector2::new(0.0, 0.0));
-        let others = [Vector2::new(10.0, 0.0), Vector2::new(0.0, 10.0)];
+        let others = [
+            Held::at(Vector2::new(10.0, 0.0)),
+            Held::at(Vector2::new(0.0, 10.0)),
+        ];
         assert_eq!(choose(AllocatorKind::Thesis, &r, &c, &others), Some(0));
         assert_eq!(choose(AllocatorKind::Farthest, &r, &c, &others), Some(0));
         // Alone, with no goal allocated yet, the thesis takes the nearest.
         assert_eq!(
             choose(AllocatorKind::Thesis, &me(7.0, 7.0), &c, &[]),
             Some(1)
+        );
+    }
+
+    #[test]
+    fn kestrel_leaves_a_far_frontier_to_the_drone_that_will_be_there_first() {
+        // A lies 20 m ahead, B 21 m behind. Another drone is 1 m from its goal, 9 m past A: it
+        // reaches A after 10 m, this drone after 20 m. Beyond two beam ranges of that goal, so
+        // only the race decides.
+        let c = [at(20.0, 0.0, 20.0, 2.0), at(-21.0, 0.0, 21.0, 2.0)];
+        let mut other = Held::at(Vector2::new(29.0, 0.0));
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[other]),
+            Some(0),
+            "where the other drone is is unknown: the nearer frontier"
+        );
+        other.remaining_m = Some(1.0);
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[other]),
+            Some(1)
+        );
+        other.remaining_m = Some(12.0);
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[other]),
+            Some(0),
+            "this drone is first: its nearer frontier"
         );
     }
 }

@@ -24,7 +24,7 @@ use std::time::Duration;
 use nalgebra::Vector2;
 use serde::Serialize;
 
-use super::allocation::{choose, AllocatorKind, Candidate, Requester, CLAIM_RADIUS_M};
+use super::allocation::{choose, AllocatorKind, Candidate, Held, Requester, CLAIM_RADIUS_M};
 use super::reach::Reach;
 use super::space::{Frontier, Space, SpaceParams};
 use crate::mapping::grid::OccupancyGrid;
@@ -75,8 +75,10 @@ pub enum Allocation {
         /// or not; `None`: as before.
         clockwise: Option<bool>,
     },
-    /// No frontier this drone can reach (`frontiers`: those left that it cannot).
-    Done { frontiers: usize },
+    /// No frontier for this drone (`frontiers`: those left that it cannot reach, is too far
+    /// from for what they add, or leaves to their holders; `held`: how many of them other
+    /// drones hold).
+    Done { frontiers: usize, held: usize },
 }
 
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -364,12 +366,15 @@ impl FrontierService {
                 ))
             })
             .collect();
-        let others: Vec<Vector2<f64>> = self
+        let others: Vec<Held> = self
             .claims
             .iter()
             .chain(&self.remote)
             .filter(|(id, _)| **id != request.drone)
-            .map(|(_, c)| c.goal)
+            .map(|(_, c)| Held {
+                goal_enu_m: c.goal,
+                remaining_m: c.from.map(|from| (from - c.goal).norm()),
+            })
             .collect();
         // Every frontier held: one whose drone is nearer it than this one would only be
         // crowded (and one of the two would have to give way); this drone waits instead, and
@@ -394,12 +399,26 @@ impl FrontierService {
             current_goal_enu_m: request.current_goal_enu_m,
         };
         let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
+        let done = || {
+            let held = open
+                .iter()
+                .filter(|f| {
+                    others
+                        .iter()
+                        .any(|h| (f.centroid_enu_m - h.goal_enu_m).norm() <= CLAIM_RADIUS_M)
+                })
+                .count();
+            Allocation::Done {
+                frontiers: left,
+                held: held.min(left),
+            }
+        };
         let Some(chosen) = choose(request.allocator, &me, &just, &others) else {
             self.claims.remove(&request.drone);
-            return Ok(Allocation::Done { frontiers: left });
+            return Ok(done());
         };
         let Some(&(_, frontier)) = candidates.get(chosen) else {
-            return Ok(Allocation::Done { frontiers: left });
+            return Ok(done());
         };
         let z = request.flight_height_m;
         let to_middle = || {
@@ -608,7 +627,13 @@ mod tests {
         let t = Duration::from_secs(1);
         let mut s = FrontierService::new();
         let far = s.answer(t, &grid, &with_gain(ask("a", 2.0, 5.0))).unwrap();
-        assert_eq!(far, Allocation::Done { frontiers: 0 });
+        assert_eq!(
+            far,
+            Allocation::Done {
+                frontiers: 0,
+                held: 0
+            }
+        );
         let near = s
             .answer(t, &grid, &with_gain(ask("a", 15.25, 3.6)))
             .unwrap();
@@ -652,7 +677,13 @@ mod tests {
         let b = goal_of(&s.answer(t, &grid, &ask("b", 8.0, 7.5)).unwrap());
         assert!((a - b).norm() > 3.0, "{a:?} {b:?}");
         let far = s.answer(t, &grid, &ask("c", 1.0, 5.0)).unwrap();
-        assert_eq!(far, Allocation::Done { frontiers: 2 });
+        assert_eq!(
+            far,
+            Allocation::Done {
+                frontiers: 2,
+                held: 2
+            }
+        );
         // Nearer a part than its holder: it may share it.
         let near = goal_of(&s.answer(t, &grid, &ask("d", a.x, a.y - 0.5)).unwrap());
         assert!((near - a).norm() < 1e-9, "{near:?} {a:?}");
@@ -665,7 +696,7 @@ mod tests {
         let t = Duration::from_secs(1);
         // A drone deep in the unknown half reaches no frontier.
         let lost = s.answer(t, &grid, &ask("a", 15.0, 5.0)).unwrap();
-        assert!(matches!(lost, Allocation::Done { frontiers } if frontiers > 0));
+        assert!(matches!(lost, Allocation::Done { frontiers, held: 0 } if frontiers > 0));
         let first = goal_of(&s.answer(t, &grid, &ask("a", 2.0, 5.0)).unwrap());
         let mut r = ask("a", 2.0, 5.0);
         r.give_up = Some(first.xy());
