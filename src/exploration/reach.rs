@@ -7,7 +7,7 @@
 //! (path distance to every frontier at once) and the flight (the path to the chosen one).
 //!
 //! The drone's own neighbourhood (the safety distance around it) counts as navigable where it
-//! is no closer to an obstacle than the drone already is, so a drone that hovers where it has
+//! is no closer to an obstacle or to unknown space than the drone already is, so a drone that hovers where it has
 //! not mapped yet (just after takeoff) can leave it, and one that has come close to an obstacle
 //! leaves it without grazing it. Costs are 10 per straight step and 14 per diagonal, searched with a bucket queue
 //! (O(cells)).
@@ -38,10 +38,10 @@ impl Reach {
         let start = space.index_at(from_enu_m)?;
         let s = space.safety_cells() as i64;
         let (sx, sy) = ((start % w) as i64, (start / w) as i64);
-        // Near the start: never closer to an obstacle than the drone already is.
-        let start_margin = space.obstacle_margin(start);
+        // Near the start: never closer to an obstacle or the unknown than the drone already is.
+        let start_margin = space.clearance_level(start);
         let near_start_ok =
-            |i: usize| space.is_clear(i) && space.obstacle_margin(i) >= start_margin;
+            |i: usize| space.is_clear(i) && space.clearance_level(i) >= start_margin;
         let passable = |i: usize| {
             if space.is_navigable(i) {
                 return true;
@@ -190,7 +190,7 @@ impl Reach {
         (x - sx).abs() <= s
             && (y - sy).abs() <= s
             && space.is_clear(i)
-            && space.obstacle_margin(i) >= space.obstacle_margin(self.start)
+            && space.clearance_level(i) >= space.clearance_level(self.start)
     }
 }
 
@@ -287,6 +287,41 @@ mod tests {
             for k in 0..=20 {
                 let q = at + (p - at) * (f64::from(k) / 20.0);
                 assert!((q - obstacle).norm() > 0.19, "{q:?} on {path:?}");
+            }
+            at = *p;
+        }
+    }
+
+    #[test]
+    fn a_path_never_cuts_toward_an_unknown_hole_where_a_pole_no_beam_hit_may_stand() {
+        // Known free but a 5 x 5 unknown hole (cells 28..33 x 18..23, centre (3.05, 2.05)): a
+        // pole the beams went round without hitting. The drone is 0.45 m from its corner, just
+        // outside the safety distance; the goal lies beyond the hole. Near its own spot the
+        // path must not come closer to the unknown than the drone already is.
+        let hole = |x: u32, y: u32| (28..33).contains(&x) && (18..23).contains(&y);
+        let g = grid(80, 50, |x, y| {
+            if hole(x, y) {
+                crate::mapping::grid::UNKNOWN
+            } else {
+                0
+            }
+        });
+        let space = Space::new(&g, &SpaceParams::default());
+        let from = Vector2::new(2.45, 2.65);
+        let to_hole = |q: Vector2<f64>| {
+            let nearest = Vector2::new(q.x.clamp(2.8, 3.3), q.y.clamp(1.8, 2.3));
+            (q - nearest).norm()
+        };
+        let start_gap = to_hole(from);
+        assert!(start_gap > 0.4 && start_gap < 0.5, "{start_gap}");
+        let reach = Reach::new(&space, from).unwrap();
+        let goal = space.index_at(Vector2::new(3.85, 1.25)).unwrap();
+        let path = reach.path_to(&space, goal).unwrap();
+        let mut at = from;
+        for p in &path {
+            for k in 0..=40 {
+                let q = at + (p - at) * (f64::from(k) / 40.0);
+                assert!(to_hole(q) > 0.35, "{q:?} on {path:?}");
             }
             at = *p;
         }

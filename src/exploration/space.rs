@@ -103,8 +103,8 @@ pub struct Space {
     /// The grid this was read from, to find what changed.
     data: Vec<i8>,
     navigable: Vec<bool>,
-    /// How far each cell is from the nearest obstacle: 0 within half the safety distance, 1
-    /// within it, 2 beyond.
+    /// How far each cell is from the nearest obstacle or unknown cell: 0 within half the
+    /// safety distance, 1 within it, 2 beyond.
     margin: Vec<u8>,
     frontier: Vec<bool>,
     safety_cells: usize,
@@ -220,6 +220,7 @@ impl Space {
         let occ_s = dilate_disc(&occupied, cw, ch, s);
         let occ_s1 = dilate_disc(&occupied, cw, ch, s + 1);
         let occ_half = dilate_disc(&occupied, cw, ch, s.div_ceil(2));
+        let unk_half = dilate_disc(&unknown, cw, ch, s.div_ceil(2));
         let unk_s = dilate_disc(&unknown, cw, ch, s);
         let unk_s1 = dilate_disc(&unknown, cw, ch, s + 1);
         // The map's edge counts as an obstacle.
@@ -229,9 +230,9 @@ impl Space {
                 let j = (y - c.y0) * cw + (x - c.x0);
                 let navigable = closed_free[j] && !occ_s[j] && !unk_s[j] && !edge_within(x, y, s);
                 self.navigable[y * w + x] = navigable;
-                self.margin[y * w + x] = if occ_half[j] {
+                self.margin[y * w + x] = if occ_half[j] || unk_half[j] {
                     0
-                } else if occ_s[j] {
+                } else if occ_s[j] || unk_s[j] {
                     1
                 } else {
                     2
@@ -388,9 +389,9 @@ impl Space {
             .is_some_and(|&v| v < self.params.occupied_threshold)
     }
 
-    /// How far cell `index` is from obstacles: 0 within half the safety distance, 1 within
-    /// it, 2 beyond.
-    pub fn obstacle_margin(&self, index: usize) -> u8 {
+    /// How far cell `index` is from obstacles and unknown cells (a pole no beam has hit yet
+    /// shows only as unknown): 0 within half the safety distance, 1 within it, 2 beyond.
+    pub fn clearance_level(&self, index: usize) -> u8 {
         self.margin.get(index).copied().unwrap_or(0)
     }
 
