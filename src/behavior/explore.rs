@@ -356,16 +356,23 @@ impl Explore {
         self.pending = None;
         match answer {
             Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
-            Ok(Allocation::Done { frontiers, held }) => {
-                trace(ctx, "done", || format!("frontiers={frontiers} held={held}"));
+            Ok(Allocation::Done {
+                frontiers,
+                held,
+                unreached,
+            }) => {
+                trace(ctx, "done", || {
+                    format!("frontiers={frontiers} held={held} unreached={unreached}")
+                });
                 self.frontiers = frontiers;
                 self.target = None;
                 self.child = None;
-                // Nothing left anywhere after a full sweep, or nothing left for it after a
-                // flight (it turns all the time): over. Before its first flight (space may
-                // open up as it turns), or with frontiers that others hold: a quarter turn, and
-                // long enough for the claims of a drone that failed to lapse, so its part is
-                // taken.
+                // Nothing left anywhere after a full sweep, or, after a flight (it turns all
+                // the time), only frontiers it can reach but that are not worth the trip: over.
+                // Before its first flight (space may open up as it turns), with frontiers that
+                // others hold, or with frontiers it has no path to from here (boxed in by
+                // unknown space that sensing may open): a quarter turn, and long enough for the
+                // claims of a drone that failed to lapse, so its part is taken.
                 let swept = seconds(ctx.now, self.started_at) >= self.sense_s();
                 let since = *self.done_since.get_or_insert(ctx.now);
                 let wait_s = self
@@ -373,8 +380,10 @@ impl Explore {
                     .max(CLAIM_TTL.as_secs_f64() + CLAIM_LAPSE_EXTRA_S);
                 // Having flown to a frontier, its beams swept all around on the way here.
                 let flown = self.allocations > 0;
-                Ok((swept && (frontiers == 0 || (held == 0 && flown)))
-                    || seconds(ctx.now, since) >= wait_s)
+                Ok(
+                    (swept && (frontiers == 0 || (held == 0 && unreached == 0 && flown)))
+                        || seconds(ctx.now, since) >= wait_s,
+                )
             }
             Ok(Allocation::Goal {
                 goal_enu_m,
@@ -744,12 +753,16 @@ mod tests {
     }
 
     /// The explorer's question this tick, answered `Done`.
-    fn answer_done(scene: &Scene, frontiers: usize, held: usize) {
+    fn answer_done(scene: &Scene, frontiers: usize, held: usize, unreached: usize) {
         let calls = scene.services.drain_calls();
         let Some(ServiceCall::Explore(job)) = calls.into_iter().next() else {
             panic!("no question to the allocator");
         };
-        let answer = Allocation::Done { frontiers, held };
+        let answer = Allocation::Done {
+            frontiers,
+            held,
+            unreached,
+        };
         scene
             .services
             .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
@@ -808,9 +821,10 @@ mod tests {
     }
 
     #[test]
-    fn with_nothing_left_for_it_a_drone_ends_at_once_unless_others_hold_frontiers() {
-        // (frontiers left, held by others) -> whether the first answer ends the exploration.
-        let ends_at_once = |frontiers: usize, held: usize, flown: u32| {
+    fn with_nothing_worth_a_trip_left_a_drone_ends_at_once_unless_others_hold_frontiers() {
+        // (frontiers left, held by others, without a path from here, flights so far) ->
+        // whether the first answer ends the exploration.
+        let ends_at_once = |frontiers: usize, held: usize, unreached: usize, flown: u32| {
             let scene = Scene::flying();
             let mut explore = Explore::new(ExploreGoal::default());
             explore.start_exploring(&scene.ctx(0));
@@ -818,16 +832,19 @@ mod tests {
             let mut requests = Vec::new();
             // After the first quarter turn (10.5 s at the thesis's rate).
             explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
-            answer_done(&scene, frontiers, held);
+            answer_done(&scene, frontiers, held, unreached);
             explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
             matches!(explore.phase, Phase::Landing(_) | Phase::Relocating(_))
         };
-        assert!(ends_at_once(0, 0, 0));
-        // Left only frontiers it cannot reach or that are not worth its trip, after a flight to
+        assert!(ends_at_once(0, 0, 0, 0));
+        // Left only frontiers it can reach but that are not worth its trip, after a flight to
         // a frontier: over. Before any (space may open up as it turns): it waits.
-        assert!(ends_at_once(3, 0, 1));
-        assert!(!ends_at_once(3, 0, 0));
+        assert!(ends_at_once(3, 0, 0, 1));
+        assert!(!ends_at_once(3, 0, 0, 0));
         // Frontiers others hold: it waits (a failed drone's claims lapse, its part comes back).
-        assert!(!ends_at_once(3, 1, 1));
+        assert!(!ends_at_once(3, 1, 0, 1));
+        // Frontiers it has no path to from here (boxed in by unknown space): it turns and
+        // asks again instead of leaving a third of the world unexplored.
+        assert!(!ends_at_once(3, 0, 2, 1));
     }
 }

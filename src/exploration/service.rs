@@ -77,8 +77,12 @@ pub enum Allocation {
     },
     /// No frontier for this drone (`frontiers`: those left that it cannot reach, is too far
     /// from for what they add, or leaves to their holders; `held`: how many of them other
-    /// drones hold).
-    Done { frontiers: usize, held: usize },
+    /// drones hold; `unreached`: how many it has no path to, from where it is now).
+    Done {
+        frontiers: usize,
+        held: usize,
+        unreached: usize,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -400,6 +404,10 @@ impl FrontierService {
         };
         let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
         let done = || {
+            let unreached = open
+                .iter()
+                .filter(|f| !f.low_gain && reach.distance_m(f.goal_index).is_none())
+                .count();
             let held = open
                 .iter()
                 .filter(|f| {
@@ -411,6 +419,7 @@ impl FrontierService {
             Allocation::Done {
                 frontiers: left,
                 held: held.min(left),
+                unreached: unreached.min(left),
             }
         };
         let Some(chosen) = choose(request.allocator, &me, &just, &others) else {
@@ -631,7 +640,8 @@ mod tests {
             far,
             Allocation::Done {
                 frontiers: 0,
-                held: 0
+                held: 0,
+                unreached: 0
             }
         );
         let near = s
@@ -681,7 +691,8 @@ mod tests {
             far,
             Allocation::Done {
                 frontiers: 2,
-                held: 2
+                held: 2,
+                unreached: 0
             }
         );
         // Nearer a part than its holder: it may share it.
@@ -696,7 +707,10 @@ mod tests {
         let t = Duration::from_secs(1);
         // A drone deep in the unknown half reaches no frontier.
         let lost = s.answer(t, &grid, &ask("a", 15.0, 5.0)).unwrap();
-        assert!(matches!(lost, Allocation::Done { frontiers, held: 0 } if frontiers > 0));
+        assert!(matches!(
+            lost,
+            Allocation::Done { frontiers, held: 0, unreached } if frontiers > 0 && unreached == frontiers
+        ));
         let first = goal_of(&s.answer(t, &grid, &ask("a", 2.0, 5.0)).unwrap());
         let mut r = ask("a", 2.0, 5.0);
         r.give_up = Some(first.xy());
