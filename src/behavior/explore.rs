@@ -37,6 +37,7 @@ use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::EARTH;
 use crate::exploration::allocation::AllocatorKind;
+use crate::exploration::reach::KeepOut;
 use crate::exploration::service::{Allocation, ExploreRequest, CLAIM_TTL};
 use crate::exploration::space::SpaceParams;
 use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
@@ -196,6 +197,9 @@ const CLAIM_LAPSE_EXTRA_S: f64 = 2.0;
 const STUCK_RADIUS_M: f64 = 1.0;
 /// ... for a quarter turn plus this long gives its goal up.
 const STUCK_EXTRA_S: f64 = 2.0;
+/// Kept from a silent drone's last position beyond its uncertainty (m): the safety stage's
+/// default least separation and its margin (1.0 + 0.2 m), and 0.3 m of room.
+const SILENT_KEEP_OUT_M: f64 = 1.5;
 
 enum Phase {
     TakingOff(Box<dyn Behavior>),
@@ -327,6 +331,7 @@ impl Explore {
             current_goal_enu_m: self.target.map(|t| t.xy()),
             give_up: self.give_up.take(),
             sweep_along: self.goal.sweep_along,
+            keep_out: silent_keep_out(ctx),
         }));
         self.asked_at = Some(ctx.now);
         self.asked_from = ctx.position();
@@ -724,6 +729,22 @@ impl Behavior for Explore {
     fn goal_enu_m(&self) -> Option<Vec3> {
         self.target
     }
+}
+
+/// Around each drone another Kestrel flew that fell silent: where it could be (its
+/// uncertainty) plus what the safety stage keeps from it, and room to turn there. The
+/// allocator neither sends a drone into these discs nor routes through them; the safety stage
+/// would stop it at their edge, and the frontier would hold it there.
+fn silent_keep_out(ctx: &BehaviorContext) -> Vec<KeepOut> {
+    ctx.fleet
+        .drones
+        .iter()
+        .filter(|d| d.silent && !d.local && &*d.id != ctx.drone_id)
+        .map(|d| KeepOut {
+            centre_enu_m: d.position_enu_m.xy(),
+            radius_m: d.uncertainty_m + SILENT_KEEP_OUT_M,
+        })
+        .collect()
 }
 
 #[cfg(test)]

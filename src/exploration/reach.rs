@@ -7,10 +7,12 @@
 //! (path distance to every frontier at once) and the flight (the path to the chosen one).
 //!
 //! The drone's own neighbourhood (the safety distance around it) counts as navigable where it
-//! is no closer to an obstacle or to unknown space than the drone already is, so a drone that hovers where it has
-//! not mapped yet (just after takeoff) can leave it, and one that has come close to an obstacle
-//! leaves it without grazing it. Costs are 10 per straight step and 14 per diagonal, searched with a bucket queue
-//! (O(cells)).
+//! is no closer to an obstacle or to unknown space than the drone already is, so a drone that
+//! hovers where it has not mapped yet (just after takeoff) can leave it, and one that has come
+//! close to an obstacle leaves it without grazing it. Discs to keep out of (around a drone
+//! another Kestrel flew that fell silent: the safety stage stops any drone at their edge) are
+//! not passable either, except, for a drone already inside one, outward. Costs are 10 per
+//! straight step and 14 per diagonal, searched with a bucket queue (O(cells)).
 
 use nalgebra::Vector2;
 
@@ -20,11 +22,20 @@ const STRAIGHT: u32 = 10;
 const DIAGONAL: u32 = 14;
 const UNREACHED: u32 = u32::MAX;
 
+/// A disc no path may enter (ENU m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KeepOut {
+    pub centre_enu_m: Vector2<f64>,
+    pub radius_m: f64,
+}
+
 /// Path distances from one start.
 #[derive(Debug, Clone)]
 pub struct Reach {
     width: usize,
     start: usize,
+    /// The discs kept out of, with the start's distance from each centre (m).
+    keep_out: Vec<(KeepOut, f64)>,
     cost: Vec<u32>,
     parent: Vec<u32>,
     resolution_m: f64,
@@ -33,9 +44,25 @@ pub struct Reach {
 impl Reach {
     /// Searches from `from_enu_m`; `None` when it lies outside the grid.
     pub fn new(space: &Space, from_enu_m: Vector2<f64>) -> Option<Self> {
+        Self::keeping_out(space, from_enu_m, &[])
+    }
+
+    /// As [`Reach::new`], never entering the discs `keep_out` (nor going deeper into one the
+    /// drone is in).
+    pub fn keeping_out(
+        space: &Space,
+        from_enu_m: Vector2<f64>,
+        keep_out: &[KeepOut],
+    ) -> Option<Self> {
         let spec = *space.spec();
         let (w, h) = (spec.width_cells as usize, spec.height_cells as usize);
         let start = space.index_at(from_enu_m)?;
+        let start_at = space.center_of(start)?;
+        let keep_out: Vec<(KeepOut, f64)> = keep_out
+            .iter()
+            .map(|k| (*k, (start_at - k.centre_enu_m).norm()))
+            .collect();
+        let outside = |i: usize| outside_keep_out(space, &keep_out, i);
         let s = space.safety_cells() as i64;
         let (sx, sy) = ((start % w) as i64, (start / w) as i64);
         // Near the start: never closer to an obstacle or the unknown than the drone already is.
@@ -43,6 +70,9 @@ impl Reach {
         let near_start_ok =
             |i: usize| space.is_clear(i) && space.clearance_level(i) >= start_margin;
         let passable = |i: usize| {
+            if !outside(i) {
+                return false;
+            }
             if space.is_navigable(i) {
                 return true;
             }
@@ -102,6 +132,7 @@ impl Reach {
         Some(Reach {
             width: w,
             start,
+            keep_out,
             cost,
             parent,
             resolution_m: spec.resolution_m,
@@ -164,7 +195,9 @@ impl Reach {
         let mut err = dx + dy;
         loop {
             let i = (y * w + x) as usize;
-            if !space.is_navigable(i) && !self.near_start(i, space) {
+            if !outside_keep_out(space, &self.keep_out, i)
+                || (!space.is_navigable(i) && !self.near_start(i, space))
+            {
                 return false;
             }
             if x == x1 && y == y1 {
@@ -192,6 +225,17 @@ impl Reach {
             && space.is_clear(i)
             && space.clearance_level(i) >= space.clearance_level(self.start)
     }
+}
+
+/// Whether cell `i` lies outside every disc, or inside one no deeper than the start was.
+fn outside_keep_out(space: &Space, keep_out: &[(KeepOut, f64)], i: usize) -> bool {
+    let Some(at) = space.center_of(i) else {
+        return false;
+    };
+    keep_out.iter().all(|(k, start_m)| {
+        let d = (at - k.centre_enu_m).norm();
+        d >= k.radius_m || d >= *start_m
+    })
 }
 
 const NEIGHBOURS: [(i64, i64); 8] = [
@@ -325,5 +369,36 @@ mod tests {
             }
             at = *p;
         }
+    }
+
+    #[test]
+    fn a_keep_out_disc_is_neither_entered_nor_crossed_but_left_from_inside() {
+        // 10 x 4 m known free; a 1.5 m disc around (5, 2) (a silent drone's last position).
+        let g = grid(100, 40, |_, _| 0);
+        let space = Space::new(&g, &SpaceParams::default());
+        let disc = KeepOut {
+            centre_enu_m: Vector2::new(5.0, 2.0),
+            radius_m: 1.5,
+        };
+        let reach = Reach::keeping_out(&space, Vector2::new(2.05, 2.05), &[disc]).unwrap();
+        let inside = space.index_at(Vector2::new(5.6, 2.0)).unwrap();
+        assert!(reach.distance_m(inside).is_none());
+        // Across: round it, never through it.
+        let across = space.index_at(Vector2::new(8.05, 2.05)).unwrap();
+        let path = reach.path_to(&space, across).unwrap();
+        let mut at = Vector2::new(2.05, 2.05);
+        for p in &path {
+            for k in 0..=40 {
+                let q = at + (p - at) * (f64::from(k) / 40.0);
+                assert!((q - disc.centre_enu_m).norm() > 1.45, "{q:?} on {path:?}");
+            }
+            at = *p;
+        }
+        // From inside it, a drone gets out, moving away from the centre.
+        let from_inside = Reach::keeping_out(&space, Vector2::new(4.45, 2.05), &[disc]).unwrap();
+        let out = space.index_at(Vector2::new(2.05, 2.05)).unwrap();
+        assert!(from_inside.distance_m(out).is_some());
+        let deeper = space.index_at(Vector2::new(5.15, 2.05)).unwrap();
+        assert!(from_inside.distance_m(deeper).is_none());
     }
 }

@@ -25,7 +25,7 @@ use nalgebra::Vector2;
 use serde::Serialize;
 
 use super::allocation::{choose, AllocatorKind, Candidate, Held, Requester, CLAIM_RADIUS_M};
-use super::reach::Reach;
+use super::reach::{KeepOut, Reach};
 use super::space::{Frontier, Space, SpaceParams};
 use crate::mapping::grid::OccupancyGrid;
 use crate::types::Vec3;
@@ -60,6 +60,9 @@ pub struct ExploreRequest {
     /// Fly along a long frontier, end to end, instead of to its middle (the beams sweep it
     /// on the way).
     pub sweep_along: bool,
+    /// Discs no path may enter and no goal may lie in: around drones other Kestrels flew that
+    /// fell silent, which the safety stage keeps every drone away from.
+    pub keep_out: Vec<KeepOut>,
 }
 
 /// What a drone is told.
@@ -281,7 +284,8 @@ impl FrontierService {
             claims.retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
         }
         let here = request.position_enu_m.xy();
-        let reach = Reach::new(space, here).ok_or(ExploreError::OutsideMap)?;
+        let reach =
+            Reach::keeping_out(space, here, &request.keep_out).ok_or(ExploreError::OutsideMap)?;
         let open: Vec<_> = space
             .frontiers
             .iter()
@@ -530,6 +534,7 @@ mod tests {
             current_goal_enu_m: None,
             give_up: None,
             sweep_along: false,
+            keep_out: Vec::new(),
         }
     }
 

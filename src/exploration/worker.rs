@@ -362,6 +362,7 @@ mod tests {
                 current_goal_enu_m: None,
                 give_up: None,
                 sweep_along: false,
+                keep_out: Vec::new(),
             },
             cancel: Arc::new(AtomicBool::new(false)),
         }
