@@ -20,11 +20,14 @@
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
 //! The exploration ends for this drone when the allocator has nothing for it and no other drone
 //! holds a frontier, once it has flown to one (it turns all the time, so its beams swept all
-//! around on the way); before that, or while others hold frontiers, after a quarter turn of
-//! sensing and until a failed drone's claims would have lapsed. It then lands (`land_when_done`; first back along its own
-//! track when another drone, flying or landed, is within 1.5 m) and the behavior succeeds.
+//! around on the way) and has a path to every frontier left or has turned a quarter turn where
+//! it is; before that, or while others hold frontiers, after a quarter turn of sensing and until
+//! a failed drone's claims would have lapsed. It then lands (`land_when_done`; first back along
+//! its own track when another drone, flying or landed, is within 1.5 m) and the behavior
+//! succeeds.
 //! When another flying drone comes closer than `drone_safety_distance` at the same height, the
-//! one nearer its goal climbs 1 m and holds until they are 1.2 times that apart, then returns.
+//! one nearer its goal climbs 1 m (or as far as it gets in 8 s: a drone already up there may
+//! stop it) and holds until they are 1.2 times that apart, then returns.
 
 use super::follow_path::{FollowPath, FollowPathGoal};
 use super::goal::{check_positive, YawArgs, YawMode};
@@ -197,6 +200,9 @@ const CLAIM_LAPSE_EXTRA_S: f64 = 2.0;
 const STUCK_RADIUS_M: f64 = 1.0;
 /// ... for a quarter turn plus this long gives its goal up.
 const STUCK_EXTRA_S: f64 = 2.0;
+/// A drone giving way counts as up after this long even short of the full climb (s; the climb
+/// itself takes about 2 s).
+const GIVE_WAY_CLIMB_LIMIT_S: f64 = 8.0;
 /// Kept from a silent drone's last position beyond its uncertainty (m): the safety stage's
 /// default least separation and its margin (1.0 + 0.2 m), and 0.3 m of room.
 const SILENT_KEEP_OUT_M: f64 = 1.5;
@@ -204,10 +210,11 @@ const SILENT_KEEP_OUT_M: f64 = 1.5;
 enum Phase {
     TakingOff(Box<dyn Behavior>),
     Exploring,
-    /// Out of another drone's way above `hold`, then back down to it.
+    /// Out of another drone's way above `hold` (since `since`), then back down to it.
     GivingWay {
         hold: Vec3,
         returning: bool,
+        since: Duration,
     },
     /// Back along its own track to a place clear of the other drones, to land there.
     Relocating(Box<dyn Behavior>),
@@ -385,10 +392,12 @@ impl Explore {
                     .max(CLAIM_TTL.as_secs_f64() + CLAIM_LAPSE_EXTRA_S);
                 // Having flown to a frontier, its beams swept all around on the way here.
                 let flown = self.allocations > 0;
-                Ok(
-                    (swept && (frontiers == 0 || (held == 0 && unreached == 0 && flown)))
-                        || seconds(ctx.now, since) >= wait_s,
-                )
+                // Within a metre of here for a quarter turn: its beams swept all around from
+                // here, so what it has no path to stays that way (while no one else explores).
+                let stayed = seconds(ctx.now, self.anchor.1) >= self.sense_s();
+                Ok((swept
+                    && (frontiers == 0 || (held == 0 && flown && (unreached == 0 || stayed))))
+                    || seconds(ctx.now, since) >= wait_s)
             }
             Ok(Allocation::Goal {
                 goal_enu_m,
@@ -524,6 +533,7 @@ impl Explore {
             self.phase = Phase::GivingWay {
                 hold: Vec3::new(ctx.position().x, ctx.position().y, self.base_z),
                 returning: false,
+                since: ctx.now,
             };
             return Ok(Some(ctx.hold_here()));
         }
@@ -687,13 +697,25 @@ impl Behavior for Explore {
                 Step::Succeeded => return Step::Succeeded,
                 Step::Failed(reason) => return Step::Failed(reason.within("land")),
             },
-            Phase::GivingWay { hold, returning } => {
-                let (hold, was_returning) = (*hold, *returning);
+            Phase::GivingWay {
+                hold,
+                returning,
+                since,
+            } => {
+                let (hold, was_returning, since) = (*hold, *returning, *since);
                 let up = Vec3::new(hold.x, hold.y, hold.z + 1.0);
                 let here = ctx.position();
-                let returning =
-                    was_returning || ((here.z - up.z).abs() < 0.15 && self.clear_to_return(ctx));
-                self.phase = Phase::GivingWay { hold, returning };
+                // Up, or as far up as it gets: a drone already giving way right above it keeps
+                // the safety stage from letting it climb the whole metre, and that drone waits
+                // for this one to leave.
+                let climbed = (here.z - up.z).abs() < 0.15
+                    || seconds(ctx.now, since) >= GIVE_WAY_CLIMB_LIMIT_S;
+                let returning = was_returning || (climbed && self.clear_to_return(ctx));
+                self.phase = Phase::GivingWay {
+                    hold,
+                    returning,
+                    since,
+                };
                 let target = if returning { hold } else { up };
                 if returning && (here - hold).norm() < 0.15 {
                     self.phase = Phase::Exploring;
@@ -822,6 +844,44 @@ mod tests {
     }
 
     #[test]
+    fn a_drone_giving_way_under_another_that_gave_way_comes_back_once_the_level_one_has_gone() {
+        // It flew in under a drone already up out of the way; now a level drone with farther
+        // to go comes within 2 m, so it gives way too, but the drone above keeps it at 1.35 m.
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+        let mut level = other(1.5, 1.0);
+        level.id = "drone_1".into();
+        level.goal_enu_m = Some(Vec3::new(20.0, 0.0, 1.0));
+        let mut above = other(0.1, 2.0);
+        above.id = "drone_3".into();
+        scene.fleet.drones = vec![level, above];
+        let mut explore = Explore::new(ExploreGoal::default());
+        explore.start_exploring(&scene.ctx(0));
+        let mut requests = Vec::new();
+        explore.run(&scene.ctx(1), &mut requests);
+        assert!(matches!(explore.phase, Phase::GivingWay { .. }));
+        scene.set_position(Vec3::new(0.0, 0.0, 1.35), Vec3::zeros());
+        // The level drone goes on; the one above waits for this one to leave.
+        scene.fleet.drones.remove(0);
+        let returning = |e: &Explore| {
+            matches!(
+                e.phase,
+                Phase::GivingWay {
+                    returning: true,
+                    ..
+                }
+            )
+        };
+        explore.run(&scene.ctx(3), &mut requests);
+        assert!(!returning(&explore), "still climbing");
+        explore.run(&scene.ctx(10), &mut requests);
+        assert!(
+            returning(&explore),
+            "as far up as it gets, and clear: back down"
+        );
+    }
+
+    #[test]
     fn a_late_answer_from_where_the_drone_no_longer_is_is_asked_again_not_flown() {
         let mut scene = Scene::flying();
         scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
@@ -845,11 +905,13 @@ mod tests {
     fn with_nothing_worth_a_trip_left_a_drone_ends_at_once_unless_others_hold_frontiers() {
         // (frontiers left, held by others, without a path from here, flights so far) ->
         // whether the first answer ends the exploration.
-        let ends_at_once = |frontiers: usize, held: usize, unreached: usize, flown: u32| {
+        let ends_after = |here_s: u64, frontiers: usize, held: usize, unreached: usize, flown| {
             let scene = Scene::flying();
             let mut explore = Explore::new(ExploreGoal::default());
             explore.start_exploring(&scene.ctx(0));
             explore.allocations = flown;
+            // It came within a metre of where it is `here_s` ago.
+            explore.anchor.1 = Duration::from_secs(12 - here_s);
             let mut requests = Vec::new();
             // After the first quarter turn (10.5 s at the thesis's rate).
             explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
@@ -857,6 +919,8 @@ mod tests {
             explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
             matches!(explore.phase, Phase::Landing(_) | Phase::Relocating(_))
         };
+        let ends_at_once =
+            |frontiers, held, unreached, flown| ends_after(1, frontiers, held, unreached, flown);
         assert!(ends_at_once(0, 0, 0, 0));
         // Left only frontiers it can reach but that are not worth its trip, after a flight to
         // a frontier: over. Before any (space may open up as it turns): it waits.
@@ -865,7 +929,13 @@ mod tests {
         // Frontiers others hold: it waits (a failed drone's claims lapse, its part comes back).
         assert!(!ends_at_once(3, 1, 0, 1));
         // Frontiers it has no path to from here (boxed in by unknown space): it turns and
-        // asks again instead of leaving a third of the world unexplored.
+        // asks again instead of leaving a third of the world unexplored; once it has turned
+        // a quarter turn where it is, sensing opens no more: over.
         assert!(!ends_at_once(3, 0, 2, 1));
+        assert!(ends_after(11, 3, 0, 2, 1));
+        assert!(
+            !ends_after(11, 3, 1, 2, 1),
+            "others hold frontiers: it waits"
+        );
     }
 }
