@@ -20,7 +20,10 @@
 //!   goal, would be there first (it takes that frontier next; this drone goes where no one else
 //!   is near, so the fleet spreads over the last, scattered frontiers instead of queueing at
 //!   one), with a hysteresis that keeps the current goal unless another is clearly better (no
-//!   dithering between two equal frontiers).
+//!   dithering between two equal frontiers), and a bonus for frontiers near the map's edge: the
+//!   unknown strip between such a frontier and the edge is a dead end, cleared now from nearby
+//!   or later by a trip back that often made the end of a run (the last drone flying 20-50 m to
+//!   a strip along the edge the fleet had passed, and exploring it alone).
 
 use nalgebra::Vector2;
 use schemars::JsonSchema;
@@ -64,6 +67,8 @@ pub struct Candidate {
     pub size_m: f64,
     /// Flown distance from the drone to the goal (m).
     pub path_m: f64,
+    /// Straight-line distance from the centroid to the nearest edge of the map (m).
+    pub edge_m: f64,
 }
 
 /// The drone asking.
@@ -108,6 +113,9 @@ const KEEP_BONUS_M: f64 = 2.0;
 /// For each metre by which another drone would reach a frontier first (m per m).
 const BEHIND_PENALTY_PER_M: f64 = 1.0;
 const KEEP_RADIUS_M: f64 = 1.0;
+/// For a frontier at the map's edge, falling to nothing this far from it (m).
+const EDGE_BONUS_M: f64 = 8.0;
+const EDGE_RADIUS_M: f64 = 5.0;
 
 /// Picks a frontier for `me` among `candidates`, given the goals `held` by the other drones.
 pub fn choose(
@@ -176,7 +184,8 @@ pub fn choose(
                     .filter_map(|h| h.reach_m(c.centroid_enu_m))
                     .fold(f64::INFINITY, f64::min);
                 let behind = BEHIND_PENALTY_PER_M * (c.path_m - first_m).max(0.0);
-                -(c.path_m - bonus + crowd + behind - keep)
+                let edge = EDGE_BONUS_M * (1.0 - c.edge_m / EDGE_RADIUS_M).max(0.0);
+                -(c.path_m - bonus + crowd + behind - keep - edge)
             }
         }
     };
@@ -198,6 +207,7 @@ mod tests {
             goal_enu_m: Vector2::new(x, y),
             size_m,
             path_m,
+            edge_m: f64::INFINITY,
         }
     }
 
@@ -235,6 +245,24 @@ mod tests {
             choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &other_goal),
             Some(1)
         );
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[]),
+            Some(0)
+        );
+    }
+
+    #[test]
+    fn kestrel_clears_a_strip_along_the_map_edge_before_going_on_inward() {
+        // A is 5 m away in the middle of the map; B, 9 m away, is 1 m from the map's edge.
+        let mut c = [at(5.0, 0.0, 5.0, 2.0), at(0.0, 9.0, 9.0, 2.0)];
+        c[0].edge_m = 20.0;
+        c[1].edge_m = 1.0;
+        assert_eq!(
+            choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[]),
+            Some(1)
+        );
+        // Farther from the edge the bonus fades: the nearer frontier again.
+        c[1].edge_m = 4.0;
         assert_eq!(
             choose(AllocatorKind::Kestrel, &me(0.0, 0.0), &c, &[]),
             Some(0)

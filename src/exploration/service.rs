@@ -211,6 +211,22 @@ fn sweep_path(
     }
 }
 
+/// How far `point` lies from the nearest edge of the map (m, 0 outside it).
+fn edge_distance_m(space: &Space, point: Vector2<f64>) -> f64 {
+    let spec = space.spec();
+    let lo = spec.origin_enu_m;
+    let hi = lo
+        + Vector2::new(
+            f64::from(spec.width_cells) * spec.resolution_m,
+            f64::from(spec.height_cells) * spec.resolution_m,
+        );
+    (point.x - lo.x)
+        .min(hi.x - point.x)
+        .min(point.y - lo.y)
+        .min(hi.y - point.y)
+        .max(0.0)
+}
+
 /// The allocator's memory between requests.
 #[derive(Default)]
 pub struct FrontierService {
@@ -369,6 +385,7 @@ impl FrontierService {
                         goal_enu_m,
                         size_m: f.size_m,
                         path_m,
+                        edge_m: edge_distance_m(space, f.centroid_enu_m),
                     },
                     *f,
                 ))
