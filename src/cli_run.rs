@@ -108,6 +108,7 @@ impl Platform for RealtimeSim {
                 setpoints: AcceptedSetpoints {
                     velocity: true,
                     position: true,
+                    position_loop: None,
                 },
                 native_takeoff: false,
                 native_land: false,

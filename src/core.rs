@@ -112,7 +112,7 @@ impl DroneCore {
         Self {
             estimator: estimator::build(config.estimator),
             controller: Controller::new(config.controller, capabilities.setpoints),
-            safety: SafetyStage::new(config.safety.clone()),
+            safety: SafetyStage::new(config.safety.clone(), capabilities.setpoints.position_loop),
             server: BehaviorServer::new(registry),
             services: ServiceDesk::default(),
             fleet: Arc::default(),
@@ -321,6 +321,11 @@ impl DroneCore {
         }
         let out = self.server.tick(&ctx);
         let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
+        let caps = self.controller.caps(
+            out.reference
+                .as_ref()
+                .map_or(f64::INFINITY, |r| r.max_speed_mps()),
+        );
         let setpoint = match out.reference {
             Some(reference) if usable => {
                 Some(self.controller.update(&self.state, &reference, dt_s))
@@ -338,6 +343,7 @@ impl DroneCore {
             home,
             flying,
             setpoint,
+            caps,
             &self.fleet,
         );
         TickOutput {

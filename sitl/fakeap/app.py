@@ -54,6 +54,8 @@ def parse_args(argv=None):
     ap.add_argument("--deny-arm", metavar="REASON", default=None, help="deny every arming with this reason")
     ap.add_argument("--packet-loss", type=float, default=0.0, help="loss probability per message, both ways")
     ap.add_argument("--latency-ms", type=float, default=0.0, help="added one-way latency, both ways")
+    ap.add_argument("--telemetry-jitter-ms", type=float, default=0.0,
+                    help="telemetry (autopilot to companion) delayed a further 0..J ms at random, order kept")
     ap.add_argument("--reject", action="append", default=[], metavar="CMD:RESULT[:COUNT]",
                     help="reject command id CMD with MAV_RESULT RESULT (COUNT times, default always)")
     ap.add_argument("--log-jsonl", metavar="PATH", default=None,
@@ -94,6 +96,7 @@ class App:
             v.faults.deny_arm_reason = a.deny_arm
         v.faults.loss_probability = a.packet_loss
         v.faults.latency_s = a.latency_ms / 1000.0
+        v.faults.jitter_s = a.telemetry_jitter_ms / 1000.0
         for spec in a.reject:
             parts = spec.split(":")
             count = int(parts[2]) if len(parts) > 2 else None
@@ -198,6 +201,7 @@ class App:
                 f.loss_probability = p
             elif cmd == "latency":
                 f.latency_s = float(req.get("latency_ms", 0.0)) / 1000.0
+                f.jitter_s = float(req.get("jitter_ms", 0.0)) / 1000.0
             elif cmd == "deny_arm":
                 f.deny_arm_reason = req.get("reason", "Denied by fault injection") if req.get("enable", True) else None
                 if req.get("px4_event"):

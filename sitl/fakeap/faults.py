@@ -12,6 +12,7 @@ class Faults:
         self.link_down_until = 0.0          # sim time
         self.loss_probability = 0.0         # both directions, per MAVLink message
         self.latency_s = 0.0                # added one-way delay, both directions (wall s)
+        self.jitter_s = 0.0                 # telemetry only: a further 0..jitter_s, order kept
         self.reject = {}                    # command id -> [result, remaining count]
         self.deny_arm_reason = None         # str or None
         self.deny_arm_px4_event = "commander_arm_denied_resolve_failures"
@@ -39,6 +40,7 @@ class Faults:
             "link_down_remaining_s": max(0.0, self.link_down_until - now),
             "loss_probability": self.loss_probability,
             "latency_s": self.latency_s,
+            "jitter_s": self.jitter_s,
             "reject": {str(k): {"result": v[0], "remaining": v[1]} for k, v in self.reject.items()},
             "deny_arm_reason": self.deny_arm_reason,
         }
@@ -99,12 +101,15 @@ class SetpointStats:
 
 
 class DelayLine:
-    """FIFO of (due_wall_s, item) for added latency."""
+    """FIFO of (due_wall_s, item) for added latency. Items leave in the order they came: one
+    due earlier than the item before it waits for that one (a link that stalls, then bursts)."""
 
     def __init__(self):
         self.q = deque()
 
     def push(self, due, item):
+        if self.q:
+            due = max(due, self.q[-1][0])
         self.q.append((due, item))
 
     def pop_due(self, now_wall):

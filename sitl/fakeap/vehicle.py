@@ -166,8 +166,10 @@ class Vehicle(TelemetryMixin, SetpointMixin):
         now = self.clock.now()
         if now < self.rebooting_until or self.faults.link_down(now) or self.faults.lose():
             return
-        if self.faults.latency_s > 0:
-            self.out_delay.push(time.monotonic() + self.faults.latency_s, data)
+        f = self.faults
+        if f.latency_s > 0 or f.jitter_s > 0:
+            jitter = f.rng.uniform(0.0, f.jitter_s) if f.jitter_s > 0 else 0.0
+            self.out_delay.push(time.monotonic() + f.latency_s + jitter, data)
         else:
             self.link.send(data)
 

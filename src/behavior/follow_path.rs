@@ -5,7 +5,9 @@ use super::goal::{
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, Step};
+use super::{
+    heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, PathHeading, Step,
+};
 use crate::control::trajectory::{PathTrajectory, TrajectoryLimits};
 use crate::control::MotionReference;
 use crate::types::PlatformRequest;
@@ -71,6 +73,7 @@ pub struct FollowPath {
     next: usize,
     trajectory: Option<PathTrajectory>,
     yaw: ResolvedYaw,
+    heading: PathHeading,
     /// Least path length left so far (m) and when it last shrank, to fail when stuck.
     best_remaining_m: f64,
     best_at: Duration,
@@ -84,6 +87,7 @@ impl FollowPath {
             next: 0,
             trajectory: None,
             yaw: ResolvedYaw::Fixed(0.0),
+            heading: PathHeading::default(),
             best_remaining_m: f64::INFINITY,
             best_at: Duration::ZERO,
         }
@@ -185,12 +189,16 @@ impl InFlight for FollowPath {
             return Step::Succeeded;
         }
         let next_point = self.waypoints.get(self.next).copied().unwrap_or(last);
-        let heading_point = sample.position_enu_m + sample.velocity_enu_mps;
+        // Path facing: along the reference's motion, held near the end and while it is slow.
+        let along = (sample.velocity_enu_mps.xy().norm() > 0.05
+            && (last - ctx.position()).xy().norm() > super::PATH_FACING_HOLD_M)
+            .then_some(sample.velocity_enu_mps);
         let reference = MotionReference::Trajectory {
             position_enu_m: sample.position_enu_m,
             velocity_enu_mps: sample.velocity_enu_mps,
             acceleration_enu_mps2: sample.acceleration_enu_mps2,
-            yaw: yaw_target(&self.yaw, ctx, &heading_point),
+            yaw: yaw_target(&self.yaw, ctx, &mut self.heading, along),
+            max_speed_mps: self.goal.speed,
         };
         let feedback = json!({
             "actual_speed": ctx.state.velocity_enu_mps.norm(),

@@ -5,7 +5,7 @@ use super::goal::{
     check_finite, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw, YawArgs,
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
-use super::{yaw_target, BehaviorContext, Failure, Step};
+use super::{yaw_target, BehaviorContext, Failure, PathHeading, Step};
 use crate::control::MotionReference;
 use crate::types::PlatformRequest;
 use crate::types::Vec3;
@@ -66,6 +66,7 @@ pub struct FollowReference {
     goal: FollowReferenceGoal,
     yaw: ResolvedYaw,
     last_target: MovingTarget,
+    heading: PathHeading,
 }
 
 impl FollowReference {
@@ -74,6 +75,7 @@ impl FollowReference {
             goal,
             yaw: ResolvedYaw::Fixed(0.0),
             last_target: MovingTarget::default(),
+            heading: PathHeading::default(),
         }
     }
     fn target(&self, ctx: &BehaviorContext) -> Result<Vec3, Failure> {
@@ -118,7 +120,12 @@ impl InFlight for FollowReference {
         let reference = MotionReference::Position {
             position_enu_m: target,
             velocity_ff_enu_mps: target_velocity,
-            yaw: yaw_target(&self.yaw, ctx, &target),
+            yaw: yaw_target(
+                &self.yaw,
+                ctx,
+                &mut self.heading,
+                PathHeading::toward(&target, ctx),
+            ),
             max_speed_mps: max_speed,
         };
         let feedback = json!({

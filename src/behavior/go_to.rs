@@ -6,7 +6,9 @@ use super::goal::{
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, Step};
+use super::{
+    heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, PathHeading, Step,
+};
 use crate::control::MotionReference;
 use crate::estimator::frames::EARTH;
 use crate::types::GeoPoint;
@@ -117,6 +119,7 @@ pub struct GoTo {
     goal: GoToGoal,
     yaw: ResolvedYaw,
     last_target: MovingTarget,
+    heading: PathHeading,
     best_distance_m: f64,
     best_at: Duration,
 }
@@ -127,6 +130,7 @@ impl GoTo {
             goal,
             yaw: ResolvedYaw::Fixed(0.0),
             last_target: MovingTarget::default(),
+            heading: PathHeading::default(),
             best_distance_m: f64::INFINITY,
             best_at: Duration::ZERO,
         }
@@ -211,7 +215,12 @@ impl InFlight for GoTo {
         let reference = MotionReference::Position {
             position_enu_m: target,
             velocity_ff_enu_mps: target_velocity,
-            yaw: yaw_target(&self.yaw, ctx, &target),
+            yaw: yaw_target(
+                &self.yaw,
+                ctx,
+                &mut self.heading,
+                PathHeading::toward(&target, ctx),
+            ),
             max_speed_mps: self.goal.speed,
         };
         let feedback = json!({

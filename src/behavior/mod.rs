@@ -182,24 +182,52 @@ pub(crate) fn heading_reached(mode: &goal::ResolvedYaw, ctx: &BehaviorContext) -
     crate::types::wrap_angle_rad(wanted - ctx.yaw()).abs() < YAW_THRESHOLD_RAD
 }
 
-/// Turns a yaw mode into a yaw target for this tick; `toward` is the point the vehicle heads to.
+/// Horizontal distance from its goal within which a path-facing vehicle keeps its heading
+/// (m): nearer, the direction to the goal swings with every centimetre of position error.
+pub(crate) const PATH_FACING_HOLD_M: f64 = 1.0;
+
+/// A path-facing heading: along the direction of travel while there is a clear one, else the
+/// heading it last faced (the vehicle's own at first), so it never flips near a goal.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct PathHeading {
+    held_rad: Option<f64>,
+}
+
+impl PathHeading {
+    /// The heading along `direction` (ENU; its horizontal part), or the one held.
+    pub(crate) fn facing(&mut self, direction: Option<Vec3>, ctx: &BehaviorContext) -> f64 {
+        match direction.filter(|d| d.xy().norm() > 1e-6) {
+            Some(d) => *self.held_rad.insert(d.y.atan2(d.x)),
+            None => *self.held_rad.get_or_insert_with(|| ctx.yaw()),
+        }
+    }
+
+    /// The direction to `goal`, or `None` within [`PATH_FACING_HOLD_M`] of it.
+    pub(crate) fn toward(goal: &Vec3, ctx: &BehaviorContext) -> Option<Vec3> {
+        let d = goal - ctx.position();
+        (d.xy().norm() > PATH_FACING_HOLD_M).then_some(d)
+    }
+}
+
+/// Turns a yaw mode into a yaw target for this tick; `direction` is the way the vehicle goes
+/// (`None` when it has no clear one, as near its goal).
 pub(crate) fn yaw_target(
     mode: &goal::ResolvedYaw,
     ctx: &BehaviorContext,
-    toward: &Vec3,
+    path: &mut PathHeading,
+    direction: Option<Vec3>,
 ) -> YawTarget {
-    let facing = |target: &Vec3| {
-        let d = target - ctx.position();
-        // Too close to tell a direction: keep the heading rather than spin.
-        if d.xy().norm() < 0.3 {
-            None
-        } else {
-            Some(d.y.atan2(d.x))
-        }
-    };
     match mode {
         goal::ResolvedYaw::Fixed(angle) => YawTarget::Angle(*angle),
-        goal::ResolvedYaw::PathFacing => YawTarget::Angle(facing(toward).unwrap_or(ctx.yaw())),
-        goal::ResolvedYaw::Face(point) => YawTarget::Angle(facing(point).unwrap_or(ctx.yaw())),
+        goal::ResolvedYaw::PathFacing => YawTarget::Angle(path.facing(direction, ctx)),
+        goal::ResolvedYaw::Face(point) => {
+            let d = point - ctx.position();
+            // Too close to tell a direction: keep the heading rather than spin.
+            YawTarget::Angle(if d.xy().norm() < 0.3 {
+                ctx.yaw()
+            } else {
+                d.y.atan2(d.x)
+            })
+        }
     }
 }

@@ -632,12 +632,14 @@ pub(crate) fn with_yaw(reference: MotionReference, yaw: YawTarget) -> MotionRefe
             position_enu_m,
             velocity_enu_mps,
             acceleration_enu_mps2,
+            max_speed_mps,
             ..
         } => MotionReference::Trajectory {
             position_enu_m,
             velocity_enu_mps,
             acceleration_enu_mps2,
             yaw,
+            max_speed_mps,
         },
     }
 }

@@ -49,6 +49,7 @@ impl Scene {
                 setpoints: AcceptedSetpoints {
                     velocity: true,
                     position: true,
+                    position_loop: None,
                 },
                 native_takeoff: false,
                 native_land: false,

@@ -7,6 +7,7 @@
 
 use super::pid::{saturate_proportionally, Pid, PidGains};
 use super::reference::{AcceptedSetpoints, MotionReference, Setpoint, YawTarget};
+use super::shaper::{ReferenceShaper, SpeedCaps};
 use crate::types::{wrap_angle_rad, EstimatedState, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +27,9 @@ pub struct ControllerConfig {
     /// their acceleration times this to the velocity command, so the vehicle keeps up with a
     /// speeding-up reference instead of lagging and then overshooting the speed to catch up.
     pub velocity_lag_s: f64,
+    /// Acceleration of the reference point handed to an autopilot that closes the position
+    /// loop itself (m/s^2): how fast it speeds up toward a goal and brakes onto it.
+    pub max_acceleration_mps2: f64,
 }
 
 impl Default for ControllerConfig {
@@ -41,6 +45,7 @@ impl Default for ControllerConfig {
             max_down_speed_mps: 1.5,
             max_yaw_rate_radps: 1.5,
             velocity_lag_s: 0.25,
+            max_acceleration_mps2: 1.5,
         }
     }
 }
@@ -58,6 +63,8 @@ pub struct Controller {
     position_pid: Pid,
     trajectory_pid: Pid,
     yaw_pid: Pid,
+    /// The moving reference point given to an autopilot that closes the position loop.
+    shaper: ReferenceShaper,
     mode: Option<Mode>,
 }
 
@@ -67,6 +74,7 @@ impl Controller {
             position_pid: Pid::new(config.position),
             trajectory_pid: Pid::new(config.trajectory),
             yaw_pid: Pid::new(config.yaw),
+            shaper: ReferenceShaper::default(),
             config,
             accepted,
             mode: None,
@@ -82,6 +90,7 @@ impl Controller {
         self.position_pid.reset();
         self.trajectory_pid.reset();
         self.yaw_pid.reset();
+        self.shaper.reset();
         self.mode = None;
     }
 
@@ -101,89 +110,113 @@ impl Controller {
             self.reset();
             self.mode = Some(mode);
         }
+        let caps = self.caps(reference.max_speed_mps());
         let position = state.pose.position_m;
+        let autopilot_loop = !self.accepted.velocity || self.accepted.position_loop.is_some();
         match *reference {
             MotionReference::Position {
                 position_enu_m,
                 velocity_ff_enu_mps,
                 yaw,
-                max_speed_mps,
+                ..
+            } if autopilot_loop && self.accepted.position => {
+                let (point, velocity) = self.shaper.step(
+                    position_enu_m,
+                    velocity_ff_enu_mps,
+                    caps,
+                    self.config.max_acceleration_mps2,
+                    state,
+                    dt_s,
+                );
+                self.position_setpoint(point, velocity, caps, yaw, state, dt_s)
+            }
+            MotionReference::Trajectory {
+                position_enu_m,
+                velocity_enu_mps,
+                yaw,
+                ..
+            } if autopilot_loop && self.accepted.position => {
+                self.position_setpoint(position_enu_m, velocity_enu_mps, caps, yaw, state, dt_s)
+            }
+            MotionReference::Position {
+                position_enu_m,
+                velocity_ff_enu_mps,
+                yaw,
+                ..
             } => {
-                if !self.accepted.velocity && self.accepted.position {
-                    return Setpoint::Position {
-                        position_enu_m,
-                        velocity_ff_enu_mps,
-                        yaw,
-                    };
-                }
-                let limit = self.speed_limits(max_speed_mps);
-                let v = self
-                    .position_pid
-                    .update(position_enu_m - position, dt_s, limit);
-                let v = self.clamp_velocity(v, max_speed_mps) + velocity_ff_enu_mps;
-                self.velocity_setpoint(self.clamp_velocity(v, f64::INFINITY), yaw, state, dt_s)
+                let v = self.position_pid.update(
+                    position_enu_m - position,
+                    dt_s,
+                    Vec3::new(
+                        caps.horizontal_mps,
+                        caps.horizontal_mps,
+                        caps.up_mps.max(caps.down_mps),
+                    ),
+                );
+                let v = caps.clamp(caps.clamp(v) + velocity_ff_enu_mps);
+                self.velocity_setpoint(v, yaw, state, dt_s)
             }
             MotionReference::Velocity {
                 velocity_enu_mps,
                 yaw,
-            } => self.velocity_setpoint(
-                self.clamp_velocity(velocity_enu_mps, f64::INFINITY),
-                yaw,
-                state,
-                dt_s,
-            ),
+            } => self.velocity_setpoint(caps.clamp(velocity_enu_mps), yaw, state, dt_s),
             MotionReference::Trajectory {
                 position_enu_m,
                 velocity_enu_mps,
                 acceleration_enu_mps2,
                 yaw,
+                ..
             } => {
-                if !self.accepted.velocity && self.accepted.position {
-                    return Setpoint::Position {
-                        position_enu_m,
-                        velocity_ff_enu_mps: velocity_enu_mps,
-                        yaw,
-                    };
-                }
                 let correction =
                     self.trajectory_pid
                         .update(position_enu_m - position, dt_s, Vec3::zeros());
                 let feed_forward =
                     velocity_enu_mps + acceleration_enu_mps2 * self.config.velocity_lag_s;
-                let v = self.clamp_velocity(feed_forward + correction, f64::INFINITY);
-                self.velocity_setpoint(v, yaw, state, dt_s)
+                self.velocity_setpoint(caps.clamp(feed_forward + correction), yaw, state, dt_s)
             }
         }
     }
 
-    fn speed_limits(&self, max_speed_mps: f64) -> Vec3 {
+    /// The caps of this tick: the reference's speed and the vehicle's limits, whichever is lower.
+    pub fn caps(&self, max_speed_mps: f64) -> SpeedCaps {
         let c = &self.config;
-        let h = max_speed_mps.min(c.max_horizontal_speed_mps);
-        Vec3::new(
-            h,
-            h,
-            c.max_up_speed_mps
-                .max(c.max_down_speed_mps)
-                .min(max_speed_mps),
-        )
+        SpeedCaps {
+            horizontal_mps: max_speed_mps.min(c.max_horizontal_speed_mps),
+            up_mps: max_speed_mps.min(c.max_up_speed_mps),
+            down_mps: max_speed_mps.min(c.max_down_speed_mps),
+        }
     }
 
-    /// Horizontal speed capped by `max_speed_mps` and the vehicle limit; vertical by up/down limits.
-    fn clamp_velocity(&self, v: Vec3, max_speed_mps: f64) -> Vec3 {
-        let c = &self.config;
-        let h_cap = max_speed_mps.min(c.max_horizontal_speed_mps);
-        let horizontal = v.xy();
-        let h_norm = horizontal.norm();
-        let horizontal = if h_norm > h_cap && h_norm > 0.0 {
-            horizontal * (h_cap / h_norm)
-        } else {
-            horizontal
+    /// A reference point for an autopilot that closes the position loop. Its feed-forward is
+    /// chosen so that what the autopilot commands, feed-forward plus its own correction toward
+    /// the point, stays within the caps. A position-only platform gets the point and the
+    /// heading; one that takes velocities too gets the heading as a limited turn rate.
+    fn position_setpoint(
+        &mut self,
+        point_enu_m: Vec3,
+        velocity_enu_mps: Vec3,
+        caps: SpeedCaps,
+        yaw: YawTarget,
+        state: &EstimatedState,
+        dt_s: f64,
+    ) -> Setpoint {
+        let velocity_ff_enu_mps = match self.accepted.position_loop {
+            Some(autopilot) => {
+                let correction = autopilot.correction(point_enu_m - state.pose.position_m);
+                caps.clamp(velocity_enu_mps + correction) - correction
+            }
+            None => caps.clamp(velocity_enu_mps),
         };
-        let z = v.z.clamp(
-            -c.max_down_speed_mps.min(max_speed_mps),
-            c.max_up_speed_mps.min(max_speed_mps),
-        );
-        Vec3::new(horizontal.x, horizontal.y, z)
+        let yaw = if self.accepted.velocity {
+            self.yaw_rate(yaw, state, dt_s)
+        } else {
+            yaw
+        };
+        Setpoint::Position {
+            position_enu_m: point_enu_m,
+            velocity_ff_enu_mps,
+            yaw,
+        }
     }
 
     fn velocity_setpoint(
@@ -193,6 +226,14 @@ impl Controller {
         state: &EstimatedState,
         dt_s: f64,
     ) -> Setpoint {
+        Setpoint::Velocity {
+            velocity_enu_mps,
+            yaw: self.yaw_rate(yaw, state, dt_s),
+        }
+    }
+
+    /// The heading as a turn rate within the limit.
+    fn yaw_rate(&mut self, yaw: YawTarget, state: &EstimatedState, dt_s: f64) -> YawTarget {
         let max_rate = self.config.max_yaw_rate_radps;
         let rate = match yaw {
             YawTarget::Rate(r) => r.clamp(-max_rate, max_rate),
@@ -204,17 +245,14 @@ impl Controller {
                 saturate_proportionally(out, Vec3::new(max_rate, 0.0, 0.0)).x
             }
         };
-        Setpoint::Velocity {
-            velocity_enu_mps,
-            yaw: YawTarget::Rate(rate),
-        }
+        YawTarget::Rate(rate)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::Pose;
+    use crate::types::{Pose, PositionLoop};
 
     fn state_at(p: Vec3, yaw: f64) -> EstimatedState {
         EstimatedState {
@@ -240,6 +278,7 @@ mod tests {
             AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: None,
             },
         );
         let r = MotionReference::Position {
@@ -260,6 +299,7 @@ mod tests {
             AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: None,
             },
         );
         // From 3.0 rad to -3.0 rad the short way is +0.28 rad, not -6 rad.
@@ -274,12 +314,13 @@ mod tests {
     }
 
     #[test]
-    fn position_only_platform_gets_position_setpoints() {
+    fn position_only_platform_gets_a_point_that_moves_to_the_goal_within_the_speed() {
         let mut c = Controller::new(
             ControllerConfig::default(),
             AcceptedSetpoints {
                 velocity: false,
                 position: true,
+                position_loop: None,
             },
         );
         let goal = Vec3::new(1.0, 2.0, 3.0);
@@ -289,10 +330,88 @@ mod tests {
             yaw: YawTarget::Angle(0.5),
             max_speed_mps: 1.0,
         };
-        match c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01) {
-            Setpoint::Position { position_enu_m, .. } => assert_eq!(position_enu_m, goal),
+        let mut here = Vec3::zeros();
+        for tick in 0..1000 {
+            match c.update(&state_at(here, 0.0), &r, 0.01) {
+                Setpoint::Position {
+                    position_enu_m,
+                    velocity_ff_enu_mps,
+                    yaw,
+                } => {
+                    // Never the far goal at once: a platform would fly to it at its own speed.
+                    let step = position_enu_m - here;
+                    assert!(
+                        step.xy().norm() <= 0.0101 && step.z.abs() <= 0.0101,
+                        "{tick}"
+                    );
+                    assert!(velocity_ff_enu_mps.xy().norm() <= 1.0 + 1e-9);
+                    assert_eq!(yaw, YawTarget::Angle(0.5));
+                    here = position_enu_m;
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        assert!((here - goal).norm() < 1e-6, "{here}");
+    }
+
+    #[test]
+    fn an_autopilot_closing_the_loop_is_never_asked_for_more_than_the_speed() {
+        let autopilot = PositionLoop {
+            gain_xy_per_s: 0.95,
+            gain_z_per_s: 1.0,
+        };
+        let mut c = Controller::new(
+            ControllerConfig::default(),
+            AcceptedSetpoints {
+                velocity: true,
+                position: true,
+                position_loop: Some(autopilot),
+            },
+        );
+        // Following a path at 0.75 m/s while lagging 0.6 m behind the reference point: PX4's
+        // correction alone would add 0.57 m/s.
+        let r = MotionReference::Trajectory {
+            position_enu_m: Vec3::new(0.6, 0.0, 1.0),
+            velocity_enu_mps: Vec3::new(0.75, 0.0, 0.0),
+            acceleration_enu_mps2: Vec3::zeros(),
+            yaw: YawTarget::Angle(0.0),
+            max_speed_mps: 0.75,
+        };
+        match c.update(&state_at(Vec3::new(0.0, 0.0, 1.0), 0.0), &r, 0.01) {
+            Setpoint::Position {
+                position_enu_m,
+                velocity_ff_enu_mps,
+                yaw,
+            } => {
+                let commanded =
+                    velocity_ff_enu_mps + autopilot.correction(position_enu_m - Vec3::z());
+                assert!((commanded.xy().norm() - 0.75).abs() < 1e-9, "{commanded}");
+                assert_eq!(position_enu_m, Vec3::new(0.6, 0.0, 1.0));
+                assert!(matches!(yaw, YawTarget::Rate(_)));
+            }
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn a_trajectory_flown_on_velocities_keeps_within_its_speed_with_the_correction() {
+        let mut c = Controller::new(
+            ControllerConfig::default(),
+            AcceptedSetpoints {
+                velocity: true,
+                position: true,
+                position_loop: None,
+            },
+        );
+        let r = MotionReference::Trajectory {
+            position_enu_m: Vec3::new(1.0, 0.0, 0.0),
+            velocity_enu_mps: Vec3::new(0.75, 0.0, 0.0),
+            acceleration_enu_mps2: Vec3::new(1.0, 0.0, 0.0),
+            yaw: YawTarget::Rate(0.0),
+            max_speed_mps: 0.75,
+        };
+        let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01));
+        assert!((v.norm() - 0.75).abs() < 1e-9, "{v}");
     }
 
     #[test]
@@ -302,6 +421,7 @@ mod tests {
             AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: None,
             },
         );
         let r = MotionReference::Trajectory {
@@ -309,6 +429,7 @@ mod tests {
             velocity_enu_mps: Vec3::new(0.5, 0.0, 0.0),
             acceleration_enu_mps2: Vec3::zeros(),
             yaw: YawTarget::Rate(0.0),
+            max_speed_mps: f64::INFINITY,
         };
         let (v, _) = velocity_of(c.update(&state_at(Vec3::new(1.0, 1.0, 1.0), 0.0), &r, 0.01));
         assert!((v - Vec3::new(0.5, 0.0, 0.0)).norm() < 1e-9);
@@ -321,6 +442,7 @@ mod tests {
             AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: None,
             },
         );
         let r = MotionReference::Trajectory {
@@ -328,6 +450,7 @@ mod tests {
             velocity_enu_mps: Vec3::new(1.0, 0.0, 0.0),
             acceleration_enu_mps2: Vec3::new(2.0, 0.0, 0.0),
             yaw: YawTarget::Rate(0.0),
+            max_speed_mps: f64::INFINITY,
         };
         let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01));
         assert!((v.x - (1.0 + 2.0 * 0.25)).abs() < 1e-9, "{v}");
@@ -340,6 +463,7 @@ mod tests {
             AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: None,
             },
         );
         let r = MotionReference::Velocity {

@@ -6,7 +6,9 @@
 pub mod controller;
 pub mod pid;
 pub mod reference;
+pub mod shaper;
 pub mod trajectory;
 
 pub use controller::{Controller, ControllerConfig};
 pub use reference::{AcceptedSetpoints, MotionReference, Setpoint, YawTarget};
+pub use shaper::SpeedCaps;

@@ -21,16 +21,29 @@ pub enum MotionReference {
         velocity_enu_mps: Vec3,
         yaw: YawTarget,
     },
-    /// Track a moving reference point with feed-forward velocity and acceleration.
+    /// Track a moving reference point with feed-forward velocity and acceleration, never
+    /// commanding more than `max_speed_mps` (the correction toward the point included).
     Trajectory {
         position_enu_m: Vec3,
         velocity_enu_mps: Vec3,
         acceleration_enu_mps2: Vec3,
         yaw: YawTarget,
+        max_speed_mps: f64,
     },
 }
 
 impl MotionReference {
+    /// The speed the commanded velocity must stay within (m/s); a velocity reference is
+    /// limited by the vehicle's limits alone.
+    pub fn max_speed_mps(&self) -> f64 {
+        match self {
+            Self::Position { max_speed_mps, .. } | Self::Trajectory { max_speed_mps, .. } => {
+                *max_speed_mps
+            }
+            Self::Velocity { .. } => f64::INFINITY,
+        }
+    }
+
     /// Hold `position_enu_m` with heading `yaw_rad`.
     pub fn hold(position_enu_m: Vec3, yaw_rad: f64, max_speed_mps: f64) -> Self {
         Self::Position {

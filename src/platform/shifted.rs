@@ -82,6 +82,7 @@ mod tests {
                 setpoints: crate::types::AcceptedSetpoints {
                     velocity: true,
                     position: true,
+                    position_loop: None,
                 },
                 native_takeoff: false,
                 native_land: false,

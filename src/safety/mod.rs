@@ -11,8 +11,8 @@ pub mod geofence;
 
 use crate::behavior::fleet::FleetView;
 use crate::config::GeofenceSection;
-use crate::control::{ControllerConfig, Setpoint, YawTarget};
-use crate::types::{EstimatedState, Vec3};
+use crate::control::{ControllerConfig, Setpoint, SpeedCaps, YawTarget};
+use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
 use serde::Serialize;
 
@@ -67,6 +67,9 @@ pub struct Override {
 #[derive(Debug, Clone)]
 pub struct SafetyStage {
     config: SafetyConfig,
+    /// The platform's own position loop, when it is given position targets: what it commands
+    /// for one is `v_ff + gain * (p - here)`; without one, a target's pull is taken as `p - here`.
+    position_loop: PositionLoop,
     /// The override of the previous tick (an episode is reported when it starts).
     active: Option<OverrideKind>,
 }
@@ -107,15 +110,21 @@ fn stoppable_mps(room_m: f64, react_s: f64, brake_mps2: f64) -> f64 {
 }
 
 impl SafetyStage {
-    pub fn new(config: SafetyConfig) -> Self {
+    pub fn new(config: SafetyConfig, position_loop: Option<PositionLoop>) -> Self {
         Self {
             config,
+            position_loop: position_loop.unwrap_or(PositionLoop {
+                gain_xy_per_s: 1.0,
+                gain_z_per_s: 1.0,
+            }),
             active: None,
         }
     }
 
-    /// Checks one setpoint of drone `me`. Returns the setpoint to send, and an override when
-    /// one starts (or changes kind) this tick.
+    /// Checks one setpoint of drone `me` against this tick's speed `caps` (the running
+    /// behavior's speed and the vehicle's limits). Returns the setpoint to send, and an override
+    /// when one starts (or changes kind) this tick.
+    #[allow(clippy::too_many_arguments)]
     pub fn check(
         &mut self,
         me: &str,
@@ -123,6 +132,7 @@ impl SafetyStage {
         home_enu_m: Vec3,
         flying: bool,
         setpoint: Option<Setpoint>,
+        caps: SpeedCaps,
         fleet: &FleetView,
     ) -> (Option<Setpoint>, Option<Override>) {
         let Some(sp) = setpoint else {
@@ -164,6 +174,12 @@ impl SafetyStage {
                 .or_else(|| self.separated(me, state, sp, fleet))
                 .or_else(|| self.limited(sp))
                 .map_or((sp, None), |(s, kind, why)| (s, Some((kind, why))))
+        };
+        // The speed caps are the last word, whatever the steps above made of the setpoint.
+        let capped = flying.then(|| self.capped(out, here, caps)).flatten();
+        let (out, change) = match capped {
+            Some((capped, why)) => (capped, change.or(Some((OverrideKind::Limit, why)))),
+            None => (out, change),
         };
         let kind = change.as_ref().map(|(k, _)| *k);
         let report = match change {
@@ -245,8 +261,7 @@ impl SafetyStage {
         let keep = min + self.config.separation_margin_m.max(0.0);
         let react_s = self.config.limits.velocity_lag_s.max(0.0) + REACTION_EXTRA_S;
         let brake = self.config.braking_mps2.max(0.1);
-        let (asked, yaw) =
-            intended_velocity(&sp, here, self.config.limits.max_horizontal_speed_mps);
+        let (asked, yaw) = intended_velocity(&sp, here, &self.position_loop);
         let actual = state.velocity_enu_mps;
         let mut limits: Vec<Closing> = Vec::new();
         let mut push = Vec3::zeros();
@@ -334,6 +349,50 @@ impl SafetyStage {
         ))
     }
 
+    /// Holds what the platform will command within `caps`: a velocity setpoint is scaled back;
+    /// a position target whose pull (its feed-forward plus the platform's correction toward
+    /// it) exceeds them is brought nearer, as a target at most the caps' pull away. Within a
+    /// millimetre per second the setpoint is left as it is.
+    fn capped(&self, sp: Setpoint, here: Vec3, caps: SpeedCaps) -> Option<(Setpoint, String)> {
+        const SLACK_MPS: f64 = 1e-3;
+        let over = |v: &Vec3| {
+            v.xy().norm() > caps.horizontal_mps + SLACK_MPS
+                || v.z > caps.up_mps + SLACK_MPS
+                || -v.z > caps.down_mps + SLACK_MPS
+        };
+        let (v, yaw) = intended_velocity(&sp, here, &self.position_loop);
+        if !over(&v) {
+            return None;
+        }
+        let why = format!(
+            "setpoint over the speed limit ({:.2} m/s horizontal, {:.2} m/s vertical; limit {:.2} m/s): scaled back",
+            v.xy().norm(),
+            v.z,
+            caps.horizontal_mps
+        );
+        let out = match sp {
+            Setpoint::Velocity { .. } => Setpoint::Velocity {
+                velocity_enu_mps: caps.clamp(v),
+                yaw,
+            },
+            Setpoint::Position { .. } => {
+                let pull = caps.clamp(v);
+                let l = &self.position_loop;
+                Setpoint::Position {
+                    position_enu_m: here
+                        + Vec3::new(
+                            pull.x / l.gain_xy_per_s,
+                            pull.y / l.gain_xy_per_s,
+                            pull.z / l.gain_z_per_s,
+                        ),
+                    velocity_ff_enu_mps: Vec3::zeros(),
+                    yaw,
+                }
+            }
+        };
+        Some((out, why))
+    }
+
     /// Scales back a velocity setpoint beyond the vehicle's limits and caps turn rates.
     fn limited(&self, sp: Setpoint) -> Option<(Setpoint, OverrideKind, String)> {
         let l = &self.config.limits;
@@ -384,8 +443,9 @@ fn yaw_of(sp: &Setpoint) -> YawTarget {
     }
 }
 
-/// The velocity a setpoint asks for: its own, or toward its position target at up to `max`.
-fn intended_velocity(sp: &Setpoint, here: Vec3, max_mps: f64) -> (Vec3, YawTarget) {
+/// The velocity a setpoint asks for: its own, or the feed-forward plus the platform's
+/// correction toward its position target.
+fn intended_velocity(sp: &Setpoint, here: Vec3, position_loop: &PositionLoop) -> (Vec3, YawTarget) {
     match *sp {
         Setpoint::Velocity {
             velocity_enu_mps,
@@ -395,11 +455,10 @@ fn intended_velocity(sp: &Setpoint, here: Vec3, max_mps: f64) -> (Vec3, YawTarge
             position_enu_m,
             velocity_ff_enu_mps,
             yaw,
-        } => {
-            let to = position_enu_m - here;
-            let toward = to.try_normalize(1e-6).unwrap_or_default() * to.norm().min(max_mps);
-            (toward + velocity_ff_enu_mps, yaw)
-        }
+        } => (
+            velocity_ff_enu_mps + position_loop.correction(position_enu_m - here),
+            yaw,
+        ),
     }
 }
 

@@ -2,6 +2,13 @@ use super::*;
 use crate::behavior::fleet::DroneView;
 use crate::types::{Pose, Validity};
 
+/// No speed limit of a behavior: the vehicle's limits alone.
+const NO_CAPS: SpeedCaps = SpeedCaps {
+    horizontal_mps: f64::INFINITY,
+    up_mps: f64::INFINITY,
+    down_mps: f64::INFINITY,
+};
+
 fn at(x: f64, y: f64, z: f64) -> EstimatedState {
     EstimatedState {
         pose: Pose::from_position_yaw(Vec3::new(x, y, z), 0.0),
@@ -40,6 +47,7 @@ fn check(
         Vec3::zeros(),
         true,
         Some(sp),
+        NO_CAPS,
         &FleetView::default(),
     );
     (out.unwrap_or_else(|| panic!("a setpoint")), o)
@@ -47,7 +55,7 @@ fn check(
 
 #[test]
 fn a_target_above_the_ceiling_is_held_under_it_and_reported_once() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let state = at(0.0, 0.0, 100.0);
     let (out, first) = check(&mut stage, &state, position(0.0, 0.0, 500.0));
     assert_eq!(out, position(0.0, 0.0, 119.5));
@@ -62,7 +70,7 @@ fn a_target_above_the_ceiling_is_held_under_it_and_reported_once() {
 
 #[test]
 fn non_finite_setpoints_become_a_hold_even_on_the_ground() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let state = at(3.0, 4.0, 0.0);
     for bad in [
         position(f64::NAN, 0.0, 1.0),
@@ -78,6 +86,7 @@ fn non_finite_setpoints_become_a_hold_even_on_the_ground() {
             Vec3::zeros(),
             false,
             Some(bad),
+            NO_CAPS,
             &FleetView::default(),
         );
         assert_eq!(out, Some(position(3.0, 4.0, 0.0)));
@@ -88,7 +97,7 @@ fn non_finite_setpoints_become_a_hold_even_on_the_ground() {
 
 #[test]
 fn a_velocity_that_would_carry_the_vehicle_through_the_fence_stops_it_inside() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let state = at(998.0, 0.0, 10.0);
     let (out, o) = check(&mut stage, &state, velocity(5.0, 0.0, 0.0));
     assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Geofence));
@@ -102,7 +111,7 @@ fn a_velocity_that_would_carry_the_vehicle_through_the_fence_stops_it_inside() {
 
 #[test]
 fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let fleet = FleetView {
         // At the kept distance (1.0 m and the 0.2 m margin): no room left to close in.
         drones: vec![drone("me", 0.0, 0.0), drone("other", 1.2, 0.0)],
@@ -114,6 +123,7 @@ fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
         Vec3::zeros(),
         true,
         Some(velocity(1.0, 1.0, 0.0)),
+        NO_CAPS,
         &fleet,
     );
     assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Separation));
@@ -135,6 +145,7 @@ fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
         Vec3::zeros(),
         true,
         Some(velocity(-1.0, 0.0, 0.0)),
+        NO_CAPS,
         &fleet,
     );
     assert_eq!(
@@ -146,7 +157,7 @@ fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
 
 #[test]
 fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let fleet = FleetView {
         drones: vec![drone("other", 0.6, 0.0)],
     };
@@ -156,6 +167,7 @@ fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
         Vec3::zeros(),
         true,
         Some(position(0.0, 0.0, 2.0)),
+        NO_CAPS,
         &fleet,
     );
     match out {
@@ -168,7 +180,7 @@ fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
 
 #[test]
 fn a_silent_remote_drone_is_kept_away_from_by_where_it_could_be() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     // Heard 2.2 m away: outside the 2 m guard of a drone heard now.
     let mut other = drone("other", 2.2, 0.0);
     other.local = false;
@@ -179,6 +191,7 @@ fn a_silent_remote_drone_is_kept_away_from_by_where_it_could_be() {
             Vec3::zeros(),
             true,
             Some(velocity(1.0, 0.0, 0.0)),
+            NO_CAPS,
             fleet,
         )
     };
@@ -208,7 +221,7 @@ fn a_silent_remote_drone_is_kept_away_from_by_where_it_could_be() {
 
 #[test]
 fn an_unaccounted_silent_drone_holds_this_one_wherever_it_is() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let mut other = drone("other", 30.0, 0.0);
     other.local = false;
     other.silent = true;
@@ -225,6 +238,7 @@ fn an_unaccounted_silent_drone_holds_this_one_wherever_it_is() {
             velocity_enu_mps: Vec3::new(-1.0, 0.0, 0.0),
             yaw: YawTarget::Rate(0.4),
         }),
+        NO_CAPS,
         &fleet,
     );
     let o = o.unwrap();
@@ -242,7 +256,7 @@ fn an_unaccounted_silent_drone_holds_this_one_wherever_it_is() {
 
 #[test]
 fn a_velocity_beyond_the_limits_is_scaled_back() {
-    let mut stage = SafetyStage::new(SafetyConfig::default());
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
     let (out, o) = check(&mut stage, &at(0.0, 0.0, 5.0), velocity(12.0, 0.0, 4.0));
     assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Limit));
     let l = ControllerConfig::default();
@@ -266,7 +280,7 @@ fn fly_next_to(start: Vec3, goal: Vec3, others: &[DroneView], seconds: f64) -> (
         ..SafetyConfig::default()
     };
     let lag_s = config.limits.velocity_lag_s;
-    let mut stage = SafetyStage::new(config);
+    let mut stage = SafetyStage::new(config, None);
     let fleet = FleetView {
         drones: others.to_vec(),
     };
@@ -285,6 +299,7 @@ fn fly_next_to(start: Vec3, goal: Vec3, others: &[DroneView], seconds: f64) -> (
             Vec3::zeros(),
             true,
             Some(velocity(asked.x, asked.y, asked.z)),
+            NO_CAPS,
             &fleet,
         );
         let Some(Setpoint::Velocity {
@@ -328,10 +343,13 @@ fn a_climb_into_a_drone_holding_just_aside_above_stops_short_of_the_separation()
 
 #[test]
 fn a_descent_beside_a_drone_a_metre_away_is_left_alone() {
-    let mut stage = SafetyStage::new(SafetyConfig {
-        min_separation_m: 0.5,
-        ..SafetyConfig::default()
-    });
+    let mut stage = SafetyStage::new(
+        SafetyConfig {
+            min_separation_m: 0.5,
+            ..SafetyConfig::default()
+        },
+        None,
+    );
     let fleet = FleetView {
         drones: vec![drone_at("level", 1.0, 0.0, 1.0)],
     };
@@ -342,6 +360,7 @@ fn a_descent_beside_a_drone_a_metre_away_is_left_alone() {
         Vec3::zeros(),
         true,
         Some(sp),
+        NO_CAPS,
         &fleet,
     );
     assert_eq!((out, o), (Some(sp), None), "no drift sideways");

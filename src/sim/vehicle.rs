@@ -230,6 +230,7 @@ impl Platform for SimVehicle {
             setpoints: AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: None,
             },
             native_takeoff: false,
             native_land: false,

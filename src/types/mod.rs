@@ -19,7 +19,7 @@ pub use geometry::{wrap_angle_rad, Pose, Vec2, Vec3};
 pub use measurement::Measurement;
 pub use platform::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
 pub use scan::{Beam, RangeScan};
-pub use setpoint::{AcceptedSetpoints, Setpoint, YawTarget};
+pub use setpoint::{AcceptedSetpoints, PositionLoop, Setpoint, YawTarget};
 pub use state::{
     Battery, EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Validity, VehicleState,
 };

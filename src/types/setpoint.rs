@@ -30,8 +30,33 @@ pub enum Setpoint {
 }
 
 /// The setpoint kinds a platform accepts; the controller picks its output from these.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct AcceptedSetpoints {
     pub velocity: bool,
     pub position: bool,
+    /// `Some` when the platform closes the position loop itself and should be given a moving
+    /// reference point with its velocity as feed-forward (PX4 and ArduPilot): the autopilot's
+    /// own tuned loop then holds the vehicle on it. `None`: Kestrel closes the loop over
+    /// velocity setpoints.
+    pub position_loop: Option<PositionLoop>,
+}
+
+/// The position loop an autopilot closes on a position setpoint with feed-forward:
+/// `v_cmd = v_ff + gain * (p_sp - p)`. Kestrel needs the gains to keep `v_cmd` within the
+/// speed limits (PX4: `MPC_XY_P`, `MPC_Z_P`; ArduPilot: `PSC_POSXY_P`, `PSC_POSZ_P`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PositionLoop {
+    pub gain_xy_per_s: f64,
+    pub gain_z_per_s: f64,
+}
+
+impl PositionLoop {
+    /// The velocity the autopilot commands for a position error (ENU, m -> m/s).
+    pub fn correction(&self, error_enu_m: Vec3) -> Vec3 {
+        Vec3::new(
+            error_enu_m.x * self.gain_xy_per_s,
+            error_enu_m.y * self.gain_xy_per_s,
+            error_enu_m.z * self.gain_z_per_s,
+        )
+    }
 }

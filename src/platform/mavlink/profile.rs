@@ -4,6 +4,7 @@
 //! each mode plays, how to take off and land, message rates, timeouts). Unknown keys are
 //! refused; every duration is in seconds and every rate in hertz, as the key names say.
 
+use crate::types::PositionLoop;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::Message;
 use serde::Deserialize;
@@ -80,6 +81,42 @@ pub enum GimbalProtocol {
     MountControl,
 }
 
+/// How Kestrel drives the vehicle (the `[drive]` table; absent: position targets, gains 1).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDrive {
+    setpoints: DriveSetpoints,
+    #[serde(default = "unit_gain")]
+    position_gain_xy_per_s: f64,
+    #[serde(default = "unit_gain")]
+    position_gain_z_per_s: f64,
+}
+
+fn unit_gain() -> f64 {
+    1.0
+}
+
+impl Default for RawDrive {
+    fn default() -> Self {
+        Self {
+            setpoints: DriveSetpoints::PositionTarget,
+            position_gain_xy_per_s: 1.0,
+            position_gain_z_per_s: 1.0,
+        }
+    }
+}
+
+/// What SET_POSITION_TARGET_LOCAL_NED carries while Kestrel flies the vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriveSetpoints {
+    /// A moving reference point with its velocity as feed-forward; the autopilot's own tuned
+    /// position loop holds the vehicle on it (as MAVSDK and MAVROS offboard trajectories do).
+    PositionTarget,
+    /// Velocities only: Kestrel closes the position loop over the link.
+    Velocity,
+}
+
 /// One mode as the profile file writes it: `{ main = 4, sub = 6 }` (PX4) or `{ number = 9 }`.
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -143,6 +180,8 @@ struct RawProfile {
     modes: BTreeMap<String, RawMode>,
     roles: RawRoles,
     message_intervals_hz: BTreeMap<String, f64>,
+    #[serde(default)]
+    drive: RawDrive,
 }
 
 /// A named autopilot mode with its HEARTBEAT `custom_mode` value.
@@ -216,6 +255,8 @@ pub struct Profile {
     pub roles: Roles,
     /// (message id, rate) pairs requested with SET_MESSAGE_INTERVAL on connection.
     pub message_intervals: Vec<(u32, f64)>,
+    /// The autopilot's position loop when it is given position targets; `None`: velocities.
+    pub position_loop: Option<PositionLoop>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -408,6 +449,19 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
             "PX4 NAV_TAKEOFF needs the takeoff mode (AUTO.TAKEOFF)".into(),
         ));
     }
+    let position_loop = match raw.drive.setpoints {
+        DriveSetpoints::Velocity => None,
+        DriveSetpoints::PositionTarget => Some(PositionLoop {
+            gain_xy_per_s: gain(
+                "drive.position_gain_xy_per_s",
+                raw.drive.position_gain_xy_per_s,
+            )?,
+            gain_z_per_s: gain(
+                "drive.position_gain_z_per_s",
+                raw.drive.position_gain_z_per_s,
+            )?,
+        }),
+    };
     Ok(Profile {
         name: raw.name,
         autopilot: raw.autopilot,
@@ -440,7 +494,16 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
         modes,
         roles,
         message_intervals,
+        position_loop,
     })
+}
+
+fn gain(field: &str, v: f64) -> Result<f64, Invalid> {
+    if v.is_finite() && (0.1..=5.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err((field.into(), format!("must be within 0.1..=5 1/s, got {v}")))
+    }
 }
 
 #[cfg(test)]

@@ -110,6 +110,7 @@ impl Session {
             setpoints: AcceptedSetpoints {
                 velocity: true,
                 position: true,
+                position_loop: self.profile.position_loop,
             },
             native_takeoff: self.profile.takeoff == TakeoffMethod::NavTakeoff,
             native_land: true,
