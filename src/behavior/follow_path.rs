@@ -3,8 +3,8 @@
 use super::goal::{
     check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
+use super::progress::Progress;
 use super::registry::{BehaviorSpec, Goal, Resource};
-use super::server::seconds_since;
 use super::{
     heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, PathHeading, Step,
 };
@@ -74,9 +74,8 @@ pub struct FollowPath {
     trajectory: Option<PathTrajectory>,
     yaw: ResolvedYaw,
     heading: PathHeading,
-    /// Least path length left so far (m) and when it last shrank, to fail when stuck.
-    best_remaining_m: f64,
-    best_at: Duration,
+    /// How far is left (path, then the distance to its end), to fail when stuck.
+    progress: Progress,
 }
 
 impl FollowPath {
@@ -88,8 +87,7 @@ impl FollowPath {
             trajectory: None,
             yaw: ResolvedYaw::Fixed(0.0),
             heading: PathHeading::default(),
-            best_remaining_m: f64::INFINITY,
-            best_at: Duration::ZERO,
+            progress: Progress::new(Duration::ZERO),
         }
     }
 
@@ -107,8 +105,7 @@ impl FollowPath {
             remaining,
             limits,
         );
-        self.best_remaining_m = trajectory.remaining_m();
-        self.best_at = ctx.now;
+        self.progress = Progress::new(ctx.now);
         self.trajectory = Some(trajectory);
     }
 }
@@ -151,21 +148,6 @@ impl InFlight for FollowPath {
             return Step::Failed(Failure::new(FailureCode::Internal, "no trajectory"));
         };
         let sample = trajectory.advance(ctx.dt_s, &ctx.position());
-        // The reference waits for a lagging vehicle, so a vehicle that cannot follow shows
-        // as a path that stops getting shorter.
-        let remaining_m = trajectory.remaining_m();
-        if remaining_m < self.best_remaining_m - 0.1 {
-            self.best_remaining_m = remaining_m;
-            self.best_at = ctx.now;
-        } else if seconds_since(ctx.now, self.best_at) > ctx.config.no_progress_timeout_s {
-            return Step::Failed(Failure::new(
-                FailureCode::NoProgress,
-                format!(
-                    "no progress for {:.0} s, {remaining_m:.2} m of path left",
-                    ctx.config.no_progress_timeout_s
-                ),
-            ));
-        }
         // Waypoints count as passed when the vehicle comes within the threshold.
         while let Some(w) = self.waypoints.get(self.next) {
             if (w - ctx.position()).norm() < ctx.config.waypoint_threshold_m
@@ -182,6 +164,23 @@ impl InFlight for FollowPath {
             .copied()
             .unwrap_or_else(|| ctx.position());
         let distance_to_end = (last - ctx.position()).norm();
+        // The reference waits for a lagging vehicle, so a vehicle that cannot follow shows as a
+        // path that stops getting shorter; once the reference is at the end, as a distance to
+        // the end that stops shrinking.
+        let remaining_m = trajectory.remaining_m();
+        let left_m = remaining_m.max(distance_to_end);
+        let stuck_s = self
+            .progress
+            .update(left_m, ctx.config.goal_threshold_m, ctx.now);
+        if stuck_s > ctx.config.no_progress_timeout_s {
+            return Step::Failed(Failure::new(
+                FailureCode::NoProgress,
+                format!(
+                    "no progress for {:.0} s, {remaining_m:.2} m of path left, {distance_to_end:.2} m from its end",
+                    ctx.config.no_progress_timeout_s
+                ),
+            ));
+        }
         if sample.finished
             && distance_to_end < ctx.config.goal_threshold_m
             && heading_reached(&self.yaw, ctx)

@@ -4,8 +4,8 @@ use super::goal::{
     check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw,
     YawArgs,
 };
+use super::progress::Progress;
 use super::registry::{BehaviorSpec, Goal, Resource};
-use super::server::seconds_since;
 use super::{
     heading_reached, yaw_target, BehaviorContext, Failure, FailureCode, PathHeading, Step,
 };
@@ -120,8 +120,7 @@ pub struct GoTo {
     yaw: ResolvedYaw,
     last_target: MovingTarget,
     heading: PathHeading,
-    best_distance_m: f64,
-    best_at: Duration,
+    progress: Progress,
 }
 
 impl GoTo {
@@ -131,8 +130,7 @@ impl GoTo {
             yaw: ResolvedYaw::Fixed(0.0),
             last_target: MovingTarget::default(),
             heading: PathHeading::default(),
-            best_distance_m: f64::INFINITY,
-            best_at: Duration::ZERO,
+            progress: Progress::new(Duration::ZERO),
         }
     }
 
@@ -178,14 +176,18 @@ impl InFlight for GoTo {
         };
         self.yaw = self.goal.yaw.resolve(ctx, &yaw_frame)?;
         let target = self.target(ctx)?;
-        self.best_distance_m = (target - ctx.position()).norm();
-        self.best_at = ctx.now;
+        self.progress = Progress::new(ctx.now);
+        self.progress.update(
+            (target - ctx.position()).norm(),
+            ctx.config.goal_threshold_m,
+            ctx.now,
+        );
         self.last_target.reset();
         Ok(())
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
-        self.best_at = ctx.now;
+        self.progress.restart(ctx.now);
         self.last_target.reset();
     }
 
@@ -200,10 +202,10 @@ impl InFlight for GoTo {
         if distance < ctx.config.goal_threshold_m && heading_reached(&self.yaw, ctx) {
             return Step::Succeeded;
         }
-        if distance < self.best_distance_m - 0.1 {
-            self.best_distance_m = distance;
-            self.best_at = ctx.now;
-        } else if seconds_since(ctx.now, self.best_at) > ctx.config.no_progress_timeout_s {
+        let stuck_s = self
+            .progress
+            .update(distance, ctx.config.goal_threshold_m, ctx.now);
+        if stuck_s > ctx.config.no_progress_timeout_s {
             return Step::Failed(Failure::new(
                 FailureCode::NoProgress,
                 format!(

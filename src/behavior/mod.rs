@@ -20,6 +20,7 @@ mod hover;
 mod land;
 mod nav_path;
 mod navigate_to;
+mod progress;
 mod registry;
 mod rotate;
 mod sequence;
