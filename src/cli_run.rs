@@ -8,9 +8,11 @@
 //! Out: the vehicles on the host, serving the HTTP/WebSocket API (`--listen`; `--no-api`: none),
 //! with systemd READY and watchdog pings from the control loop: this is what the service runs.
 //! `--mission FILE` flies a mission at start; `--mission-demo` flies the simulator's demo plan as
-//! a mission once the autopilot is ready. Missions follow `[mission] on_link_regained` after a
-//! link loss, as on every platform. It writes a JSON-lines flight log, one line per behavior
-//! event and one per change of link, mode, arming and readiness.
+//! a mission once the autopilot is ready. `--virtual-world FILE` casts each vehicle's range
+//! sensor against a world file's obstacles from its reported pose (`sim::virtual_world`, in the
+//! shared frame), in place of the autopilot's own range readings. Missions follow `[mission]
+//! on_link_regained` after a link loss, as on every platform. It writes a JSON-lines flight
+//! log, one line per behavior event and one per change of link, mode, arming and readiness.
 
 use crate::cli_flights::Flights;
 use crate::cli_serve::ServeOptions;
@@ -25,10 +27,12 @@ use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
-use kestrel::host::vehicle::vehicle_host;
+use kestrel::host::vehicle::{vehicle_host, virtual_world_host};
 use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
+use kestrel::sim::spatial::ShapeIndex;
+use kestrel::sim::virtual_world::{VirtualRanges, VirtualSensors};
 use kestrel::sim::{Environment, SimWorld};
 use kestrel::types::Vec3;
 use std::path::PathBuf;
@@ -81,6 +85,13 @@ pub struct RunArgs {
     /// `--mission-demo` say. For bench checks of a link.
     #[arg(long)]
     no_api: bool,
+    /// Fly in this world (a `kestrel sim` world file, e.g. sitl/worlds/low.json) with virtual
+    /// range sensors: each vehicle's sensor (its `[[vehicle]] sensor`, else `[sim] sensor`,
+    /// else the file's, else the four-beam multi-ranger) is cast from its reported pose against
+    /// the world's obstacles, replacing the autopilot's own range readings; coming within
+    /// `[sim] vehicle_radius_m` of an obstacle fails what runs (`virtual_collision`) and holds.
+    #[arg(long, value_name = "FILE")]
+    virtual_world: Option<PathBuf>,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
@@ -206,6 +217,7 @@ fn start_platform(
         forward,
         target_system,
         origin_enu_m,
+        sensor: _,
     } = plan;
     let who = if several {
         format!("{id}: ")
@@ -222,8 +234,12 @@ fn start_platform(
                 "kestrel run: {who}{} (profile {platform_origin})",
                 file.name
             );
+            let mut world = SimWorld::new(*world, 1, file.seed, environment);
+            for v in &mut world.vehicles {
+                v.params.radius_m = config.sim.vehicle_radius_m;
+            }
             let sim = RealtimeSim {
-                world: SimWorld::new(*world, 1, file.seed, environment),
+                world,
                 stepped_to: Duration::ZERO,
             };
             (
@@ -288,6 +304,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
             listen: args.listen.clone(),
             state_dir: args.state_dir.clone(),
             no_api: args.no_api,
+            virtual_world: args.virtual_world.clone(),
         },
     )?;
     let (listen, token, state_dir, map) = (
@@ -297,15 +314,29 @@ async fn run_async(args: RunArgs) -> Result<()> {
         startup.map.clone(),
     );
     let Startup {
-        config, vehicles, ..
+        config,
+        vehicles,
+        virtual_world,
+        ..
     } = startup;
     let several = vehicles.len() > 1 || !config.vehicles.is_empty();
     let mut fleet = Vec::with_capacity(vehicles.len());
     let mut ready_timeout = Duration::ZERO;
     let mut links = SharedLinks::new(&vehicles);
-    for plan in vehicles {
+    let obstacles = virtual_world
+        .as_ref()
+        .map(|v| std::sync::Arc::new(ShapeIndex::new(v.world.shapes())));
+    for (k, plan) in vehicles.into_iter().enumerate() {
         let id = plan.id.clone();
+        let ranges = virtual_world.as_ref().zip(obstacles.clone()).map(|(v, o)| {
+            VirtualRanges::new(o, v.sensor(&plan, &config), config.sim.vehicle_radius_m)
+        });
         let (platform, ready, estimator) = start_platform(&config, plan, several, &mut links)?;
+        // Outside the shift: the scans are cast in the shared frame, where the world is.
+        let platform: Box<dyn Platform> = match ranges {
+            Some(ranges) => Box::new(VirtualSensors::new(platform, ranges, &id, k as u64)),
+            None => platform,
+        };
         ready_timeout = ready_timeout.max(ready);
         let mut core_config = CoreConfig::new(&id);
         core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
@@ -328,7 +359,22 @@ async fn run_async(args: RunArgs) -> Result<()> {
         token,
         state_dir,
     };
-    serve_vehicles(&args, &config, api, fleet, ready_timeout).await
+    if let Some(v) = &virtual_world {
+        println!(
+            "kestrel run: virtual world {} ({} obstacles): range sensors cast there",
+            v.path.display(),
+            v.world.shapes().len()
+        );
+    }
+    serve_vehicles(
+        &args,
+        &config,
+        api,
+        fleet,
+        ready_timeout,
+        virtual_world.map(|v| v.world),
+    )
+    .await
 }
 
 /// The API's address (`None`: `--no-api`) and token, and the state directory, as checked.
@@ -345,8 +391,12 @@ async fn serve_vehicles(
     api: Api,
     fleet: Vec<(DroneCore, Box<dyn Platform>)>,
     ready_timeout: Duration,
+    virtual_world: Option<kestrel::sim::world::World>,
 ) -> Result<()> {
-    let mut host = vehicle_host(fleet, config);
+    let mut host = match virtual_world {
+        Some(world) => virtual_world_host(fleet, config, world),
+        None => vehicle_host(fleet, config),
+    };
     let Api {
         listen,
         token,
@@ -371,7 +421,7 @@ async fn serve_vehicles(
         command: "run",
         config,
         seed: None,
-        world: None,
+        world: args.virtual_world.as_deref(),
         scenario: None,
         mission: args.mission.as_deref(),
         // From the config only: otherwise the autopilot's home, not known yet.

@@ -9,6 +9,10 @@
 //! list; `--connection` is refused with a list (each vehicle names its own), `--platform` then
 //! replaces `mavlink.platform`, the profile of the vehicles that name none.
 //!
+//! `--virtual-world FILE` (`run` and `check-config`) is loaded here too, bounded and checked by
+//! the world loader (`sim::world`); it is refused with the built-in simulator, which has a world
+//! of its own. With it the map is framed on the world's bounds, as in the simulator.
+//!
 //! Platform names resolve in this order: a file at that path (relative to the working
 //! directory); a built-in name (`px4`, `ardupilot-copter`, `sim`); for a relative path, the
 //! installed profiles: `<data dir>/NAME`, `<data dir>/platforms/NAME`, and
@@ -19,7 +23,7 @@ use anyhow::{bail, Context, Result};
 use kestrel::config::Config;
 use kestrel::mapping::config::MapConfig;
 use kestrel::platform::mavlink::Profile;
-use kestrel::sim::world::World;
+use kestrel::sim::world::{SensorConfig, World};
 use serde::Deserialize;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -68,6 +72,25 @@ pub struct VehiclePlan {
     pub target_system: Option<u8>,
     /// Its local frame's origin in the shared frame (m, ENU); zero for the single vehicle.
     pub origin_enu_m: [f64; 3],
+    /// The sensor its `[[vehicle]]` entry names for the virtual world (`None`: the default).
+    pub sensor: Option<SensorConfig>,
+}
+
+/// `--virtual-world`: the file, loaded and checked.
+pub struct VirtualWorldPlan {
+    pub path: PathBuf,
+    pub world: World,
+}
+
+impl VirtualWorldPlan {
+    /// The sensor cast for `vehicle`: its own, else `[sim] sensor`, else the world file's (the
+    /// four-beam multi-ranger when the file names none).
+    pub fn sensor(&self, vehicle: &VehiclePlan, config: &Config) -> SensorConfig {
+        vehicle
+            .sensor
+            .or(config.sim.sensor)
+            .unwrap_or(self.world.sensor)
+    }
 }
 
 /// Everything `run` needs that can be checked without touching the vehicle or the network.
@@ -81,9 +104,12 @@ pub struct Startup {
     pub token: Option<String>,
     pub log_dir: PathBuf,
     pub state_dir: PathBuf,
+    /// `--virtual-world`: the vehicles' range sensors are cast against its obstacles.
+    pub virtual_world: Option<VirtualWorldPlan>,
 }
 
-/// The command line's say over the config (all `None` for `check-config`).
+/// The command line's say over the config (all `None` for `check-config`, but
+/// `virtual_world`).
 #[derive(Default)]
 pub struct Overrides {
     pub platform: Option<String>,
@@ -91,6 +117,7 @@ pub struct Overrides {
     pub listen: Option<String>,
     pub state_dir: Option<PathBuf>,
     pub no_api: bool,
+    pub virtual_world: Option<PathBuf>,
 }
 
 /// Loads and checks everything `run` checks at start, in the order it uses them.
@@ -121,9 +148,13 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         .validate()
         .map_err(|(field, message)| anyhow::anyhow!("{file}: {field}: {message}"))?;
     let vehicles = vehicle_plans(&config, &platform_key, &file)?;
+    let virtual_world = match &overrides.virtual_world {
+        Some(path) => Some(virtual_world(path, &vehicles)?),
+        None => None,
+    };
     let map = config
         .map
-        .config(None)
+        .config(virtual_world.as_ref().map(|v| v.world.bounds_m.corners()))
         .with_context(|| format!("{file}: [map]"))?;
     let (listen, token) = api(&config, overrides, &file)?;
     let log_dir = config.drone.log_dir.clone().unwrap_or_default();
@@ -138,6 +169,26 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         token,
         log_dir,
         state_dir,
+        virtual_world,
+    })
+}
+
+/// Loads `--virtual-world`'s file; refused for the built-in simulator, which has its own world.
+fn virtual_world(path: &Path, vehicles: &[VehiclePlan]) -> Result<VirtualWorldPlan> {
+    if vehicles
+        .iter()
+        .any(|v| matches!(v.platform, PlatformPlan::Sim { .. }))
+    {
+        bail!(
+            "--virtual-world {}: the built-in simulator flies in its own world (the `world` of \
+             its platform file); --virtual-world is for autopilots",
+            path.display()
+        );
+    }
+    let world = World::load(path).context("--virtual-world")?;
+    Ok(VirtualWorldPlan {
+        path: path.to_path_buf(),
+        world,
     })
 }
 
@@ -155,6 +206,7 @@ fn vehicle_plans(config: &Config, platform_key: &str, file: &str) -> Result<Vec<
             forward: m.forward.clone(),
             target_system: m.target_system,
             origin_enu_m: [0.0; 3],
+            sensor: None,
         }]);
     }
     config
@@ -181,6 +233,7 @@ fn vehicle_plans(config: &Config, platform_key: &str, file: &str) -> Result<Vec<
                 forward: v.forward.clone(),
                 target_system: v.target_system,
                 origin_enu_m: v.origin_enu_m,
+                sensor: v.sensor,
             })
         })
         .collect()
@@ -314,9 +367,16 @@ fn load_platform(name: &str) -> Result<(String, PlatformPlan)> {
     }
 }
 
-/// `kestrel check-config`: the checks of `run`, then a short summary of what it would start.
-pub fn check(config_path: &Path) -> Result<()> {
-    let s = prepare(Some(config_path), &Overrides::default())?;
+/// `kestrel check-config`: the checks of `run` (with `--virtual-world`, of that file too), then
+/// a short summary of what it would start.
+pub fn check(config_path: &Path, virtual_world: Option<PathBuf>) -> Result<()> {
+    let s = prepare(
+        Some(config_path),
+        &Overrides {
+            virtual_world,
+            ..Overrides::default()
+        },
+    )?;
     let shown = |p: &Path| {
         if p.as_os_str().is_empty() {
             ".".to_string()
@@ -353,7 +413,39 @@ pub fn check(config_path: &Path) -> Result<()> {
     );
     println!("  log dir    {}", shown(&s.log_dir));
     println!("  state dir  {}", shown(&s.state_dir));
+    if let Some(v) = &s.virtual_world {
+        println!(
+            "  virtual world  {} ({} obstacles)",
+            v.path.display(),
+            v.world.shapes().len()
+        );
+        for vehicle in &s.vehicles {
+            println!(
+                "  {}: sensor {}",
+                vehicle.id,
+                sensor_summary(&v.sensor(vehicle, &s.config))
+            );
+        }
+    }
     Ok(())
+}
+
+/// A sensor in a few words: kind, range, rate.
+fn sensor_summary(sensor: &SensorConfig) -> String {
+    match *sensor {
+        SensorConfig::Multiranger {
+            range_max_m,
+            rate_hz,
+            ..
+        } => format!("multiranger, {range_max_m} m, {rate_hz} Hz"),
+        SensorConfig::Lidar360 {
+            range_max_m,
+            rate_hz,
+            beams,
+            ..
+        } => format!("lidar360, {beams} beams, {range_max_m} m, {rate_hz} Hz"),
+        SensorConfig::None => "none".into(),
+    }
 }
 
 /// One line of `check-config` for a vehicle of the list: id, platform, link, system id, frame.

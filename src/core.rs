@@ -319,6 +319,13 @@ impl DroneCore {
                 .fail_all(Failure::new(FailureCode::Crashed, reason), &ctx);
             self.server.clear_hold();
         }
+        if let Some(reason) = &feedback.virtual_collision {
+            // The vehicle is unharmed: what runs fails, and it holds where it is.
+            self.server.fail_all(
+                Failure::new(FailureCode::VirtualCollision, reason.clone()),
+                &ctx,
+            );
+        }
         let out = self.server.tick(&ctx);
         let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
         let caps = self.controller.caps(

@@ -56,6 +56,9 @@ enum Command {
         /// Config file (TOML).
         #[arg(long, default_value = "/etc/kestrel/kestrel.toml")]
         config: PathBuf,
+        /// Also check this world file as `kestrel run --virtual-world` would load it.
+        #[arg(long)]
+        virtual_world: Option<PathBuf>,
     },
 }
 
@@ -71,6 +74,9 @@ fn main() -> Result<()> {
         Command::World(command) => cli_world::run(command),
         Command::Evaluate(args) => cli_evaluate::run(args),
         Command::Report(args) => cli_report::run(args),
-        Command::CheckConfig { config } => cli_startup::check(&config),
+        Command::CheckConfig {
+            config,
+            virtual_world,
+        } => cli_startup::check(&config, virtual_world),
     }
 }

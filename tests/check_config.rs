@@ -366,3 +366,63 @@ fn run_refuses_a_connection_flag_with_a_vehicle_list() {
     );
     assert!(!text(&out).contains("kestrel run:"), "{}", text(&out));
 }
+
+/// `--virtual-world`: a missing or invalid world file stops both commands before anything is
+/// opened, naming the file (and the field); a good one is summarised with each vehicle's sensor.
+#[test]
+fn a_virtual_world_is_checked_before_anything_flies() {
+    let site = Site::new();
+    let config = site.config(&fleet_sections(&site, "udpin:0.0.0.0:14541"));
+    let missing = site.path("nowhere.json");
+    let bad = site.path("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"bounds_m": {"x": [-5, 5], "y": [-5, 5]}, "boxes": [{"center_xy_m": [0, 0], "size_xy_m": [1, -2]}]}"#,
+    )
+    .unwrap();
+    for (world, needle) in [
+        (&missing, "cannot read world file"),
+        (&bad, "boxes[0].size_xy_m"),
+    ] {
+        let flag = ["--virtual-world", world.to_str().unwrap()];
+        let mut check = vec!["check-config", "--config", config.to_str().unwrap()];
+        check.extend_from_slice(&flag);
+        let check = site.command(&check).output().unwrap();
+        let run = site.run(&config, &[&flag[..], &["--no-api"]].concat());
+        for (name, out) in [("check-config", &check), ("run", &run)] {
+            assert!(!out.status.success(), "{name} accepted it: {}", text(out));
+            for n in ["--virtual-world", &world.display().to_string(), needle] {
+                assert!(
+                    text(out).contains(n),
+                    "{name} does not say `{n}`: {}",
+                    text(out)
+                );
+            }
+        }
+        assert!(!text(&run).contains("kestrel run:"), "{}", text(&run));
+    }
+
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let room = repo.join("sitl/worlds/room10_fleet.json");
+    let lidar = fleet_sections(&site, "udpin:0.0.0.0:14541").replace(
+        "origin_enu_m = [3.0, -1.5, 0.0]\n",
+        "origin_enu_m = [3.0, -1.5, 0.0]\nsensor = { kind = \"lidar360\", beams = 90 }\n",
+    );
+    let config = site.config(&lidar);
+    let out = site
+        .command(&[
+            "check-config",
+            "--config",
+            config.to_str().unwrap(),
+            "--virtual-world",
+            room.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    let expected = format!(
+        "  virtual world  {} (9 obstacles)\n  scout: sensor multiranger, 4 m, 20 Hz\n  lifter: sensor lidar360, 90 beams, 10 m, 10 Hz\n",
+        room.display()
+    );
+    assert!(text(&out).ends_with(&expected), "{}", text(&out));
+}

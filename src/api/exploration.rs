@@ -123,7 +123,7 @@ fn report_json(input: ReportInput) -> Value {
 
 #[utoipa::path(get, path = "/api/exploration/report", tag = "map", security(("bearer" = [])),
     responses((status = 200, content_type = "application/json",
-        description = "attachment: {started_at_s, elapsed_s, finished, remaining_s, area_rate_pct_per_min, drones: [{drone, mission_id, phase, goal_enu_m, path_m}], known_pct, frontiers_left, area_curve: [{t_s, area_pct}], path_m, min_separation_m, pose_samples, pose_samples_dropped, evaluation: evaluator metrics against the simulator's true world or null, evaluation_error}"),
+        description = "attachment: {started_at_s, elapsed_s, finished, remaining_s, area_rate_pct_per_min, drones: [{drone, mission_id, phase, goal_enu_m, path_m}], known_pct, frontiers_left, area_curve: [{t_s, area_pct}], path_m, min_separation_m, pose_samples, pose_samples_dropped, evaluation: evaluator metrics against the simulator's true world (or kestrel run's --virtual-world) or null, evaluation_error}"),
         (status = 404, body = ErrorBody, description = "no exploration was started")))]
 /// The exploration report as a downloadable JSON file.
 pub async fn report(State(s): State<ApiState>) -> Result<Response, ApiError> {

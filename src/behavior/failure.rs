@@ -44,6 +44,9 @@ pub enum FailureCode {
     LinkLost,
     /// The vehicle touched an obstacle or another vehicle.
     Crashed,
+    /// The vehicle came within its radius of an obstacle of the virtual world it flies in
+    /// (`kestrel run --virtual-world`); it is unharmed and holds where it is.
+    VirtualCollision,
     /// The goal or the flight would leave the geofence.
     Geofence,
     /// Another behavior took the same resource.
@@ -55,7 +58,7 @@ pub enum FailureCode {
 }
 
 impl FailureCode {
-    pub const ALL: [FailureCode; 22] = [
+    pub const ALL: [FailureCode; 23] = [
         FailureCode::InvalidGoal,
         FailureCode::NotFlying,
         FailureCode::NotReady,
@@ -74,6 +77,7 @@ impl FailureCode {
         FailureCode::AutopilotSilent,
         FailureCode::LinkLost,
         FailureCode::Crashed,
+        FailureCode::VirtualCollision,
         FailureCode::Geofence,
         FailureCode::Preempted,
         FailureCode::Stopped,
@@ -101,6 +105,7 @@ impl FailureCode {
             FailureCode::AutopilotSilent => "autopilot_silent",
             FailureCode::LinkLost => "link_lost",
             FailureCode::Crashed => "crashed",
+            FailureCode::VirtualCollision => "virtual_collision",
             FailureCode::Geofence => "geofence",
             FailureCode::Preempted => "preempted",
             FailureCode::Stopped => "stopped",

@@ -104,8 +104,13 @@ pub struct SimSection {
     /// Random acceleration standard deviation per axis (m/s^2).
     pub turbulence_mps2: f64,
     /// Range sensor of every simulated drone (`kind` = `multiranger`, `lidar360` or `none`);
-    /// replaces the world file's. Absent: the world file's, else the multi-ranger.
+    /// replaces the world file's. Absent: the world file's, else the multi-ranger. Also the
+    /// sensor `kestrel run --virtual-world` casts for vehicles that name none of their own.
     pub sensor: Option<SensorConfig>,
+    /// Collision radius of a vehicle (m, 0.01 to 5): a drone whose centre comes closer than
+    /// this to an obstacle of the simulator's world has crashed, of `--virtual-world`'s has a
+    /// `virtual_collision`.
+    pub vehicle_radius_m: f64,
 }
 
 impl Default for SimSection {
@@ -114,6 +119,7 @@ impl Default for SimSection {
             wind_enu_mps: [0.0; 3],
             turbulence_mps2: 0.0,
             sensor: None,
+            vehicle_radius_m: crate::sim::dynamics::MultirotorParams::default().radius_m,
         }
     }
 }
@@ -386,6 +392,18 @@ impl Config {
             20.0,
             "m/s^2",
         )?;
+        within(
+            "sim.vehicle_radius_m",
+            self.sim.vehicle_radius_m,
+            (0.01, 5.0),
+            false,
+            "m",
+        )?;
+        if let Some(sensor) = &self.sim.sensor {
+            sensor
+                .validate()
+                .map_err(|m| ("sim.sensor".to_string(), m))?;
+        }
         self.mavlink.validate()?;
         self.validate_geofence()?;
         non_negative(

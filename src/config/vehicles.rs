@@ -11,6 +11,7 @@
 //! Without the list the config flies one vehicle: `[drone] id` over `[mavlink]`, as always.
 
 use crate::platform::mavlink::config::MavlinkSection;
+use crate::sim::world::SensorConfig;
 use serde::{Deserialize, Serialize};
 
 /// The most vehicles one host flies (each has its own link tasks and core).
@@ -46,6 +47,11 @@ pub struct VehicleSection {
     /// sharing a connection list the same endpoints: they get the whole connection's stream.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub forward: Vec<String>,
+    /// The range sensor `kestrel run --virtual-world` casts for this vehicle (as `[sim.sensor]`:
+    /// `kind` = `multiranger`, `lidar360` or `none`); absent = `[sim] sensor`, else the world
+    /// file's, else the four-beam multi-ranger. Unused without a virtual world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<SensorConfig>,
 }
 
 /// Checks the list against itself and the shared `[mavlink]` section.
@@ -133,6 +139,9 @@ pub fn validate(
         }
         if v.target_system == Some(0) {
             return Err((key("target_system"), "must be 1..=255".into()));
+        }
+        if let Some(sensor) = &v.sensor {
+            sensor.validate().map_err(|m| (key("sensor"), m))?;
         }
         for c in v.origin_enu_m {
             crate::config::bounds::within(
@@ -229,6 +238,10 @@ mod tests {
         assert_eq!(field, "vehicle[1].origin_enu_m");
         let nan = TWO.replace("[3.0, 0.0, 0.0]", "[nan, 0.0, 0.0]");
         assert!(validate(&parse(&nan), &MavlinkSection::default()).is_err());
+        let blind = format!("{TWO}sensor = {{ kind = \"lidar360\", rate_hz = 0.0 }}\n");
+        let (field, message) = validate(&parse(&blind), &MavlinkSection::default()).unwrap_err();
+        assert_eq!(field, "vehicle[1].sensor");
+        assert!(message.contains("rate_hz"), "{message}");
         let mavlink = MavlinkSection {
             forward: vec!["udpout:127.0.0.1:14550".into()],
             ..MavlinkSection::default()

@@ -25,13 +25,18 @@ pub fn simulated_host(world: World, drones: usize, seed: u64, config: &Config) -
     simulated_host_in(sim_world(world, drones, seed, config), config)
 }
 
-/// The simulator's world with `drones` vehicles and the config's wind and turbulence.
+/// The simulator's world with `drones` vehicles and the config's wind, turbulence and vehicle
+/// radius.
 pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> SimWorld {
     let environment = Environment {
         wind_mps: Vec3::from(config.sim.wind_enu_mps),
         turbulence_mps2: config.sim.turbulence_mps2,
     };
-    SimWorld::new(world, drones, seed, environment)
+    let mut sim = SimWorld::new(world, drones, seed, environment);
+    for v in &mut sim.vehicles {
+        v.params.radius_m = config.sim.vehicle_radius_m;
+    }
+    sim
 }
 
 /// A host flying the vehicles of an existing simulator world.

@@ -1,19 +1,45 @@
 //! A host flying real vehicles: one core per [`Platform`] (a MAVLink autopilot), ticked in
 //! real time. `kestrel run` builds its core and platform, then serves this host.
 //!
-//! In: cores and their platforms, the config. Out: a [`Host`] over `Vec<Box<dyn Platform>>`,
-//! with the fleet's merged map on the `[map]` section's grid (the one the cores map on), so the
-//! frontier allocator of exploration and the map routes work as in the simulator.
+//! In: cores and their platforms, the config, the virtual world if any. Out: a [`Host`] over
+//! `Vec<Box<dyn Platform>>`, with the fleet's merged map on the `[map]` section's grid (the one
+//! the cores map on), so the frontier allocator of exploration and the map routes work as in the
+//! simulator.
 
 use super::engine::{Host, HostConfig};
 use crate::config::Config;
 use crate::core::DroneCore;
 use crate::mapping::merged::FleetMap;
 use crate::platform::Platform;
+use crate::sim::world::World;
+use crate::types::Vec2;
 use std::time::Duration;
 
 /// `vehicles`: each core with the platform it flies, in order.
 pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Config) -> Host {
+    framed_host(vehicles, config, None)
+}
+
+/// The same host for vehicles flying in a virtual world (`kestrel run --virtual-world`, their
+/// platforms wrapped in `sim::virtual_world`): the merged map framed on the world's bounds
+/// unless `[map]` gives its extent (as in the simulator; the cores' maps must be built from
+/// the same section and bounds), and the world kept as the truth the exploration report judges
+/// runs against.
+pub fn virtual_world_host(
+    vehicles: Vec<(DroneCore, Box<dyn Platform>)>,
+    config: &Config,
+    world: World,
+) -> Host {
+    let mut host = framed_host(vehicles, config, Some(world.bounds_m.corners()));
+    host.set_virtual_world(world);
+    host
+}
+
+fn framed_host(
+    vehicles: Vec<(DroneCore, Box<dyn Platform>)>,
+    config: &Config,
+    world_bounds: Option<(Vec2, Vec2)>,
+) -> Host {
     let (cores, platforms): (Vec<DroneCore>, Vec<Box<dyn Platform>>) = vehicles.into_iter().unzip();
     let mut host = Host::new(
         cores,
@@ -24,11 +50,11 @@ pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Conf
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },
     );
-    // No world to frame it on: the section's extent, centred on the `earth` origin unless it
-    // says where (the cores' own maps are built from the same section).
+    // Without a world to frame it: the section's extent, centred on the `earth` origin unless
+    // it says where (the cores' own maps are built from the same section).
     match config
         .map
-        .config(None)
+        .config(world_bounds)
         .map(|m| m.map(|m| FleetMap::new(&m)))
     {
         Ok(Some(Ok(map))) => host.set_map(map),

@@ -2,13 +2,15 @@
 //!
 //! In: a [`world::World`], per-drone setpoints and requests (through [`vehicle::SimVehicle`]'s
 //! `Platform` impl), a seed. Out: vehicle states, range scans, collisions. Reproducible: the same
-//! seed, world and commands give the same flight.
+//! seed, world and commands give the same flight. `virtual_world` casts a real vehicle's range
+//! sensor against a world's obstacles instead (`kestrel run --virtual-world`).
 
 pub mod dynamics;
 pub mod sensors;
 pub mod shape;
 pub mod spatial;
 pub mod vehicle;
+pub mod virtual_world;
 pub mod world;
 
 use crate::types::Vec3;

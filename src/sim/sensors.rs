@@ -14,6 +14,10 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 /// Shortest beams any sensor reports (m).
 const RANGE_MIN_M: f64 = 0.04;
+/// Bounds of a sensor's settings: most lidar beams, longest range (m), fastest rate (Hz).
+const MAX_BEAMS: u32 = 3600;
+const MAX_RANGE_M: f64 = 1000.0;
+const MAX_RATE_HZ: f64 = 1000.0;
 
 /// Which range sensor the simulated drones carry. Absent fields take the defaults of the
 /// kind, so `{"kind": "lidar360"}` is a complete sensor.
@@ -97,7 +101,8 @@ impl SensorConfig {
         }
     }
 
-    /// Checks ranges and rates; the message names the field and unit.
+    /// Checks ranges, rates and the beam count (each bounded: a sensor is cast every time it is
+    /// due, on the control loop); the message names the field and unit.
     pub fn validate(&self) -> Result<(), String> {
         let (range, rate, noise) = match *self {
             Self::Multiranger {
@@ -111,17 +116,29 @@ impl SensorConfig {
                 noise_std_m,
                 beams,
             } => {
-                if beams == 0 {
-                    return Err("sensor.beams must be at least 1".into());
+                if !(1..=MAX_BEAMS).contains(&beams) {
+                    return Err(format!(
+                        "sensor.beams must be 1 to {MAX_BEAMS}, got {beams}"
+                    ));
                 }
                 (range_max_m, rate_hz, noise_std_m)
             }
             Self::None => return Ok(()),
         };
-        if !(range > 0.0 && rate > 0.0 && noise >= 0.0) {
-            return Err(
-                "sensor needs range_max_m > 0 (m), rate_hz > 0 (Hz), noise_std_m >= 0 (m)".into(),
-            );
+        if !(range > 0.0 && range <= MAX_RANGE_M) {
+            return Err(format!(
+                "sensor.range_max_m must be above 0 and at most {MAX_RANGE_M} m, got {range}"
+            ));
+        }
+        if !(rate > 0.0 && rate <= MAX_RATE_HZ) {
+            return Err(format!(
+                "sensor.rate_hz must be above 0 and at most {MAX_RATE_HZ} Hz, got {rate}"
+            ));
+        }
+        if !(0.0..=MAX_RANGE_M).contains(&noise) {
+            return Err(format!(
+                "sensor.noise_std_m must be 0 or more and at most {MAX_RANGE_M} m, got {noise}"
+            ));
         }
         Ok(())
     }

@@ -284,6 +284,7 @@ impl Platform for SimVehicle {
             ],
             scans: std::mem::take(&mut self.pending_scans),
             request_results: std::mem::take(&mut self.pending_results),
+            virtual_collision: None,
         }
     }
 

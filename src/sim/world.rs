@@ -3,7 +3,9 @@
 //! The base layout is the thesis's exploration worlds, read unchanged (`bounds_m`,
 //! `pole_radius_m`, `poles_xy_m`, `starts_xy_yaw` keyed by drone count). Optional extensions in
 //! the same JSON object: `cylinders`, `boxes`, `sensor`, `geodetic_origin`, `pole_height_m`.
-//! The Python fake autopilot in `sitl/` reads the same files.
+//! The Python fake autopilot in `sitl/` reads the same files, and `kestrel run --virtual-world`
+//! casts real vehicles' range sensors against them (`sim::virtual_world`), so a file is bounded
+//! ([`MAX_WORLD_BYTES`], [`MAX_SHAPES`]) and every number checked, the error naming the field.
 
 pub use super::sensors::SensorConfig;
 pub use super::shape::Shape;
@@ -11,7 +13,15 @@ use crate::types::GeoPoint;
 use crate::types::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::io::Read;
 use std::path::Path;
+
+/// Largest world file read (bytes); the thesis's densest world is 19 kB.
+pub const MAX_WORLD_BYTES: u64 = 16 << 20;
+/// Most obstacles (poles, cylinders and boxes together) in one world.
+pub const MAX_SHAPES: usize = 100_000;
+/// Largest extent of a world along x or y, and largest obstacle size (m).
+const MAX_EXTENT_M: f64 = 100_000.0;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Bounds {
@@ -19,6 +29,16 @@ pub struct Bounds {
     pub x: [f64; 2],
     /// [min, max] north (m).
     pub y: [f64; 2],
+}
+
+impl Bounds {
+    /// The (min, max) corners (ENU, m).
+    pub fn corners(&self) -> (Vec2, Vec2) {
+        (
+            Vec2::new(self.x[0], self.y[0]),
+            Vec2::new(self.x[1], self.y[1]),
+        )
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -77,6 +97,8 @@ pub enum WorldError {
         path: String,
         source: std::io::Error,
     },
+    #[error("world file {path} is {size} bytes, more than the {max} read")]
+    TooLarge { path: String, size: u64, max: u64 },
     #[error("world file {path} is not valid: {source}")]
     Parse {
         path: String,
@@ -106,12 +128,32 @@ impl World {
         }
     }
 
+    /// Reads, parses and checks a world file, refusing one over [`MAX_WORLD_BYTES`] before
+    /// reading it; every error names the file (and the field, for a value out of range).
     pub fn load(path: &Path) -> Result<Self, WorldError> {
         let p = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| WorldError::Read {
+        let read = |source| WorldError::Read {
             path: p.clone(),
             source,
-        })?;
+        };
+        let file = std::fs::File::open(path).map_err(read)?;
+        let size = file.metadata().map_err(read)?.len();
+        let too_large = |size| WorldError::TooLarge {
+            path: p.clone(),
+            size,
+            max: MAX_WORLD_BYTES,
+        };
+        if size > MAX_WORLD_BYTES {
+            return Err(too_large(size));
+        }
+        // The file may grow between the check and the read: never read past the limit.
+        let mut text = String::new();
+        file.take(MAX_WORLD_BYTES + 1)
+            .read_to_string(&mut text)
+            .map_err(read)?;
+        if text.len() as u64 > MAX_WORLD_BYTES {
+            return Err(too_large(text.len() as u64));
+        }
         let world: World = serde_json::from_str(&text).map_err(|source| WorldError::Parse {
             path: p.clone(),
             source,
@@ -122,13 +164,61 @@ impl World {
         Ok(world)
     }
 
+    /// Every number finite and in range, at most [`MAX_SHAPES`] obstacles; the message starts
+    /// with the field (`cylinders[2].radius_m`).
     fn validate(&self) -> Result<(), String> {
         let b = &self.bounds_m;
         if !(b.x[0] < b.x[1] && b.y[0] < b.y[1]) {
             return Err("bounds_m must have min < max on x and y".into());
         }
-        if self.pole_radius_m < 0.0 || self.cylinders.iter().any(|c| c.radius_m <= 0.0) {
-            return Err("obstacle radii must be positive (m)".into());
+        let shapes = self.poles_xy_m.len() + self.cylinders.len() + self.boxes.len();
+        if shapes > MAX_SHAPES {
+            return Err(format!(
+                "{shapes} obstacles (poles_xy_m, cylinders, boxes), at most {MAX_SHAPES}"
+            ));
+        }
+        let coordinates = |field: &str, values: &[f64]| match values
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= MAX_EXTENT_M)
+        {
+            true => Ok(()),
+            false => Err(format!(
+                "{field} must be finite and within {MAX_EXTENT_M} m, got {values:?}"
+            )),
+        };
+        let size = |field: &str, value: f64, zero_ok: bool| {
+            let above = if zero_ok { value >= 0.0 } else { value > 0.0 };
+            match above && value <= MAX_EXTENT_M {
+                true => Ok(()),
+                false => Err(format!(
+                    "{field} must be {} and at most {MAX_EXTENT_M} m, got {value}",
+                    if zero_ok { "0 or more" } else { "above 0" }
+                )),
+            }
+        };
+        coordinates("bounds_m", &[b.x[0], b.x[1], b.y[0], b.y[1]])?;
+        size("pole_radius_m", self.pole_radius_m, true)?;
+        size("pole_height_m", self.pole_height_m, false)?;
+        for (i, xy) in self.poles_xy_m.iter().enumerate() {
+            coordinates(&format!("poles_xy_m[{i}]"), xy)?;
+        }
+        for (i, c) in self.cylinders.iter().enumerate() {
+            coordinates(&format!("cylinders[{i}].xy_m"), &c.xy_m)?;
+            size(&format!("cylinders[{i}].radius_m"), c.radius_m, false)?;
+            size(&format!("cylinders[{i}].height_m"), c.height_m, false)?;
+        }
+        for (i, x) in self.boxes.iter().enumerate() {
+            coordinates(&format!("boxes[{i}].center_xy_m"), &x.center_xy_m)?;
+            coordinates(&format!("boxes[{i}].yaw_rad"), &[x.yaw_rad])?;
+            for s in x.size_xy_m {
+                size(&format!("boxes[{i}].size_xy_m"), s, false)?;
+            }
+            size(&format!("boxes[{i}].height_m"), x.height_m, false)?;
+        }
+        for (n, list) in &self.starts_xy_yaw {
+            for (i, s) in list.iter().enumerate() {
+                coordinates(&format!("starts_xy_yaw.{n}[{i}]"), s)?;
+            }
         }
         self.sensor.validate()
     }
@@ -288,5 +378,45 @@ mod tests {
         let bad: World =
             serde_json::from_str(r#"{"bounds_m": {"x": [1, -1], "y": [0, 1]}}"#).unwrap();
         assert!(bad.validate().is_err());
+    }
+
+    #[test]
+    fn bad_values_are_refused_naming_the_field_and_the_file() {
+        let refusal = |extra: &str| {
+            let text = format!(r#"{{"bounds_m": {{"x": [-5, 5], "y": [-5, 5]}}, {extra}}}"#);
+            serde_json::from_str::<World>(&text)
+                .unwrap()
+                .validate()
+                .unwrap_err()
+        };
+        let m = refusal(
+            r#""cylinders": [{"xy_m": [1, 1], "radius_m": 1}, {"xy_m": [2, 2], "radius_m": -1}]"#,
+        );
+        assert!(m.starts_with("cylinders[1].radius_m"), "{m}");
+        let m = refusal(r#""poles_xy_m": [[0, 0], [1e300, 0]]"#);
+        assert!(m.starts_with("poles_xy_m[1]"), "{m}");
+        let m = refusal(r#""boxes": [{"center_xy_m": [0, 0], "size_xy_m": [0, 1]}]"#);
+        assert!(m.starts_with("boxes[0].size_xy_m"), "{m}");
+        let m = refusal(r#""sensor": {"kind": "lidar360", "beams": 100000}"#);
+        assert!(m.starts_with("sensor.beams"), "{m}");
+
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("w.json");
+        std::fs::write(
+            &path,
+            r#"{"bounds_m": {"x": [0, 1], "y": [0, 1]}, "pole_radius_m": -1}"#,
+        )
+        .unwrap();
+        let e = World::load(&path).unwrap_err().to_string();
+        assert!(e.contains(&path.display().to_string()), "{e}");
+        assert!(e.contains("pole_radius_m"), "{e}");
+        let f = std::fs::File::create(&path).unwrap();
+        f.set_len(MAX_WORLD_BYTES + 1).unwrap();
+        let e = World::load(&path).unwrap_err();
+        assert!(matches!(e, WorldError::TooLarge { .. }), "{e}");
+        let e = World::load(&dir.path().join("missing.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("missing.json"), "{e}");
     }
 }

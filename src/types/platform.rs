@@ -49,6 +49,10 @@ pub struct PlatformFeedback {
     pub scans: Vec<RangeScan>,
     /// Outcomes of requests that completed since the last tick (payload acks, refusals).
     pub request_results: Vec<RequestResult>,
+    /// The vehicle came within its radius of an obstacle that exists only in a virtual world
+    /// (`kestrel run --virtual-world`): what it touched, once per episode. The vehicle itself is
+    /// unharmed; the core fails what runs (`virtual_collision`) and holds it where it is.
+    pub virtual_collision: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

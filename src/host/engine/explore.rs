@@ -40,7 +40,8 @@ pub struct ExplorationStarted {
 #[derive(Debug, Clone)]
 pub struct ReportInput {
     pub live: LiveReport,
-    /// The simulator's true world, `None` on real vehicles.
+    /// The simulator's true world, or the virtual world of real vehicles; `None` on real
+    /// vehicles in the real world.
     pub world: Option<World>,
     /// The run's pose samples in order, in shared chunks.
     pub samples: Vec<Arc<[PoseSample]>>,
@@ -303,6 +304,12 @@ impl Host {
         Some(ProgressView::of(run, self.now, drones))
     }
 
+    /// Judges explorations against `world`, where real vehicles fly with virtual range sensors
+    /// (`sim::virtual_world`): their reports get the evaluator's metrics as in the simulator.
+    pub fn set_virtual_world(&mut self, world: World) {
+        self.virtual_world = Some(Box::new(world));
+    }
+
     /// What the report needs; `not_found`-like `NotSupported` before any exploration.
     pub fn exploration_report(&self) -> Result<ReportInput, HostError> {
         let (Some(run), Some(progress)) = (self.exploration.as_ref(), self.exploration_progress())
@@ -324,7 +331,10 @@ impl Host {
         };
         Ok(ReportInput {
             live,
-            world: self.sim_world().map(|w| w.world.clone()),
+            world: self
+                .sim_world()
+                .map(|w| w.world.clone())
+                .or_else(|| self.virtual_world.as_deref().cloned()),
             samples: run.sample_chunks(),
         })
     }

@@ -129,6 +129,9 @@ pub struct Host {
     remote: Option<RemoteFleet>,
     /// The fleet bus's last report, for the snapshot.
     bus_report: Option<BusReport>,
+    /// The world real vehicles fly in virtually (`kestrel run --virtual-world`), the truth the
+    /// exploration report judges against where the simulator's is absent.
+    virtual_world: Option<Box<crate::sim::world::World>>,
 }
 
 impl Host {
@@ -165,6 +168,7 @@ impl Host {
             frames_committed: 0,
             remote: None,
             bus_report: None,
+            virtual_world: None,
         }
     }
 

@@ -262,6 +262,7 @@ impl Session {
             measurements: self.model.odometry(now).into_iter().collect(),
             scans: self.model.take_scans(),
             request_results: std::mem::take(&mut self.results),
+            virtual_collision: None,
         }
     }
 
