@@ -61,9 +61,11 @@ fn busy_core(behavior: &str, goal: serde_json::Value) -> (DroneCore, PlatformFee
         setpoints: kestrel::control::AcceptedSetpoints {
             velocity: true,
             position: true,
+            position_loop: None,
         },
         native_takeoff: false,
         native_land: false,
+        velocity_lag_s: None,
     };
     let mut core = DroneCore::new(
         CoreConfig::new("drone_0"),

@@ -123,6 +123,7 @@ impl Platform for RealtimeSim {
                 },
                 native_takeoff: false,
                 native_land: false,
+                velocity_lag_s: None,
             },
             |v| v.capabilities(),
         )

@@ -108,7 +108,15 @@ pub struct DroneCore {
 }
 
 impl DroneCore {
-    pub fn new(config: CoreConfig, capabilities: Capabilities, registry: Registry) -> Self {
+    pub fn new(mut config: CoreConfig, capabilities: Capabilities, registry: Registry) -> Self {
+        // The config's velocity lag, else the platform's: the controller's feed-forward and the
+        // safety stage's reaction time use the same one.
+        let lag = config
+            .controller
+            .velocity_lag_s
+            .or(capabilities.velocity_lag_s);
+        config.controller.velocity_lag_s = lag;
+        config.safety.limits.velocity_lag_s = lag;
         Self {
             estimator: estimator::build(config.estimator),
             controller: Controller::new(config.controller, capabilities.setpoints),

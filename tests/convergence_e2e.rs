@@ -35,12 +35,12 @@ fn mission() -> Value {
 
 /// The points flown through in order (the fake starts at the origin facing east), each with
 /// how near the vehicle must come (m): every item's goal 0.1; the path's corner is a waypoint
-/// passed on a smooth trajectory, not a goal (within `waypoint_threshold_m`, 0.3 by default).
+/// passed on a smooth trajectory that rounds it, not a goal (within half a metre).
 fn targets() -> Vec<([f64; 3], f64)> {
     vec![
         ([0.0, 0.0, HEIGHT_M], 0.1),
         ([5.0, 0.0, HEIGHT_M], 0.1),
-        ([5.0, 4.0, HEIGHT_M], 0.3),
+        ([5.0, 4.0, HEIGHT_M], 0.5),
         ([1.0, 4.0, HEIGHT_M], 0.1),
         ([1.0, 1.5, HEIGHT_M], 0.1),
     ]
@@ -56,6 +56,10 @@ fn local(sample: &Value, key: &str) -> [f64; 3] {
 }
 
 fn fly(p: Personality, seed: u64) {
+    fly_with(p, p.profile(), seed);
+}
+
+fn fly_with(p: Personality, profile: &str, seed: u64) {
     let seed_arg = seed.to_string();
     let fake = Fake::start(
         p,
@@ -72,8 +76,8 @@ fn fly(p: Personality, seed: u64) {
     let file = dir.path().join("mission.json");
     std::fs::write(&file, mission().to_string()).unwrap();
     let poller = fake.poll_states();
-    let mut kestrel = Kestrel::run(
-        p,
+    let mut kestrel = Kestrel::run_with_platform(
+        profile,
         &fake.connection,
         "",
         &[
@@ -142,4 +146,22 @@ fn ardupilot_converges_on_every_goal_with_telemetry_jitter_in_every_seeded_run()
     for seed in SEEDS {
         fly(Personality::Ardupilot, seed);
     }
+}
+
+/// The other way of driving (`[drive] setpoints = "position_target"`: a moving reference point
+/// held by the autopilot's own position loop) converges as well.
+#[test]
+fn px4_driven_by_position_targets_converges_too() {
+    let _alongside = alongside();
+    let dir = tempfile::tempdir().unwrap();
+    let profile = dir.path().join("px4-position-targets.toml");
+    let text = std::fs::read_to_string(mavlink_support::repo().join("platforms/px4.toml"))
+        .unwrap()
+        .replace(
+            "setpoints = \"velocity\"",
+            "setpoints = \"position_target\"",
+        );
+    assert!(text.contains("position_target"));
+    std::fs::write(&profile, text).unwrap();
+    fly_with(Personality::Px4, profile.to_str().unwrap(), 1);
 }

@@ -30,10 +30,9 @@ const DRONES: [&str; 3] = ["drone_0", "drone_1", "drone_2"];
 /// Where the fake starts each vehicle (the world's `starts_xy_yaw` for three, m, ENU).
 const STARTS_ENU_M: [[f64; 3]; 3] = [[-3.0, 0.0, 0.0], [0.0, 0.0, 0.0], [3.0, 1.0, 0.0]];
 
-/// The fleet's config: the room's map, PX4's velocity response (as tests/run_explore.rs), and
-/// the three autopilots, each with its connection, system id and frame origin.
+/// The fleet's config: the room's map and the three autopilots, each with its connection, system id and frame origin.
 fn config(connections: &[String]) -> String {
-    let mut text = "[map]\nsize_m = [12.0, 12.0]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+    let mut text = "[map]\nsize_m = [12.0, 12.0]\n\n\
                     [mavlink]\nplatform = \"platforms/px4.toml\"\n"
         .to_string();
     for (i, (connection, origin)) in connections.iter().zip(STARTS_ENU_M).enumerate() {

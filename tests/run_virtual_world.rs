@@ -31,10 +31,10 @@ const DRONES: [&str; 3] = ["drone_0", "drone_1", "drone_2"];
 const STARTS_ENU_M: [[f64; 3]; 3] = [[-3.0, 0.0, 0.0], [0.0, 0.0, 0.0], [3.0, 1.0, 0.0]];
 
 /// The fleet's config as tests/run_fleet.rs: a 12 m map (framed on the virtual world's centre),
-/// PX4's velocity response, the three autopilots with their connections, system ids and frame
+/// the three autopilots with their connections, system ids and frame
 /// origins.
 fn config(connections: &[String]) -> String {
-    let mut text = "[map]\nsize_m = [12.0, 12.0]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+    let mut text = "[map]\nsize_m = [12.0, 12.0]\n\n\
                     [mavlink]\nplatform = \"platforms/px4.toml\"\n"
         .to_string();
     for (i, (connection, origin)) in connections.iter().zip(STARTS_ENU_M).enumerate() {

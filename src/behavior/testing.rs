@@ -53,6 +53,7 @@ impl Scene {
                 },
                 native_takeoff: false,
                 native_land: false,
+                velocity_lag_s: None,
             },
             dt_s: 1.0,
             request_results: Vec::new(),

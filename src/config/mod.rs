@@ -495,7 +495,9 @@ impl Config {
             10.0,
             "rad/s",
         )?;
-        non_negative("controller.velocity_lag_s", c.velocity_lag_s, 5.0, "s")?;
+        if let Some(lag) = c.velocity_lag_s {
+            non_negative("controller.velocity_lag_s", lag, 5.0, "s")?;
+        }
         for (name, g) in [
             ("position", &c.position),
             ("trajectory", &c.trajectory),

@@ -26,11 +26,22 @@ pub struct ControllerConfig {
     /// Time constant of the autopilot's velocity response (s). Trajectory references add
     /// their acceleration times this to the velocity command, so the vehicle keeps up with a
     /// speeding-up reference instead of lagging and then overshooting the speed to catch up.
-    pub velocity_lag_s: f64,
+    /// Absent: the platform profile's (`[drive] velocity_lag_s`), else 0.25 s.
+    pub velocity_lag_s: Option<f64>,
     /// Acceleration of the reference point handed to an autopilot that closes the position
     /// loop itself (m/s^2): how fast it speeds up toward a goal and brakes onto it.
     pub max_acceleration_mps2: f64,
 }
+
+impl ControllerConfig {
+    /// The velocity response's time constant in use (s).
+    pub fn velocity_lag(&self) -> f64 {
+        self.velocity_lag_s.unwrap_or(DEFAULT_VELOCITY_LAG_S)
+    }
+}
+
+/// The velocity lag assumed when neither the config nor the platform says (s).
+pub const DEFAULT_VELOCITY_LAG_S: f64 = 0.25;
 
 impl Default for ControllerConfig {
     fn default() -> Self {
@@ -44,7 +55,7 @@ impl Default for ControllerConfig {
             max_up_speed_mps: 3.0,
             max_down_speed_mps: 1.5,
             max_yaw_rate_radps: 1.5,
-            velocity_lag_s: 0.25,
+            velocity_lag_s: None,
             max_acceleration_mps2: 1.5,
         }
     }
@@ -171,7 +182,7 @@ impl Controller {
                     self.trajectory_pid
                         .update(position_enu_m - position, dt_s, Vec3::zeros());
                 let feed_forward =
-                    velocity_enu_mps + acceleration_enu_mps2 * self.config.velocity_lag_s;
+                    velocity_enu_mps + acceleration_enu_mps2 * self.config.velocity_lag();
                 self.velocity_setpoint(caps.clamp(feed_forward + correction), yaw, state, dt_s)
             }
         }

@@ -86,6 +86,7 @@ mod tests {
                 },
                 native_takeoff: false,
                 native_land: false,
+                velocity_lag_s: None,
             }
         }
         fn poll(&mut self, _now: Duration) -> PlatformFeedback {

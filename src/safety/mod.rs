@@ -259,7 +259,7 @@ impl SafetyStage {
         let here = state.pose.position_m;
         let min = self.config.min_separation_m;
         let keep = min + self.config.separation_margin_m.max(0.0);
-        let react_s = self.config.limits.velocity_lag_s.max(0.0) + REACTION_EXTRA_S;
+        let react_s = self.config.limits.velocity_lag().max(0.0) + REACTION_EXTRA_S;
         let brake = self.config.braking_mps2.max(0.1);
         let (asked, yaw) = intended_velocity(&sp, here, &self.position_loop);
         let actual = state.velocity_enu_mps;

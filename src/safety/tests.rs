@@ -279,7 +279,7 @@ fn fly_next_to(start: Vec3, goal: Vec3, others: &[DroneView], seconds: f64) -> (
         min_separation_m: 0.5,
         ..SafetyConfig::default()
     };
-    let lag_s = config.limits.velocity_lag_s;
+    let lag_s = config.limits.velocity_lag();
     let mut stage = SafetyStage::new(config, None);
     let fleet = FleetView {
         drones: others.to_vec(),

@@ -209,9 +209,11 @@ mod tests {
                 setpoints: crate::types::AcceptedSetpoints {
                     velocity: true,
                     position: true,
+                    position_loop: None,
                 },
                 native_takeoff: false,
                 native_land: false,
+                velocity_lag_s: None,
             }
         }
         fn poll(&mut self, _now: Duration) -> PlatformFeedback {

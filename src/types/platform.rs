@@ -39,6 +39,9 @@ pub struct Capabilities {
     pub native_takeoff: bool,
     /// Landing goes through [`PlatformRequest::Land`] (the autopilot's land detector disarms).
     pub native_land: bool,
+    /// Time constant of the autopilot's velocity response (s), when the profile knows it; the
+    /// config's `[controller] velocity_lag_s` overrides it.
+    pub velocity_lag_s: Option<f64>,
 }
 
 /// Everything the platform reports for one tick.

@@ -114,7 +114,7 @@ pub fn config(arena: &Arena, id: usize, connection: &str, fleet: Option<&str>) -
     let o = arena.starts_enu_m[id];
     let [w, h] = arena.map_size_m;
     let mut text = format!(
-        "[map]\nsize_m = [{w:.1}, {h:.1}]\n\n[controller]\nvelocity_lag_s = 0.6\n\n\
+        "[map]\nsize_m = [{w:.1}, {h:.1}]\n\n\
          [mavlink]\nplatform = \"platforms/px4.toml\"\n\n\
          [[vehicle]]\nid = \"drone_{id}\"\nconnection = \"{connection}\"\n\
          target_system = {}\norigin_enu_m = [{:.1}, {:.1}, {:.1}]\n",

@@ -86,6 +86,8 @@ pub enum GimbalProtocol {
 #[serde(deny_unknown_fields)]
 struct RawDrive {
     setpoints: DriveSetpoints,
+    #[serde(default = "default_lag")]
+    velocity_lag_s: f64,
     #[serde(default = "unit_gain")]
     position_gain_xy_per_s: f64,
     #[serde(default = "unit_gain")]
@@ -96,10 +98,15 @@ fn unit_gain() -> f64 {
     1.0
 }
 
+fn default_lag() -> f64 {
+    0.25
+}
+
 impl Default for RawDrive {
     fn default() -> Self {
         Self {
             setpoints: DriveSetpoints::PositionTarget,
+            velocity_lag_s: default_lag(),
             position_gain_xy_per_s: 1.0,
             position_gain_z_per_s: 1.0,
         }
@@ -257,6 +264,8 @@ pub struct Profile {
     pub message_intervals: Vec<(u32, f64)>,
     /// The autopilot's position loop when it is given position targets; `None`: velocities.
     pub position_loop: Option<PositionLoop>,
+    /// Time constant of the autopilot's velocity response (`[drive] velocity_lag_s`).
+    pub velocity_lag: Duration,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -495,6 +504,7 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
         roles,
         message_intervals,
         position_loop,
+        velocity_lag: seconds("drive.velocity_lag_s", raw.drive.velocity_lag_s, 0.0, 5.0)?,
     })
 }
 

@@ -114,6 +114,7 @@ impl Session {
             },
             native_takeoff: self.profile.takeoff == TakeoffMethod::NavTakeoff,
             native_land: true,
+            velocity_lag_s: Some(self.profile.velocity_lag.as_secs_f64()),
         }
     }
 
