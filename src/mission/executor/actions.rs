@@ -310,6 +310,7 @@ impl MissionExecutor {
         if let Some(r) = self.run.as_mut() {
             r.paused = false;
         }
+        self.clear_takeover();
         self.advance(core, now);
         Ok(())
     }

@@ -9,9 +9,12 @@
 //! in `tests/mission_actions.rs`, one test per rule.
 
 mod actions;
+mod in_flight;
 mod link;
+mod takeover;
 
 pub use actions::{ActionError, Request};
+pub use in_flight::InFlightFailure;
 use link::LinkWait;
 pub use link::{ExecutorConfig, LinkRegained};
 
@@ -104,6 +107,8 @@ pub struct MissionExecutor {
     revision: u64,
     /// Missions changed (or unloaded) since the last [`MissionExecutor::take_changed`].
     changed: BTreeSet<u32>,
+    /// What the host should tell operators (what a vehicle does after a failure).
+    alerts: Vec<String>,
     config: ExecutorConfig,
 }
 
@@ -118,6 +123,7 @@ impl MissionExecutor {
             next_id: 1,
             revision: 0,
             changed: BTreeSet::new(),
+            alerts: Vec::new(),
             config,
         }
     }
@@ -139,6 +145,7 @@ impl MissionExecutor {
             next_id: snapshot.next_id.max(1),
             revision: 1,
             changed: BTreeSet::new(),
+            alerts: Vec::new(),
             config,
         }
     }
@@ -203,6 +210,11 @@ impl MissionExecutor {
             f(&mut l.progress);
         }
         self.mark(id);
+    }
+
+    /// Alerts since the last call, for the host to send to operators.
+    pub fn take_alerts(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.alerts)
     }
 
     /// Every change passes here: the running mission's progress may have moved with it.
@@ -428,6 +440,7 @@ impl MissionExecutor {
         tracing::warn!("{message}");
         self.end_run(core, "mission failed", Some(message));
         self.last_error_code = code;
+        self.after_failure(core, index, behavior, code);
     }
 
     /// One tick: reacts to behaviors that ended, ends `run_for_s` items, starts what is due.
@@ -474,6 +487,11 @@ impl MissionExecutor {
                 self.wait_for_link(index, now);
                 return;
             }
+            if code == Some(FailureCode::PilotTakeover) {
+                // The mission is paused (`takeover.rs`); RESUME starts this item again.
+                self.record(id, index, item_result, reason, code);
+                return;
+            }
             let on_failure = self
                 .missions
                 .get(&id)
@@ -507,10 +525,11 @@ impl MissionExecutor {
             index = d.item;
         }
         self.touch();
-        if item_result == ItemResult::Failed
-            && p.on_failure == OnFailure::Abort
-            && code != Some(FailureCode::LinkLost)
-        {
+        let interrupted = matches!(
+            code,
+            Some(FailureCode::LinkLost | FailureCode::PilotTakeover)
+        );
+        if item_result == ItemResult::Failed && p.on_failure == OnFailure::Abort && !interrupted {
             let reason = reason.as_deref().unwrap_or("failed");
             self.fail(core, index, behavior, reason, code);
         }
