@@ -14,7 +14,8 @@
 //! NAV_LAND on the autopilot's own link, or the autopilot's failsafe while the link is up (PX4
 //! leaves OFFBOARD when Kestrel's setpoints stop reaching it). A disarm in the air that Kestrel
 //! did not ask for counts too. Not a takeover: a mode Kestrel asked for shown late, PX4 ending
-//! its NAV_TAKEOFF in its hold mode, a disarm after Kestrel's landing or on the ground, and
+//! its NAV_TAKEOFF in its hold mode, the mode change or disarm that ends Kestrel's landing on
+//! the ground, a disarm on the ground, and
 //! whatever happened while the link was down (the autopilot's link-loss failsafe flew the
 //! vehicle; the mission's link-loss policy decides what follows, `mission::executor::link`).
 //! Once taken, the vehicle is Kestrel's again only when it is back in Kestrel's mode (Kestrel
@@ -101,6 +102,12 @@ impl ControlWatch {
             return None;
         }
         if in_kestrels_mode {
+            return None;
+        }
+        if self.commanded == self.modes.land && !r.was_airborne {
+            // Landed: PX4 leaves its land mode by itself as it disarms (AUTO.LOITER), and may
+            // say so (CURRENT_MODE) before HEARTBEAT shows the disarm.
+            self.in_control = false;
             return None;
         }
         if !r.armed {
@@ -190,6 +197,21 @@ mod tests {
             "the autopilot disarms after landing"
         );
         assert!(!w.in_control());
+        // PX4 announces AUTO.LOITER (CURRENT_MODE) before HEARTBEAT shows the disarm.
+        let mut w = in_offboard();
+        w.commanded(LAND);
+        assert_eq!(w.report(flying(LAND)), None);
+        let touched_down = ModeReport {
+            custom_mode: LOITER,
+            armed: true,
+            was_airborne: false,
+        };
+        assert_eq!(w.report(touched_down), None);
+        // A pilot stopping Kestrel's landing in the air takes the vehicle.
+        let mut w = in_offboard();
+        w.commanded(LAND);
+        assert_eq!(w.report(flying(LAND)), None);
+        assert_eq!(w.report(flying(POSCTL)), Some(Takeover::Mode(POSCTL)));
     }
 
     #[test]
