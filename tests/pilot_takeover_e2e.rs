@@ -106,6 +106,10 @@ fn taken_mid_go_to(p: Personality) -> Taken {
     );
     let drone = &api.get("/api/status")["drones"][0];
     assert_eq!(drone["last_error"], reason.as_str(), "{drone}");
+    kestrel.wait_line(
+        &format!("go_to #2 failed (pilot_takeover): {reason}"),
+        Duration::from_secs(2),
+    );
     assert!(
         drone["active_behaviors"].as_array().unwrap().is_empty(),
         "{drone}"

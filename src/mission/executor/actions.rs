@@ -263,6 +263,7 @@ impl MissionExecutor {
         self.advance(core, now);
         if self.run.is_none() {
             if let Some(e) = &self.last_error {
+                self.failed_in_flight = None;
                 return Err(refused(e.clone()));
             }
         }

@@ -6,8 +6,9 @@
 //! else flies the vehicle and Kestrel commands nothing) and a lost link or a crash (nothing to
 //! command); a vehicle on the ground stays there.
 //!
-//! In: the failed item and its code, the vehicle's state. Out: a behavior started on the core,
-//! an alert.
+//! In: the failed item and its code, the vehicle's state, on the update after the failure (a
+//! refused START changes nothing, so it leaves the vehicle as it was). Out: a behavior started on
+//! the core, an alert.
 
 use super::MissionExecutor;
 use crate::behavior::FailureCode;
@@ -28,16 +29,22 @@ pub enum InFlightFailure {
     Rtl,
 }
 
+/// The item whose failure ended a mission.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct InFlightFailed {
+    pub index: usize,
+    pub behavior: String,
+    pub code: Option<FailureCode>,
+}
+
 impl MissionExecutor {
-    /// Applies `[mission] on_failure` after item `index` (`behavior`) failed and ended the
-    /// mission.
-    pub(super) fn after_failure(
-        &mut self,
-        core: &mut DroneCore,
-        index: usize,
-        behavior: &str,
-        code: Option<FailureCode>,
-    ) {
+    /// Applies `[mission] on_failure` after an item failed and ended the mission.
+    pub(super) fn after_failure(&mut self, core: &mut DroneCore, failed: &InFlightFailed) {
+        let InFlightFailed {
+            index,
+            ref behavior,
+            code,
+        } = *failed;
         let status = core.platform_status();
         let in_air = status.armed && status.flight.is_airborne() && status.link == LinkHealth::Ok;
         let exempt = matches!(

@@ -14,6 +14,7 @@ mod link;
 mod takeover;
 
 pub use actions::{ActionError, Request};
+use in_flight::InFlightFailed;
 pub use in_flight::InFlightFailure;
 use link::LinkWait;
 pub use link::{ExecutorConfig, LinkRegained};
@@ -109,6 +110,9 @@ pub struct MissionExecutor {
     changed: BTreeSet<u32>,
     /// What the host should tell operators (what a vehicle does after a failure).
     alerts: Vec<String>,
+    /// A mission failed: `[mission] on_failure` is applied at the end of the next update (a
+    /// refused START forgets it: a refusal changes nothing).
+    failed_in_flight: Option<InFlightFailed>,
     config: ExecutorConfig,
 }
 
@@ -124,6 +128,7 @@ impl MissionExecutor {
             revision: 0,
             changed: BTreeSet::new(),
             alerts: Vec::new(),
+            failed_in_flight: None,
             config,
         }
     }
@@ -146,6 +151,7 @@ impl MissionExecutor {
             revision: 1,
             changed: BTreeSet::new(),
             alerts: Vec::new(),
+            failed_in_flight: None,
             config,
         }
     }
@@ -440,7 +446,11 @@ impl MissionExecutor {
         tracing::warn!("{message}");
         self.end_run(core, "mission failed", Some(message));
         self.last_error_code = code;
-        self.after_failure(core, index, behavior, code);
+        self.failed_in_flight = Some(InFlightFailed {
+            index,
+            behavior: behavior.to_string(),
+            code,
+        });
     }
 
     /// One tick: reacts to behaviors that ended, ends `run_for_s` items, starts what is due.
@@ -458,6 +468,9 @@ impl MissionExecutor {
         self.follow_link(core, now);
         self.end_timed_item(core, now);
         self.advance(core, now);
+        if let Some(failed) = self.failed_in_flight.take() {
+            self.after_failure(core, &failed);
+        }
     }
 
     fn on_finished(
