@@ -40,11 +40,7 @@ pub(super) struct InFlightFailed {
 impl MissionExecutor {
     /// Applies `[mission] on_failure` after an item failed and ended the mission.
     pub(super) fn after_failure(&mut self, core: &mut DroneCore, failed: &InFlightFailed) {
-        let InFlightFailed {
-            index,
-            ref behavior,
-            code,
-        } = *failed;
+        let (index, behavior, code) = (failed.index, &failed.behavior, failed.code);
         let status = core.platform_status();
         let in_air = status.armed && status.flight.is_airborne() && status.link == LinkHealth::Ok;
         let exempt = matches!(

@@ -22,7 +22,10 @@ impl MissionExecutor {
         run.paused = true;
         run.link_wait = None;
         let id = run.mission_id;
-        tracing::warn!("mission {id} paused: {reason}; RESUME takes the vehicle back, STOP leaves it with the pilot");
+        tracing::warn!(
+            "mission {id} paused: {reason}; RESUME takes the vehicle back, STOP leaves it with \
+             the pilot"
+        );
         self.last_error = Some(reason.to_string());
         self.last_error_code = Some(FailureCode::PilotTakeover);
         self.touch();
