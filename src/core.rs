@@ -20,7 +20,7 @@ use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
 use crate::safety::{Override, SafetyConfig, SafetyStage};
-use crate::types::{Capabilities, PlatformFeedback, PlatformRequest};
+use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -64,6 +64,9 @@ pub struct TickOutput {
     pub events: Vec<BehaviorEvent>,
     /// The safety stage changed the setpoint (reported once per episode).
     pub safety: Option<Override>,
+    /// The vehicle was taken from Kestrel this tick (why, in words): every behavior ended with
+    /// `pilot_takeover` and nothing commands it until a new order.
+    pub takeover: Option<String>,
 }
 
 /// A request to the behavior server from outside the core (mission executor, API).
@@ -317,6 +320,20 @@ impl DroneCore {
             );
             self.server.clear_hold();
         }
+        // Someone else flies the vehicle now: end everything and command nothing (no hold
+        // either), so that Kestrel never fights the pilot; a new order takes it back.
+        let mut takeover = None;
+        for event in &feedback.events {
+            match event {
+                PlatformEvent::PilotTakeover { .. } => {
+                    let reason = event.reason();
+                    let failure = Failure::new(FailureCode::PilotTakeover, reason.clone());
+                    self.server.fail_all(failure, &ctx);
+                    self.server.clear_hold();
+                    takeover = Some(reason);
+                }
+            }
+        }
         if self.platform.flight == crate::types::FlightStatus::Crashed {
             let reason = self
                 .platform
@@ -367,6 +384,7 @@ impl DroneCore {
             requests: out.requests,
             service_calls: self.services.drain_calls(),
             events: self.server.drain_events(),
+            takeover,
         }
     }
 }

@@ -8,6 +8,7 @@ import time
 from .ardupilot import ArduPilotVehicle
 from .control import ControlServer
 from .links import TcpServerLink, UdpLink
+from .mav import mavlink as M
 from .px4 import Px4Vehicle
 from .world import World
 
@@ -183,6 +184,20 @@ class App:
             v = self._targets(req, False)[0]
             since = float(req.get("since_s", 0.0))
             return {"ok": True, "entries": [e for e in v.log if e["t"] >= since]}
+        if cmd == "received":
+            v = self._targets(req, False)[0]
+            return {"ok": True, **v.received_since(float(req.get("since_s", 0.0)))}
+        if cmd in ("gcs_command", "gcs_set_mode", "rc_mode"):
+            v = self._targets(req, False)[0]
+            if cmd == "rc_mode":
+                taken = v.rc_mode(req["mode"])
+                return {"ok": True, "taken": taken, "mode": v.mode_name(), "time_s": round(now, 3)}
+            if cmd == "gcs_set_mode":
+                command, params = M.MAV_CMD_DO_SET_MODE, v.set_mode_params(req["mode"])
+            else:
+                command, params = int(req["command"]), req.get("params", [])
+            result = v.from_gcs(command, params)
+            return {"ok": True, "result": result, "mode": v.mode_name(), "time_s": round(now, 3)}
         targets = self._targets(req)
         for v in targets:
             f = v.faults

@@ -141,6 +141,22 @@ class ArduPilotVehicle(Vehicle):
             self.send(self.msg_heartbeat())  # ArduPilot announces a mode change at once
         return True
 
+    def rc_mode(self, name):
+        """The pilot's flight-mode switch (RC channel 5): the same checks as any mode change."""
+        return self.set_mode(self.mode_number(name), "RC")
+
+    @staticmethod
+    def mode_number(name):
+        numbers = {v: k for k, v in MODES.items()}
+        if name not in numbers:
+            raise ValueError(f"no ArduCopter mode {name!r}")
+        return numbers[name]
+
+    @classmethod
+    def set_mode_params(cls, name):
+        """DO_SET_MODE params 1-2 for a mode, as a ground station sends them."""
+        return [M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, cls.mode_number(name)]
+
     def enter_mode(self):
         b = self.model.body
         self.vel_target_time = None

@@ -287,6 +287,23 @@ class Px4Vehicle(Vehicle):
             return M.MAV_RESULT_DENIED
         return M.MAV_RESULT_UNSUPPORTED
 
+    def rc_mode(self, name):
+        """The pilot's mode switch: PX4 takes any mode but OFFBOARD without a setpoint stream."""
+        if name not in MODES:
+            raise ValueError(f"no PX4 mode {name!r}")
+        if name == "OFFBOARD" and self.armed and not self.offboard_signal():
+            return False
+        self.set_mode(name, reason="rc")
+        return True
+
+    @staticmethod
+    def set_mode_params(name):
+        """DO_SET_MODE params 1-3 for a mode, as QGC sends them."""
+        if name not in MODES:
+            raise ValueError(f"no PX4 mode {name!r}")
+        main, sub = MODES[name]
+        return [M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub]
+
     def request_mode(self, name):
         if name == "OFFBOARD" and self.armed and not self.offboard_signal():
             self.event("check_modes_offboard_signal", bytes([0, 0x40, 0, 0, 0x14]))

@@ -13,6 +13,7 @@ from .setpoints import SetpointMixin
 from .telemetry import TelemetryMixin
 
 M = mavlink
+GCS_SYSID, GCS_COMPID = 255, 190  # QGroundControl's ids on the autopilot's own GCS link
 
 
 def pint(value):
@@ -37,6 +38,9 @@ class Vehicle(TelemetryMixin, SetpointMixin):
         self.faults = Faults(seed=opts.seed + index)
         self.stats = SetpointStats()
         self.log = deque(maxlen=1000)
+        # what arrived from the companion and other senders: (t, kind, detail, src_sys, src_comp)
+        self.received = deque(maxlen=20000)
+        self.last_ack_result = None
         self.out_delay = DelayLine()
         self.in_delay = DelayLine()
         self.rebooting_until = 0.0
@@ -175,7 +179,41 @@ class Vehicle(TelemetryMixin, SetpointMixin):
 
     def ack(self, msg, command, result):
         self.send(M.MAVLink_command_ack_message(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
-        self.note("ack", f"command {command} -> {result}", command=command, result=result)
+        self.last_ack_result = result
+        self.note("ack", f"command {command} -> {result}", command=command, result=result,
+                  src=[msg.get_srcSystem(), msg.get_srcComponent()])
+
+    # ------------------------------------------------------------------ other pilots
+    def from_gcs(self, command, params):
+        """A COMMAND_LONG from a ground station on the autopilot's own GCS link (QGC sending
+        DO_SET_MODE, NAV_LAND, a disarm): handled exactly as one from the companion's link,
+        returns the COMMAND_ACK result (the ACK also goes out, addressed to the GCS)."""
+        p = [float(x) for x in list(params) + [0.0] * (7 - len(params))]
+        gcs = M.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
+        frame = M.MAVLink_command_long_message(self.sysid, 1, int(command), 0, *p).pack(gcs)
+        self.last_ack_result = None
+        for msg in M.MAVLink(None).parse_buffer(frame) or []:
+            self.note("gcs", f"COMMAND_LONG {int(command)} {p}")
+            self.dispatch(msg, time.monotonic())
+        return self.last_ack_result
+
+    def rc_mode(self, name):
+        """The pilot's flight-mode switch on the RC transmitter: a mode change with no MAVLink
+        command at all. Returns whether the autopilot took it."""
+        raise NotImplementedError
+
+    def received_since(self, since):
+        """What the vehicle received since `since` (simulated s): setpoints counted, commands
+        and mode changes listed with their sender."""
+        setpoints = [e for e in self.received if e[0] >= since and e[1] == "setpoint"]
+        others = [{"t": round(e[0], 3), "kind": e[1], "detail": e[2], "src": [e[3], e[4]]}
+                  for e in self.received if e[0] >= since and e[1] != "setpoint"]
+        return {"setpoints": len(setpoints),
+                "last_setpoint_t": round(setpoints[-1][0], 3) if setpoints else None,
+                "commands": others}
+
+    def _record(self, msg, kind, detail):
+        self.received.append((self.clock.now(), kind, detail, msg.get_srcSystem(), msg.get_srcComponent()))
 
     def receive(self, chunks):
         now = self.clock.now()
@@ -215,6 +253,12 @@ class Vehicle(TelemetryMixin, SetpointMixin):
 
     def _dispatch(self, msg, wall):
         t = msg.get_type()
+        if t in ("COMMAND_LONG", "COMMAND_INT"):
+            self._record(msg, "command", msg.command)
+        elif t == "SET_MODE":
+            self._record(msg, "set_mode", msg.custom_mode)
+        elif t in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET"):
+            self._record(msg, "setpoint", t)
         if t == "COMMAND_LONG":
             if not self.addressed_to_me(msg):
                 return

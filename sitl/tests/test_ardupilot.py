@@ -187,3 +187,29 @@ def test_reposition_condition_yaw_and_reboot_drops_tcp(fake_factory):
     link2 = f.connect()
     hb = link2.recv("HEARTBEAT", 3)
     assert hb.base_mode in (81, 89) and f.control(cmd="state")["boot_count"] == 2
+
+
+def test_rc_mode_switch_leaves_guided_and_setpoints_are_ignored(fake_factory):
+    f = fake_factory("ardupilot", "--ekf-delay", "1", speed=2.0)
+    link = f.connect()
+    deadline = time.time() + 10
+    while not f.control(cmd="state")["ekf_position_ok"] and time.time() < deadline:
+        time.sleep(0.1)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 4) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 3) == M.MAV_RESULT_ACCEPTED
+    deadline = time.time() + 10
+    while f.control(cmd="state")["position_enu_m"][2] < 2.8 and time.time() < deadline:
+        time.sleep(0.1)
+    reply = f.control(cmd="rc_mode", mode="LOITER")
+    assert (reply["taken"], reply["mode"]) == (True, "LOITER")
+    hb = link.recv("HEARTBEAT", 1.0, lambda h: h.custom_mode == 5)
+    assert hb is not None, "ArduPilot announces a mode change at once"
+    held = f.control(cmd="state")["position_enu_m"]
+    for _ in range(20):
+        link.send_local(x=10, y=0, z=-3)
+        time.sleep(0.05)
+    assert math.dist(f.control(cmd="state")["position_enu_m"], held) < 0.3
+    # a ground station's mode change: DO_SET_MODE from 255/190
+    assert f.control(cmd="gcs_set_mode", mode="RTL")["mode"] == "RTL"
+    assert f.control(cmd="received")["commands"][-1]["src"] == [255, 190]

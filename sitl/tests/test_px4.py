@@ -240,3 +240,42 @@ def test_timesync_and_params(fake_factory):
     pv = link.recv("PARAM_VALUE", 2, lambda m: m.param_id == "COM_OBL_RC_ACT")
     import struct
     assert struct.unpack("<i", struct.pack("<f", pv.param_value))[0] == 4  # PX4 ints are bytewise
+
+
+def test_gcs_mode_change_leaves_offboard_and_setpoints_are_ignored_until_offboard_again(fake_factory):
+    f = fake_factory("px4", speed=2.0)
+    link = f.connect()
+    stream(link, 0.8, x=0, y=0, z=-3)
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
+    assert link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    stream(link, 3.0, x=0, y=0, z=-3)
+    # QGC on PX4's own GCS link: DO_SET_MODE AUTO.LOITER (main 4, sub 3)
+    reply = f.control(cmd="gcs_set_mode", mode="AUTO.LOITER")
+    assert (reply["result"], reply["mode"]) == (M.MAV_RESULT_ACCEPTED, "AUTO.LOITER")
+    cm = link.recv("CURRENT_MODE", 1.0, lambda m: m.custom_mode == LOITER)
+    assert cm is not None, "the mode change is announced at once"
+    held = f.control(cmd="state")["position_enu_m"]
+    stream(link, 1.5, x=10, y=0, z=-3)  # ignored outside OFFBOARD
+    st = f.control(cmd="state")
+    assert st["mode"] == "AUTO.LOITER"
+    assert math.dist(st["position_enu_m"], held) < 0.3, (st, held)
+    got = f.control(cmd="received", since_s=0)
+    assert got["setpoints"] > 20
+    gcs = [c for c in got["commands"] if c["src"] == [255, 190]]
+    assert [c["detail"] for c in gcs] == [M.MAV_CMD_DO_SET_MODE]
+    # OFFBOARD again (the companion asks): setpoints fly it
+    assert link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_ACCEPTED
+    stream(link, 3.0, x=10, y=0, z=-3)
+    assert abs(f.control(cmd="state")["local_ned_m"][0] - 10) < 1.5
+
+
+def test_rc_mode_switch_and_gcs_land(fake_factory):
+    f = fake_factory("px4", speed=2.0)
+    link = f.connect()
+    stream(link, 0.8, x=0, y=0, z=-3)
+    link.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0)
+    link.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    stream(link, 3.0, x=0, y=0, z=-3)
+    assert f.control(cmd="rc_mode", mode="POSCTL")["mode"] == "POSCTL"
+    assert f.control(cmd="gcs_command", command=M.MAV_CMD_NAV_LAND)["mode"] == "AUTO.LAND"
+    assert link.heartbeat_until(lambda h: h.custom_mode == LAND, 3) is not None

@@ -53,12 +53,15 @@ pub enum FailureCode {
     Preempted,
     /// Stopped by an operator or a mission action.
     Stopped,
+    /// Someone else took the vehicle: the autopilot left the mode Kestrel flies it in without
+    /// Kestrel asking (a pilot's mode switch, a ground station, a disarm in flight).
+    PilotTakeover,
     /// Anything else (a bug if seen).
     Internal,
 }
 
 impl FailureCode {
-    pub const ALL: [FailureCode; 23] = [
+    pub const ALL: [FailureCode; 24] = [
         FailureCode::InvalidGoal,
         FailureCode::NotFlying,
         FailureCode::NotReady,
@@ -81,6 +84,7 @@ impl FailureCode {
         FailureCode::Geofence,
         FailureCode::Preempted,
         FailureCode::Stopped,
+        FailureCode::PilotTakeover,
         FailureCode::Internal,
     ];
 
@@ -109,6 +113,7 @@ impl FailureCode {
             FailureCode::Geofence => "geofence",
             FailureCode::Preempted => "preempted",
             FailureCode::Stopped => "stopped",
+            FailureCode::PilotTakeover => "pilot_takeover",
             FailureCode::Internal => "internal",
         }
     }

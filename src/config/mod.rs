@@ -10,7 +10,7 @@ use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
-use crate::mission::executor::{ExecutorConfig, LinkRegained};
+use crate::mission::executor::{ExecutorConfig, InFlightFailure, LinkRegained};
 use crate::mission::Limits;
 use crate::safety::SafetyConfig;
 use crate::sim::world::SensorConfig;
@@ -215,6 +215,15 @@ pub struct MissionSection {
     pub on_link_regained: LinkRegained,
     /// How long a mission waits for a lost link before it fails (s).
     pub link_wait_s: f64,
+    /// When a mission fails with the vehicle in the air: `hold` (hover where it is), `land`
+    /// (land where it is) or `rtl` (return to the arming point and land). Not applied when a
+    /// pilot took the vehicle (`pilot_takeover`: the mission pauses and Kestrel commands nothing).
+    pub on_failure: InFlightFailure,
+    /// `on_failure = "rtl"`: height above home to fly back at; a vehicle higher stays at its
+    /// height (m, 0.5 to 120).
+    pub rtl_height_m: f64,
+    /// `on_failure = "rtl"`: speed to fly back at (m/s, above 0, at most 20).
+    pub rtl_speed_mps: f64,
 }
 
 impl Default for MissionSection {
@@ -224,6 +233,9 @@ impl Default for MissionSection {
             state_dir: None,
             on_link_regained: LinkRegained::default(),
             link_wait_s: 30.0,
+            on_failure: InFlightFailure::default(),
+            rtl_height_m: 3.0,
+            rtl_speed_mps: 1.0,
         }
     }
 }
@@ -280,6 +292,9 @@ impl Config {
             switch_hold: std::time::Duration::from_secs_f64(self.mission.switch_hold_s),
             on_link_regained: self.mission.on_link_regained,
             link_wait: std::time::Duration::from_secs_f64(self.mission.link_wait_s),
+            on_failure: self.mission.on_failure,
+            rtl_height_m: self.mission.rtl_height_m,
+            rtl_speed_mps: self.mission.rtl_speed_mps,
         }
     }
 
@@ -411,6 +426,19 @@ impl Config {
             self.mission.switch_hold_s,
             60.0,
             "s",
+        )?;
+        within(
+            "mission.rtl_height_m",
+            self.mission.rtl_height_m,
+            (0.5, 120.0),
+            false,
+            "m",
+        )?;
+        positive(
+            "mission.rtl_speed_mps",
+            self.mission.rtl_speed_mps,
+            20.0,
+            "m/s",
         )?;
         if self.api.listen.parse::<std::net::SocketAddr>().is_err() {
             return Err((
@@ -591,6 +619,8 @@ mod tests {
                 "sim.wind_enu_mps.y",
             ),
             ("[mission]\nswitch_hold_s = nan\n", "mission.switch_hold_s"),
+            ("[mission]\nrtl_height_m = 0.0\n", "mission.rtl_height_m"),
+            ("[mission]\nrtl_speed_mps = -1.0\n", "mission.rtl_speed_mps"),
             ("[geofence]\nradius_m = -5.0\n", "geofence.radius_m"),
             ("[api]\nmax_ws_clients = 0\n", "api.max_ws_clients"),
             ("[api]\nmax_connections = 0\n", "api.max_connections"),
@@ -611,5 +641,17 @@ mod tests {
         assert!(e.to_string().contains("speed"), "{e}");
         let e = Config::parse("[controller]\nmax_up_speed_mps = -1.0\n", "test").unwrap_err();
         assert!(e.to_string().contains("controller.max_up_speed_mps"), "{e}");
+    }
+
+    #[test]
+    fn on_failure_is_one_of_hold_land_rtl() {
+        let c = Config::parse("[mission]\non_failure = \"rtl\"\n", "test").unwrap();
+        assert_eq!(c.executor_config().on_failure, InFlightFailure::Rtl);
+        assert_eq!(
+            Config::default().executor_config().on_failure,
+            InFlightFailure::Hold
+        );
+        let e = Config::parse("[mission]\non_failure = \"crash\"\n", "test").unwrap_err();
+        assert!(e.to_string().contains("on_failure"), "{e}");
     }
 }

@@ -9,7 +9,9 @@ pub mod mavlink;
 pub mod shifted;
 
 use crate::types::Setpoint;
-pub use crate::types::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
+pub use crate::types::{
+    Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult,
+};
 use std::time::Duration;
 
 /// A vehicle the core can fly, driven synchronously by a driver loop.

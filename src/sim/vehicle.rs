@@ -11,7 +11,7 @@ use crate::types::{
     wrap_angle_rad, Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
 };
 use crate::types::{AcceptedSetpoints, Setpoint, YawTarget};
-use crate::types::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
+use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult};
 use std::time::Duration;
 
 /// Offboard ends (and the vehicle holds) when no setpoint came for this long, as on PX4.
@@ -38,6 +38,9 @@ pub struct SimVehicle {
     grounded_since: Option<Duration>,
     last_error: Option<String>,
     pending_results: Vec<RequestResult>,
+    pending_events: Vec<PlatformEvent>,
+    /// When the last setpoint arrived, whatever the mode (tests check who commands).
+    last_setpoint_at: Option<Duration>,
     pub(super) pending_scans: Vec<RangeScan>,
     pub(super) next_scan_at: Duration,
 }
@@ -60,6 +63,8 @@ impl SimVehicle {
             grounded_since: None,
             last_error: None,
             pending_results: Vec::new(),
+            pending_events: Vec::new(),
+            last_setpoint_at: None,
             pending_scans: Vec::new(),
             next_scan_at: Duration::ZERO,
         }
@@ -100,6 +105,27 @@ impl SimVehicle {
     pub fn autopilot_land(&mut self) {
         self.offboard = false;
         self.failsafe_hold = None;
+    }
+
+    /// A pilot switches the autopilot to its hold mode: it leaves offboard and holds where it is,
+    /// ignoring setpoints until offboard is asked for again, and reports the takeover.
+    pub fn pilot_takeover(&mut self) {
+        if !self.offboard {
+            return;
+        }
+        self.offboard = false;
+        self.failsafe_hold = Some(self.state.position_m);
+        let event = PlatformEvent::PilotTakeover {
+            mode: "HOLD".into(),
+            disarmed: false,
+        };
+        self.last_error = Some(event.reason());
+        self.pending_events.push(event);
+    }
+
+    /// When the last setpoint arrived (simulated time), whatever the mode.
+    pub fn last_setpoint_at(&self) -> Option<Duration> {
+        self.last_setpoint_at
     }
 
     /// Advances the physics by `dt_s` with the wind and a noise acceleration.
@@ -286,12 +312,14 @@ impl Platform for SimVehicle {
             scans: std::mem::take(&mut self.pending_scans),
             request_results: std::mem::take(&mut self.pending_results),
             virtual_collision: None,
+            events: std::mem::take(&mut self.pending_events),
         }
     }
 
     fn command(&mut self, now: Duration, setpoint: Option<Setpoint>, requests: &[PlatformRequest]) {
         if let Some(sp) = setpoint {
             self.last_setpoint = Some((sp, now));
+            self.last_setpoint_at = Some(now);
         }
         for &request in requests {
             let outcome = self.handle(request);

@@ -17,7 +17,7 @@ mod state;
 pub use geo::{GeoError, GeoPoint};
 pub use geometry::{wrap_angle_rad, Pose, Vec2, Vec3};
 pub use measurement::Measurement;
-pub use platform::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
+pub use platform::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult};
 pub use scan::{Beam, RangeScan};
 pub use setpoint::{AcceptedSetpoints, PositionLoop, Setpoint, YawTarget};
 pub use state::{

@@ -56,6 +56,37 @@ pub struct PlatformFeedback {
     /// (`kestrel run --virtual-world`): what it touched, once per episode. The vehicle itself is
     /// unharmed; the core fails what runs (`virtual_collision`) and holds it where it is.
     pub virtual_collision: Option<String>,
+    /// What happened to the vehicle since the last tick that no request asked for.
+    pub events: Vec<PlatformEvent>,
+}
+
+/// Something the platform saw happen that was not the answer to a request.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "event")]
+pub enum PlatformEvent {
+    /// The autopilot left the mode Kestrel flies it in without Kestrel asking: a pilot's mode
+    /// switch, a ground station's mode change or land command, a disarm in flight, or the
+    /// autopilot's own failsafe while the link was up. `mode` is the mode it is in now (as the
+    /// autopilot names it); `disarmed` when it was disarmed in the air. Kestrel stops commanding
+    /// the vehicle until an operator gives it a new order.
+    PilotTakeover { mode: String, disarmed: bool },
+}
+
+impl PlatformEvent {
+    /// The event in words, as failures, alerts and the ground station show it:
+    /// `pilot took over (mode AUTO.LOITER)`.
+    pub fn reason(&self) -> String {
+        match self {
+            PlatformEvent::PilotTakeover {
+                mode,
+                disarmed: false,
+            } => format!("pilot took over (mode {mode})"),
+            PlatformEvent::PilotTakeover {
+                mode,
+                disarmed: true,
+            } => format!("pilot took over (disarmed in the air, mode {mode})"),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -7,6 +7,7 @@ import {
   missionProgress,
   motionBehavior,
   newInstanceState,
+  pilotTakeover,
   STALE_AFTER_MS,
 } from '../src/lib/fleet';
 import type { DroneStatus, MissionStatus } from '../src/lib/types';
@@ -126,5 +127,21 @@ describe('planned paths in feedback', () => {
     });
     expect(feedbackPaths(s)).toEqual([{ behavior: 'navigate_to', points: [[0, 0, 0], [1, 2, 3]] }]);
     expect(feedbackPaths(null)).toEqual([]);
+  });
+});
+
+describe('pilot takeover', () => {
+  it('says the pilot took over, with the mode, and what RESUME and STOP do while paused', () => {
+    const taken = status({ state: 2, last_error: 'pilot took over (mode AUTO.LOITER)', last_error_code: 'pilot_takeover' });
+    expect(pilotTakeover(taken)).toBe(
+      'pilot took over (mode AUTO.LOITER): mission paused — RESUME takes it back, STOP leaves it with the pilot',
+    );
+    expect(pilotTakeover({ ...taken, state: 0 })).toBe('pilot took over (mode AUTO.LOITER)');
+  });
+
+  it('stays quiet for other failures and older servers', () => {
+    expect(pilotTakeover(status({ state: 0, last_error: 'mission 1 item 1 (go_to) failed', last_error_code: 'no_progress' }))).toBeNull();
+    expect(pilotTakeover(status({ last_error: 'pilot took over (mode LOITER)' }))).toBeNull();
+    expect(pilotTakeover(null)).toBeNull();
   });
 });

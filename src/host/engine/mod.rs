@@ -451,8 +451,20 @@ impl Host {
                 }
                 _ => None,
             };
+            let mut alerts = Vec::new();
             if let Some(ex) = self.executors.get_mut(i) {
+                if let Some(reason) = &out.takeover {
+                    ex.pilot_took_over(reason);
+                }
                 ex.update(now, core, &out.events);
+                alerts = ex.take_alerts();
+            }
+            if let Some(reason) = &out.takeover {
+                tracing::warn!(
+                    "{}: {reason}: Kestrel stopped commanding it",
+                    core.drone_id()
+                );
+                alerts.push(reason.clone());
             }
             let status = feedback.status;
             if let Some(log) = self.log.as_mut() {
@@ -465,6 +477,12 @@ impl Host {
             }
             for e in out.events {
                 self.event(i, EventBody::Behavior(e));
+            }
+            for message in alerts {
+                if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
+                    log.event(now, core.drone_id(), "mission", &message);
+                }
+                self.event(i, EventBody::Alert { message });
             }
             if let Some(o) = out.safety {
                 if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {

@@ -263,6 +263,7 @@ impl MissionExecutor {
         self.advance(core, now);
         if self.run.is_none() {
             if let Some(e) = &self.last_error {
+                self.failed_in_flight = None;
                 return Err(refused(e.clone()));
             }
         }
@@ -310,6 +311,7 @@ impl MissionExecutor {
         if let Some(r) = self.run.as_mut() {
             r.paused = false;
         }
+        self.clear_takeover();
         self.advance(core, now);
         Ok(())
     }

@@ -9,7 +9,7 @@
 //!
 //! In: the core's link and arming state each tick. Out: behavior commands, the mission status.
 
-use super::{MissionExecutor, Run};
+use super::{InFlightFailure, MissionExecutor, Run};
 use crate::behavior::FailureCode;
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::mission::model::ItemResult;
@@ -38,6 +38,12 @@ pub struct ExecutorConfig {
     pub on_link_regained: LinkRegained,
     /// How long a mission waits for a lost link before it fails.
     pub link_wait: Duration,
+    /// What a vehicle in the air does when its mission fails.
+    pub on_failure: InFlightFailure,
+    /// `on_failure = "rtl"`: height above home to fly back at (m; never lower than the vehicle is).
+    pub rtl_height_m: f64,
+    /// `on_failure = "rtl"`: speed to fly back at (m/s).
+    pub rtl_speed_mps: f64,
 }
 
 impl Default for ExecutorConfig {
@@ -46,6 +52,9 @@ impl Default for ExecutorConfig {
             switch_hold: Duration::from_secs(1),
             on_link_regained: LinkRegained::default(),
             link_wait: Duration::from_secs(30),
+            on_failure: InFlightFailure::default(),
+            rtl_height_m: 3.0,
+            rtl_speed_mps: 1.0,
         }
     }
 }

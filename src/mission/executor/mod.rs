@@ -9,9 +9,13 @@
 //! in `tests/mission_actions.rs`, one test per rule.
 
 mod actions;
+mod in_flight;
 mod link;
+mod takeover;
 
 pub use actions::{ActionError, Request};
+use in_flight::InFlightFailed;
+pub use in_flight::InFlightFailure;
 use link::LinkWait;
 pub use link::{ExecutorConfig, LinkRegained};
 
@@ -104,6 +108,11 @@ pub struct MissionExecutor {
     revision: u64,
     /// Missions changed (or unloaded) since the last [`MissionExecutor::take_changed`].
     changed: BTreeSet<u32>,
+    /// What the host should tell operators (what a vehicle does after a failure).
+    alerts: Vec<String>,
+    /// A mission failed: `[mission] on_failure` is applied at the end of the next update (a
+    /// refused START forgets it: a refusal changes nothing).
+    failed_in_flight: Option<InFlightFailed>,
     config: ExecutorConfig,
 }
 
@@ -118,6 +127,8 @@ impl MissionExecutor {
             next_id: 1,
             revision: 0,
             changed: BTreeSet::new(),
+            alerts: Vec::new(),
+            failed_in_flight: None,
             config,
         }
     }
@@ -139,6 +150,8 @@ impl MissionExecutor {
             next_id: snapshot.next_id.max(1),
             revision: 1,
             changed: BTreeSet::new(),
+            alerts: Vec::new(),
+            failed_in_flight: None,
             config,
         }
     }
@@ -203,6 +216,11 @@ impl MissionExecutor {
             f(&mut l.progress);
         }
         self.mark(id);
+    }
+
+    /// Alerts since the last call, for the host to send to operators.
+    pub fn take_alerts(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.alerts)
     }
 
     /// Every change passes here: the running mission's progress may have moved with it.
@@ -428,6 +446,11 @@ impl MissionExecutor {
         tracing::warn!("{message}");
         self.end_run(core, "mission failed", Some(message));
         self.last_error_code = code;
+        self.failed_in_flight = Some(InFlightFailed {
+            index,
+            behavior: behavior.to_string(),
+            code,
+        });
     }
 
     /// One tick: reacts to behaviors that ended, ends `run_for_s` items, starts what is due.
@@ -445,6 +468,9 @@ impl MissionExecutor {
         self.follow_link(core, now);
         self.end_timed_item(core, now);
         self.advance(core, now);
+        if let Some(failed) = self.failed_in_flight.take() {
+            self.after_failure(core, &failed);
+        }
     }
 
     fn on_finished(
@@ -472,6 +498,11 @@ impl MissionExecutor {
             if code == Some(FailureCode::LinkLost) {
                 self.record(id, index, item_result, reason, code);
                 self.wait_for_link(index, now);
+                return;
+            }
+            if code == Some(FailureCode::PilotTakeover) {
+                // The mission is paused (`takeover.rs`); RESUME starts this item again.
+                self.record(id, index, item_result, reason, code);
                 return;
             }
             let on_failure = self
@@ -507,10 +538,11 @@ impl MissionExecutor {
             index = d.item;
         }
         self.touch();
-        if item_result == ItemResult::Failed
-            && p.on_failure == OnFailure::Abort
-            && code != Some(FailureCode::LinkLost)
-        {
+        let interrupted = matches!(
+            code,
+            Some(FailureCode::LinkLost | FailureCode::PilotTakeover)
+        );
+        if item_result == ItemResult::Failed && p.on_failure == OnFailure::Abort && !interrupted {
             let reason = reason.as_deref().unwrap_or("failed");
             self.fail(core, index, behavior, reason, code);
         }

@@ -109,6 +109,33 @@ fn set_mode_spec(profile: &Profile, mode: &Mode) -> CommandSpec {
     )
 }
 
+/// Requests by which the core takes control of the vehicle (again, after a takeover): only an
+/// operator's new order makes a behavior ask for them.
+pub fn takes_control(request: PlatformRequest) -> bool {
+    matches!(
+        request,
+        PlatformRequest::Arm
+            | PlatformRequest::StartOffboard
+            | PlatformRequest::Takeoff { .. }
+            | PlatformRequest::Land
+    )
+}
+
+/// The mode a request puts the vehicle in (`custom_mode`), when it changes the mode: what the
+/// takeover watch expects to see after it (`takeover.rs`).
+pub fn mode_of(request: PlatformRequest, profile: &Profile) -> Option<u32> {
+    let roles = &profile.roles;
+    match request {
+        PlatformRequest::Arm if profile.arm_in_offboard_mode => Some(roles.offboard.custom_mode),
+        PlatformRequest::StartOffboard => Some(roles.offboard.custom_mode),
+        PlatformRequest::Land => Some(roles.land.custom_mode),
+        PlatformRequest::Takeoff { .. } if profile.autopilot == AutopilotKind::Px4 => {
+            roles.takeoff.as_ref().map(|m| m.custom_mode)
+        }
+        _ => None,
+    }
+}
+
 impl Action {
     /// Plans a request; `Err` when this profile cannot do it at all.
     pub fn plan(

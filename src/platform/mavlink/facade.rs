@@ -51,6 +51,8 @@ pub struct MavlinkPlatform {
     control: mpsc::Sender<Control>,
     snapshot: watch::Receiver<Snapshot>,
     events: mpsc::Receiver<Event>,
+    /// How many takeovers the core was told of.
+    takeovers_seen: u64,
     dropped_controls: u64,
     tasks: Vec<JoinHandle<()>>,
     /// The shared connection's tasks, when behind one ([`start_hub`]).
@@ -139,6 +141,7 @@ impl MavlinkPlatform {
             control: control_tx,
             snapshot: snapshot_rx,
             events: events_rx,
+            takeovers_seen: 0,
             dropped_controls: 0,
             tasks,
             _hub: hub,
@@ -241,6 +244,10 @@ impl Platform for MavlinkPlatform {
             measurements: snap.odometry.into_iter().collect(),
             ..PlatformFeedback::default()
         };
+        if let Some((n, event)) = snap.takeover.filter(|(n, _)| *n != self.takeovers_seen) {
+            self.takeovers_seen = n;
+            fb.events.push(event);
+        }
         while let Ok(e) = self.events.try_recv() {
             match e {
                 Event::Scan(s) => fb.scans.push(s),

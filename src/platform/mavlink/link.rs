@@ -10,7 +10,7 @@
 //! - the router (optional, `router.rs`) copies frames between the autopilot and ground stations.
 
 use super::session::Session;
-use crate::platform::{PlatformRequest, RequestResult};
+use crate::platform::{PlatformEvent, PlatformRequest, RequestResult};
 use crate::types::Measurement;
 use crate::types::PlatformStatus;
 use crate::types::RangeScan;
@@ -59,6 +59,9 @@ pub struct Control {
 pub struct Snapshot {
     pub status: PlatformStatus,
     pub odometry: Option<Measurement>,
+    /// The latest takeover and how many there were: carried with the status it changed, so the
+    /// core never sees the new mode without it (and a full event queue cannot lose it).
+    pub takeover: Option<(u64, PlatformEvent)>,
 }
 
 /// What must not be lost between two polls.
@@ -198,6 +201,7 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
     let mut tick = tokio::time::interval(TICK);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut dropped_out = 0u64;
+    let mut takeover: Option<(u64, PlatformEvent)> = None;
     loop {
         let publish = tokio::select! {
             biased;
@@ -245,9 +249,14 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
         }
         if publish {
             let fb = session.feedback(start.elapsed());
+            for e in fb.events {
+                let n = takeover.as_ref().map_or(0, |(n, _)| *n);
+                takeover = Some((n + 1, e));
+            }
             io.snapshot.send_replace(Snapshot {
                 status: fb.status,
                 odometry: fb.measurements.into_iter().last(),
+                takeover: takeover.clone(),
             });
             let events = fb
                 .scans

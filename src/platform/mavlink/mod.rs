@@ -11,6 +11,7 @@
 //! - [`commands`]: COMMAND_LONG → COMMAND_ACK tracking with retries and the autopilot's reasons;
 //! - [`setpoint`]: ENU setpoints → SET_POSITION_TARGET_LOCAL_NED, streamed only while fresh;
 //! - [`actions`]: requests as wait/command/confirm sequences;
+//! - [`takeover`]: whether Kestrel or someone else (a pilot, a ground station) flies the vehicle;
 //! - [`session`]: all of the above for one autopilot, driven by messages, control ticks and time;
 //! - [`link`], [`router`]: tokio tasks for the connection (with reconnection), reading,
 //!   writing and ground-station forwarding;
@@ -36,6 +37,7 @@ pub mod profile;
 pub mod router;
 pub mod session;
 pub mod setpoint;
+pub mod takeover;
 #[cfg(test)]
 mod testutil;
 pub mod tlog;

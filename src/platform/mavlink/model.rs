@@ -307,7 +307,13 @@ impl VehicleModel {
         self.reset_counter += 1;
     }
 
-    fn is_from_autopilot(&self, header: &MavHeader) -> bool {
+    /// The vehicle is in the air by its landed state (taking off, flying or landing).
+    pub fn airborne(&self) -> bool {
+        self.flight().is_airborne()
+    }
+
+    /// The message came from the autopilot followed.
+    pub fn is_from_autopilot(&self, header: &MavHeader) -> bool {
         self.autopilot.is_some_and(|(sys, comp)| {
             header.system_id == u32::from(sys) && header.component_id == comp
         })
@@ -374,6 +380,8 @@ impl VehicleModel {
             MavMessage::GLOBAL_POSITION_INT(g) => return self.boot_time(g.time_boot_ms, now),
             MavMessage::SYSTEM_TIME(t) => return self.boot_time(t.time_boot_ms, now),
             MavMessage::EXTENDED_SYS_STATE(s) => self.landed_state = Some(s.landed_state),
+            // PX4 sends it on every mode change; HEARTBEAT comes only once a second.
+            MavMessage::CURRENT_MODE(m) => self.custom_mode = Some(m.custom_mode),
             MavMessage::SYS_STATUS(s) => {
                 let present = s.onboard_control_sensors_present.bits();
                 if present & SYS_STATUS_PREARM_CHECK != 0 {

@@ -5,14 +5,22 @@
 //! with the time. Out: the messages to send ([`Session::drain_outgoing`]: HEARTBEAT at 1 Hz,
 //! COMMAND_LONGs, setpoints, stream requests) and the [`PlatformFeedback`] for the core. The
 //! async transport in `link.rs` only moves bytes; tests and replay drive this directly.
+//!
+//! When the vehicle is taken from Kestrel (`takeover.rs`: a mode it did not ask for, a disarm in
+//! the air), the session reports [`PlatformEvent::PilotTakeover`], drops its requests in
+//! progress and sends no setpoint until the core asks for control again (arm, offboard, takeoff
+//! or land: an operator's new order), so nothing Kestrel sends can fight the pilot.
 
-use super::actions::{Action, Ctx, Origin};
+use super::actions::{self, Action, Ctx, Origin};
 use super::commands::{CommandId, CommandOutcome, CommandSpec, CommandTracker};
 use super::legacy;
 use super::model::{ModelEvent, VehicleModel};
 use super::profile::{IntervalFallback, Profile, TakeoffMethod};
 use super::setpoint::{self, SetpointStreamer};
-use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest, RequestResult};
+use super::takeover::{ControlWatch, ModeReport, Takeover, WatchedModes};
+use crate::platform::{
+    Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult,
+};
 use crate::types::GeoPoint;
 use crate::types::LinkHealth;
 use crate::types::{AcceptedSetpoints, Setpoint};
@@ -80,12 +88,29 @@ pub struct Session {
     /// While the link is down: when to report again what still arrives.
     next_silence_report: Option<Duration>,
     link_was_lost: bool,
+    /// Whether Kestrel or someone else flies the vehicle.
+    watch: ControlWatch,
+    /// The vehicle was taken from Kestrel: no setpoints until the core asks for control again.
+    handed_over: bool,
+    last_setpoint_at: Option<Duration>,
+    events: Vec<PlatformEvent>,
     stats: SessionStats,
 }
 
 impl Session {
     pub fn new(profile: Profile, config: SessionConfig) -> Self {
+        let roles = &profile.roles;
+        let watch = ControlWatch::new(WatchedModes {
+            offboard: roles.offboard.custom_mode,
+            land: roles.land.custom_mode,
+            hold: roles.hold.custom_mode,
+            takeoff: roles.takeoff.as_ref().map(|m| m.custom_mode),
+        });
         Self {
+            watch,
+            handed_over: false,
+            last_setpoint_at: None,
+            events: Vec::new(),
             model: VehicleModel::new(profile.clone(), config.target_system),
             tracker: CommandTracker::new(profile.command_timeout, profile.command_retries),
             streamer: SetpointStreamer::new(profile.setpoint_period, profile.setpoint_max_age),
@@ -156,7 +181,15 @@ impl Session {
     /// One message from the link.
     pub fn on_message(&mut self, now: Duration, header: &MavHeader, msg: &MavMessage) {
         self.stats.messages_in += 1;
+        let was_airborne = self.model.airborne();
         let event = self.model.ingest(now, header, msg);
+        if matches!(event, Some(ModelEvent::Rebooted)) {
+            self.watch.link_lost();
+        }
+        let mode_report = matches!(msg, MavMessage::HEARTBEAT(_) | MavMessage::CURRENT_MODE(_));
+        if mode_report && self.model.is_from_autopilot(header) {
+            self.watch_mode(now, was_airborne);
+        }
         if let MavMessage::COMMAND_ACK(ack) = msg {
             if self
                 .model
@@ -203,12 +236,51 @@ impl Session {
         setpoint: Option<Setpoint>,
         requests: &[PlatformRequest],
     ) {
+        if requests.iter().any(|r| actions::takes_control(*r)) {
+            self.handed_over = false;
+        }
         let link_ok = self.model.link(now) == LinkHealth::Ok;
-        self.streamer.offer(now, setpoint.filter(|_| link_ok));
+        let setpoint = setpoint.filter(|_| link_ok && !self.handed_over);
+        self.streamer.offer(now, setpoint);
         for r in requests {
             self.request(now, *r);
         }
         self.stream_setpoint(now, true);
+    }
+
+    /// A mode report arrived: was the vehicle taken from Kestrel?
+    fn watch_mode(&mut self, now: Duration, was_airborne: bool) {
+        let Some(custom_mode) = self.model.custom_mode() else {
+            return;
+        };
+        let report = ModeReport {
+            custom_mode,
+            armed: self.model.armed(),
+            was_airborne,
+        };
+        let Some(takeover) = self.watch.report(report) else {
+            return;
+        };
+        let event = PlatformEvent::PilotTakeover {
+            mode: self.profile.mode_name(custom_mode),
+            disarmed: takeover == Takeover::Disarmed,
+        };
+        let reason = event.reason();
+        // A takeover shortly after Kestrel's setpoints stopped may be PX4's offboard-loss
+        // failsafe rather than a person: the log says which, the outcome is the same.
+        let last_setpoint = self.last_setpoint_at.map_or_else(
+            || "never".to_string(),
+            |t| format!("{:.2} s ago", (now - t).as_secs_f64()),
+        );
+        tracing::warn!(
+            target: "mavlink",
+            "{reason}: Kestrel stops commanding the vehicle (last setpoint sent {last_setpoint})"
+        );
+        self.handed_over = true;
+        self.streamer.stop();
+        self.cancel(|_| true, &reason);
+        self.model.set_error(reason);
+        self.events.push(event);
     }
 
     /// Timers: link health, heartbeat, retries, actions, stream re-sends.
@@ -223,6 +295,7 @@ impl Session {
             self.next_silence_report = Some(now + SILENCE_REPORT_PERIOD);
             self.stats.link_losses += 1;
             self.link_was_lost = true;
+            self.watch.link_lost();
             self.streamer.stop();
             self.fail_all("link to the autopilot lost");
         }
@@ -264,6 +337,7 @@ impl Session {
             scans: self.model.take_scans(),
             request_results: std::mem::take(&mut self.results),
             virtual_collision: None,
+            events: std::mem::take(&mut self.events),
         }
     }
 
@@ -277,12 +351,21 @@ impl Session {
         if let Some(sp) = self.streamer.poll(now, from_control) {
             let boot_ms = u32::try_from(now.as_millis()).unwrap_or(u32::MAX);
             self.stats.setpoints_sent += 1;
+            self.last_setpoint_at = Some(now);
             let msg = setpoint::encode(&sp, boot_ms, system, component);
             self.push(MavMessage::SET_POSITION_TARGET_LOCAL_NED(msg));
         }
     }
 
     fn request(&mut self, now: Duration, request: PlatformRequest) {
+        if let Some(mode) = actions::mode_of(request, &self.profile) {
+            self.watch.commanded(mode);
+        }
+        match request {
+            PlatformRequest::Arm => self.watch.arming_requested(true),
+            PlatformRequest::Disarm => self.watch.arming_requested(false),
+            _ => {}
+        }
         let done = match request {
             PlatformRequest::Arm => self.model.armed(),
             PlatformRequest::Disarm => !self.model.armed(),
@@ -613,6 +696,76 @@ mod tests {
             result,
             ..COMMAND_ACK_DATA::DEFAULT
         })
+    }
+
+    #[test]
+    fn a_mode_change_kestrel_did_not_ask_for_is_reported_and_ends_the_stream() {
+        use crate::platform::PlatformEvent;
+        use mavlink::dialects::ardupilotmega::{
+            MavLandedState, CURRENT_MODE_DATA, EXTENDED_SYS_STATE_DATA,
+        };
+        const OFFBOARD: u32 = 0x0006_0000;
+        const LOITER: u32 = 0x0304_0000;
+        let h = autopilot_header();
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        let in_air = MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+            landed_state: MavLandedState::MAV_LANDED_STATE_IN_AIR,
+            ..EXTENDED_SYS_STATE_DATA::DEFAULT
+        });
+        s.on_message(MS(0), &h, &hb(OFFBOARD, true));
+        s.on_message(MS(0), &h, &in_air);
+        s.on_control(MS(10), Some(sp()), &[]);
+        assert_eq!(
+            names(&s.drain_outgoing()),
+            ["SET_POSITION_TARGET_LOCAL_NED"]
+        );
+        assert!(s.feedback(MS(10)).events.is_empty());
+        // A ground station switches PX4 to AUTO.LOITER: CURRENT_MODE says so at once.
+        let loiter = MavMessage::CURRENT_MODE(CURRENT_MODE_DATA {
+            custom_mode: LOITER,
+            intended_custom_mode: LOITER,
+            ..CURRENT_MODE_DATA::DEFAULT
+        });
+        s.on_message(MS(20), &h, &loiter);
+        let fb = s.feedback(MS(20));
+        assert_eq!(
+            fb.events,
+            [PlatformEvent::PilotTakeover {
+                mode: "AUTO.LOITER".into(),
+                disarmed: false
+            }]
+        );
+        assert_eq!(
+            fb.status.last_error.as_deref(),
+            Some("pilot took over (mode AUTO.LOITER)")
+        );
+        // Nothing goes out, even a setpoint offered before the core heard of it.
+        for t in (30..300).step_by(10) {
+            s.on_control(MS(t), Some(sp()), &[]);
+            s.on_tick(MS(t + 5));
+        }
+        let commanding: Vec<MavMessage> = s
+            .drain_outgoing()
+            .into_iter()
+            .map(|(_, m)| m)
+            .filter(|m| match m {
+                MavMessage::COMMAND_LONG(c) => c.command != MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+                MavMessage::HEARTBEAT(_) => false,
+                _ => true,
+            })
+            .collect();
+        assert!(commanding.is_empty(), "{commanding:?}");
+        s.on_message(MS(300), &h, &hb(LOITER, true));
+        assert!(s.feedback(MS(300)).events.is_empty(), "reported once");
+        // An operator's order (RESUME) takes it back: setpoints, then OFFBOARD again.
+        s.on_control(MS(310), Some(sp()), &[PlatformRequest::StartOffboard]);
+        assert_eq!(
+            names(&s.drain_outgoing()),
+            ["SET_POSITION_TARGET_LOCAL_NED"]
+        );
+        s.on_message(MS(2000), &h, &hb(OFFBOARD, true));
+        s.on_message(MS(2100), &h, &hb(LOITER, true));
+        assert_eq!(s.feedback(MS(2100)).events.len(), 1, "Kestrel's again");
     }
 
     #[test]

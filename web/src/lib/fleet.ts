@@ -127,6 +127,17 @@ export function missionStateName(ms: MissionStatus | null): string {
   return MISSION_STATES[ms.state] ?? `state ${ms.state}`;
 }
 
+/**
+ * When a pilot (or a ground station) took the drone from Kestrel: what to tell the operator, e.g.
+ * "pilot took over (mode AUTO.LOITER)", with what RESUME and STOP do while the mission is paused.
+ * Null otherwise.
+ */
+export function pilotTakeover(ms: MissionStatus | null): string | null {
+  if (!ms || ms.last_error_code !== 'pilot_takeover' || !ms.last_error) return null;
+  if (ms.state === 2) return `${ms.last_error}: mission paused — RESUME takes it back, STOP leaves it with the pilot`;
+  return ms.last_error;
+}
+
 export interface Progress {
   done: number;
   total: number;

@@ -48,6 +48,8 @@ export interface MissionStatus {
   item_index: number | null;
   done_results: DoneResult[];
   last_error: string | null;
+  /** Stable failure code behind `last_error` (older servers omit it), e.g. `pilot_takeover`. */
+  last_error_code?: string | null;
 }
 
 export interface DroneStatus {

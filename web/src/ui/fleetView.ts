@@ -2,7 +2,7 @@
 // progress, hold/land), the fleet bus and the drones other Kestrels fly (remoteCards.ts), and the
 // list of Kestrel instances with a form to add one.
 
-import { hasPosition, missionProgress, missionStateName, motionBehavior } from '../lib/fleet';
+import { hasPosition, missionProgress, missionStateName, motionBehavior, pilotTakeover } from '../lib/fleet';
 import { behaviorColor } from '../lib/colors';
 import type { App, DroneRef } from './app';
 import { byId, fmt, h } from './dom';
@@ -85,7 +85,10 @@ export class FleetView {
   private card(ref: DroneRef): Card {
     let c = this.cards.get(ref.key);
     if (c) return c;
-    const fields: Record<string, HTMLElement> = { link: h('span', { 'data-field': 'link' }) };
+    const fields: Record<string, HTMLElement> = {
+      link: h('span', { 'data-field': 'link' }),
+      takeover: h('p', { className: 'takeover', 'data-field': 'takeover', role: 'alert', hidden: true }),
+    };
     const dl = h('dl', {});
     for (const f of FIELDS) {
       fields[f] = h('dd', { 'data-field': f });
@@ -97,7 +100,7 @@ export class FleetView {
     land.addEventListener('click', () => act(land, `land ${ref.name}`, null, () => this.app.land(ref)));
     const name = h('button', { className: 'name', title: 'select this drone' }, ref.name);
     name.addEventListener('click', () => this.app.select(ref.key));
-    const root = h('article', { className: 'card drone', 'data-drone': ref.name }, h('div', { className: 'card-head' }, name, fields.link), dl, h('div', { className: 'card-actions' }, hold, land));
+    const root = h('article', { className: 'card drone', 'data-drone': ref.name }, h('div', { className: 'card-head' }, name, fields.link), fields.takeover, dl, h('div', { className: 'card-actions' }, hold, land));
     c = { root, fields };
     this.cards.set(ref.key, c);
     this.list.append(root);
@@ -140,6 +143,10 @@ export class FleetView {
       );
       const ms = v.mission;
       fields.mission.textContent = ms ? `${missionStateName(ms)} ${missionProgress(ms).label}${ms.mission_id != null ? ` (#${ms.mission_id})` : ''}` : 'no mission';
+      const takeover = pilotTakeover(ms);
+      fields.takeover.textContent = takeover ?? '';
+      fields.takeover.hidden = takeover === null;
+      root.classList.toggle('taken-over', takeover !== null);
     }
     for (const [key, c] of this.cards) {
       if (!refs.some((r) => r.key === key)) {
