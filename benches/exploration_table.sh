@@ -6,7 +6,8 @@
 #
 #   bash benches/exploration_table.sh [OUT_DIR]        (SEEDS="0 1 2" JOBS=2 to change)
 #
-# Writes OUT_DIR/runs.csv (one line a run) and OUT_DIR/table.md (means, ratios, thesis rows).
+# Writes OUT_DIR/runs.csv (one line a run), OUT_DIR/table.md (means, ratios, thesis rows) and
+# OUT_DIR/speeds.md (the horizontal speed flown in every run against the 0.75 m/s limit).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/exploration-table}
@@ -22,6 +23,7 @@ run() { # world drones seed allocator
         "$bin" explore --world "sitl/worlds/$1.json" --drones "$2" --seed "$3" --allocator "$4" \
             --log "$out/$tag.jsonl" --report "$out/$tag.report.json" --progress-every-s 100000 \
             > "$out/$tag.out" 2>&1 || true
+        python3 benches/flown_speed.py "$out/$tag.jsonl" > "$out/$tag.speed.json" || true
         rm -f "$out/$tag.jsonl"
     fi
 }
@@ -34,3 +36,4 @@ export out bin
 } | xargs -P "$jobs" -L 1 bash -c 'run "$@"' _
 
 python3 benches/exploration_table.py "$out" benches/thesis-exploration-results.csv
+python3 benches/flown_speed.py --summary "$out" | tee "$out/speeds.md"
