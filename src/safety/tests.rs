@@ -392,3 +392,54 @@ fn head_on_at_full_speed_stops_outside_the_separation() {
     );
     assert!((0.6..0.8).contains(&least), "{least:.3} m");
 }
+
+#[test]
+fn the_speed_caps_are_the_last_word_on_velocities_and_position_targets() {
+    let caps = SpeedCaps {
+        horizontal_mps: 0.75,
+        up_mps: 0.5,
+        down_mps: 0.5,
+    };
+    let loop_gain = PositionLoop {
+        gain_xy_per_s: 0.95,
+        gain_z_per_s: 1.0,
+    };
+    let mut stage = SafetyStage::new(SafetyConfig::default(), Some(loop_gain));
+    let state = at(0.0, 0.0, 2.0);
+    let check = |stage: &mut SafetyStage, sp: Setpoint| {
+        stage.check(
+            "me",
+            &state,
+            Vec3::zeros(),
+            true,
+            Some(sp),
+            caps,
+            &FleetView::default(),
+        )
+    };
+    let (out, o) = check(&mut stage, velocity(1.0, 1.0, 0.0));
+    match out {
+        Some(Setpoint::Velocity {
+            velocity_enu_mps, ..
+        }) => assert!((velocity_enu_mps.xy().norm() - 0.75).abs() < 1e-9),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(o.map(|o| o.kind), Some(OverrideKind::Limit));
+    // A target 10 m away would have the autopilot fly 9.5 m/s: it is brought in to 0.75 m/s.
+    let (out, _) = check(&mut stage, position(10.0, 0.0, 2.0));
+    match out {
+        Some(Setpoint::Position {
+            position_enu_m,
+            velocity_ff_enu_mps,
+            ..
+        }) => {
+            let pull =
+                velocity_ff_enu_mps + loop_gain.correction(position_enu_m - state.pose.position_m);
+            assert!((pull.xy().norm() - 0.75).abs() < 1e-9, "{pull}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Within the caps nothing changes.
+    let within = velocity(0.5, 0.0, 0.2);
+    assert_eq!(check(&mut stage, within), (Some(within), None));
+}
