@@ -55,6 +55,8 @@ def parse_args(argv=None):
     ap.add_argument("--deny-arm", metavar="REASON", default=None, help="deny every arming with this reason")
     ap.add_argument("--packet-loss", type=float, default=0.0, help="loss probability per message, both ways")
     ap.add_argument("--latency-ms", type=float, default=0.0, help="added one-way latency, both ways")
+    ap.add_argument("--velocity-wander-mps", type=float, default=0.0,
+                    help="the autopilot's own velocity-tracking error in the air (OU process, std m/s, 3 s)")
     ap.add_argument("--telemetry-jitter-ms", type=float, default=0.0,
                     help="telemetry (autopilot to companion) delayed a further 0..J ms at random, order kept")
     ap.add_argument("--reject", action="append", default=[], metavar="CMD:RESULT[:COUNT]",

@@ -58,12 +58,35 @@ def wrap_pi(a):
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+class Wander:
+    """The autopilot's own velocity-tracking error in the air: a seeded Ornstein-Uhlenbeck
+    process per axis (horizontal and vertical), standard deviation sigma_mps, correlation time
+    tau_s. Real PX4 SIH holds its own position only to p50 0.2-0.3 m, p95 0.5 m, at up to
+    0.65 m/s (BENCHMARKS.md, "Driving PX4"); sigma 0 (the default) turns it off."""
+
+    def __init__(self, sigma_mps=0.0, tau_s=3.0, seed=1):
+        import random
+        self.sigma, self.tau = sigma_mps, tau_s
+        self.rng = random.Random(seed)
+        self.v = [0.0, 0.0, 0.0]
+
+    def step(self, dt):
+        if self.sigma <= 0:
+            return self.v
+        a = math.exp(-dt / self.tau)
+        b = self.sigma * math.sqrt(1.0 - a * a)
+        self.v = [a * v + b * self.rng.gauss(0.0, 1.0) * (0.5 if i == 2 else 1.0)
+                  for i, v in enumerate(self.v)]
+        return self.v
+
+
 class Multirotor:
-    def __init__(self, x, y, yaw_rad, limits=None, ground_z_m=0.0):
+    def __init__(self, x, y, yaw_rad, limits=None, ground_z_m=0.0, wander=None):
         self.body = Body(pos=[x, y, ground_z_m], yaw_rad=yaw_rad)
         self.limits = limits or Limits()
         self.ground_z_m = ground_z_m
         self.target = Target(kind="idle")
+        self.wander = wander or Wander()
         self.liftoff_delay_s = 0.0   # motors spooling up: stay on the ground this long more
 
     def step(self, dt, armed):
@@ -92,6 +115,9 @@ class Multirotor:
         if h > sxy:
             vc[0], vc[1] = vc[0] * sxy / h, vc[1] * sxy / h
         vc[2] = _clip(vc[2], -sdn, sup)
+        if not b.on_ground:
+            w = self.wander.step(dt)
+            vc = [vc[i] + w[i] for i in range(3)]
         # first-order response with acceleration limit
         a = [(vc[i] - b.vel[i]) / lim.velocity_tau_s for i in range(3)]
         an = math.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)

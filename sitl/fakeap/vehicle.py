@@ -6,7 +6,7 @@ import sys
 import time
 from collections import deque
 
-from .dynamics import Multirotor, Target, wrap_pi
+from .dynamics import Multirotor, Target, Wander, wrap_pi
 from .faults import Faults, SetpointStats, DelayLine
 from .mav import mavlink
 from .setpoints import SetpointMixin
@@ -46,7 +46,8 @@ class Vehicle(TelemetryMixin, SetpointMixin):
         self.rebooting_until = 0.0
         self.boot_count = 0
         x, y, yaw = start_pose
-        self.model = Multirotor(x, y, yaw, self.limits())
+        self.model = Multirotor(x, y, yaw, self.limits(),
+                                wander=Wander(getattr(opts, "velocity_wander_mps", 0.0), seed=opts.seed + 7 * index))
         self.boot()
 
     # ------------------------------------------------------------------ lifecycle

@@ -183,7 +183,8 @@ impl Controller {
                         .update(position_enu_m - position, dt_s, Vec3::zeros());
                 let feed_forward =
                     velocity_enu_mps + acceleration_enu_mps2 * self.config.velocity_lag();
-                self.velocity_setpoint(caps.clamp(feed_forward + correction), yaw, state, dt_s)
+                let v = caps.clamp_keeping(feed_forward, correction);
+                self.velocity_setpoint(v, yaw, state, dt_s)
             }
         }
     }

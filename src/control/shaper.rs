@@ -37,6 +37,29 @@ impl SpeedCaps {
         )
     }
 
+    /// `feed_forward + correction` within the caps, giving way on the feed-forward first: a
+    /// vehicle pulled back onto its path slows down along it rather than leave it (scaling the
+    /// sum would shrink the pull back and cut corners round obstacles).
+    pub fn clamp_keeping(&self, feed_forward: Vec3, correction: Vec3) -> Vec3 {
+        let h = self.horizontal_mps;
+        let (f, c) = (feed_forward.xy(), correction.xy());
+        let horizontal = if (f + c).norm() <= h {
+            f + c
+        } else if c.norm() >= h {
+            c * (h / c.norm())
+        } else {
+            // The largest s in [0, 1] with |s f + c| = h.
+            let (ff, fc, cc) = (f.norm_squared(), f.dot(&c), c.norm_squared());
+            let s = ((-fc + (fc * fc - ff * (cc - h * h)).max(0.0).sqrt()) / ff).clamp(0.0, 1.0);
+            f * s + c
+        };
+        Vec3::new(
+            horizontal.x,
+            horizontal.y,
+            (feed_forward.z + correction.z).clamp(-self.down_mps, self.up_mps),
+        )
+    }
+
     /// The highest speed along the unit vector `dir` that keeps within every cap.
     pub fn along(&self, dir: &Vec3) -> f64 {
         let h = dir.xy().norm();
@@ -138,6 +161,25 @@ mod tests {
         assert!((v.x / v.y - 0.75).abs() < 1e-12);
         assert_eq!(v.z, -0.3);
         assert_eq!(CAPS.along(&Vec3::new(0.0, 0.0, 1.0)), 0.5);
+    }
+
+    #[test]
+    fn the_pull_back_onto_the_path_is_kept_and_the_feed_forward_gives_way() {
+        let caps = SpeedCaps {
+            horizontal_mps: 0.75,
+            up_mps: 1.0,
+            down_mps: 1.0,
+        };
+        // Cruising east at the cap, 0.3 m/s of pull back north onto the path.
+        let v = caps.clamp_keeping(Vec3::new(0.75, 0.0, 0.0), Vec3::new(0.0, 0.3, 0.0));
+        assert!((v.xy().norm() - 0.75).abs() < 1e-9, "{v}");
+        assert!((v.y - 0.3).abs() < 1e-9, "the pull back is whole: {v}");
+        // A pull back alone beyond the cap is capped itself.
+        let v = caps.clamp_keeping(Vec3::new(0.75, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0));
+        assert!((v - Vec3::new(0.0, 0.75, 0.0)).norm() < 1e-9, "{v}");
+        // Within the caps nothing changes.
+        let v = caps.clamp_keeping(Vec3::new(0.3, 0.0, 0.1), Vec3::new(0.1, 0.1, 0.0));
+        assert!((v - Vec3::new(0.4, 0.1, 0.1)).norm() < 1e-12);
     }
 
     #[test]
