@@ -10,7 +10,8 @@
 //! `--mission FILE` flies a mission at start; `--mission-demo` flies the simulator's demo plan as
 //! a mission once the autopilot is ready. Missions follow `[mission] on_link_regained` after a
 //! link loss, as on every platform. It writes a JSON-lines flight log, one line per behavior
-//! event and one per change of link, mode, arming and readiness.
+//! event and one per change of link, mode, arming and readiness, and tells each autopilot's
+//! ground station the behavior and mission events as STATUSTEXT (`cli_announce`).
 
 use crate::cli_flights::Flights;
 use crate::cli_serve::ServeOptions;
@@ -26,7 +27,7 @@ use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
 use kestrel::host::vehicle::vehicle_host;
-use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform};
+use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform, TextSender};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use kestrel::sim::{Environment, SimWorld};
@@ -189,14 +190,23 @@ impl SharedLinks {
     }
 }
 
-/// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]: (platform,
-/// readiness timeout, estimator by default). `several`: name the vehicle in the banner.
+/// A started vehicle: the platform, its readiness timeout, its estimator by default and, over
+/// MAVLink, where its texts for the ground station go.
+type Started = (
+    Box<dyn Platform>,
+    Duration,
+    EstimatorPlugin,
+    Option<TextSender>,
+);
+
+/// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]. `several`: name
+/// the vehicle in the banner.
 fn start_platform(
     config: &Config,
     plan: VehiclePlan,
     several: bool,
     links: &mut SharedLinks,
-) -> Result<(Box<dyn Platform>, Duration, EstimatorPlugin)> {
+) -> Result<Started> {
     let VehiclePlan {
         id,
         platform_origin,
@@ -211,7 +221,7 @@ fn start_platform(
     } else {
         String::new()
     };
-    let (platform, ready_timeout, estimator): (Box<dyn Platform>, _, _) = match platform {
+    let (platform, ready_timeout, estimator, texts): Started = match platform {
         PlatformPlan::Sim { file, world } => {
             let environment = Environment {
                 wind_mps: Vec3::from(config.sim.wind_enu_mps),
@@ -229,6 +239,7 @@ fn start_platform(
                 Box::new(sim),
                 SIM_READY_TIMEOUT,
                 EstimatorPlugin::GroundTruth,
+                None,
             )
         }
         PlatformPlan::Mavlink(profile) => {
@@ -259,10 +270,12 @@ fn start_platform(
                 None => MavlinkPlatform::start(*profile, session, link),
             }
             .with_context(|| format!("vehicle {id}"))?;
+            let texts = platform.texts();
             (
                 Box::new(platform),
                 ready_timeout,
                 EstimatorPlugin::AutopilotOdometry,
+                Some(texts),
             )
         }
     };
@@ -272,7 +285,7 @@ fn start_platform(
     } else {
         Box::new(Shifted::new(platform, origin))
     };
-    Ok((platform, ready_timeout, estimator))
+    Ok((platform, ready_timeout, estimator, texts))
 }
 
 /// The simulator is ready at once; this only bounds a broken setup.
@@ -302,9 +315,12 @@ async fn run_async(args: RunArgs) -> Result<()> {
     let mut fleet = Vec::with_capacity(vehicles.len());
     let mut ready_timeout = Duration::ZERO;
     let mut links = SharedLinks::new(&vehicles);
+    let mut texts = Vec::new();
     for plan in vehicles {
         let id = plan.id.clone();
-        let (platform, ready, estimator) = start_platform(&config, plan, several, &mut links)?;
+        let (platform, ready, estimator, sender) =
+            start_platform(&config, plan, several, &mut links)?;
+        texts.extend(sender.map(|s| (id.clone(), s)));
         ready_timeout = ready_timeout.max(ready);
         let mut core_config = CoreConfig::new(&id);
         core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
@@ -327,7 +343,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
         token,
         state_dir,
     };
-    serve_vehicles(&args, &config, api, fleet, ready_timeout).await
+    serve_vehicles(&args, &config, api, fleet, (ready_timeout, texts)).await
 }
 
 /// The API's address (`None`: `--no-api`) and token, and the state directory, as checked.
@@ -343,7 +359,7 @@ async fn serve_vehicles(
     config: &Config,
     api: Api,
     fleet: Vec<(DroneCore, Box<dyn Platform>)>,
-    ready_timeout: Duration,
+    (ready_timeout, texts): (Duration, Vec<(String, TextSender)>),
 ) -> Result<()> {
     let mut host = vehicle_host(fleet, config);
     let Api {
@@ -407,6 +423,10 @@ async fn serve_vehicles(
         max_time: (args.exit_when_done || args.no_api)
             .then(|| Duration::from_secs_f64(args.max_time_s.max(1.0))),
         between_ticks,
+        on_event: (!texts.is_empty()).then(|| {
+            let mut ground = crate::cli_announce::GroundTexts::new(texts);
+            Box::new(move |e: &_| ground.on_event(e)) as crate::cli_serve::EventTap
+        }),
     };
     let outcome = crate::cli_serve::serve(host, options).await?;
     crate::cli_serve::report(&outcome, args.exit_when_done)
