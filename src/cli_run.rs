@@ -12,7 +12,9 @@
 //! sensor against a world file's obstacles from its reported pose (`sim::virtual_world`, in the
 //! shared frame), in place of the autopilot's own range readings. Missions follow `[mission]
 //! on_link_regained` after a link loss, as on every platform. It writes a JSON-lines flight
-//! log, one line per behavior event and one per change of link, mode, arming and readiness.
+//! log, one line per behavior event and one per change of link, mode, arming and readiness, and
+//! tells each autopilot's ground station the behavior and mission events as STATUSTEXT
+//! (`cli_announce`).
 
 use crate::cli_flights::Flights;
 use crate::cli_serve::ServeOptions;
@@ -28,7 +30,7 @@ use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;
 use kestrel::host::vehicle::{vehicle_host, virtual_world_host};
-use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform};
+use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform, TextSender};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use kestrel::sim::spatial::ShapeIndex;
@@ -202,14 +204,23 @@ impl SharedLinks {
     }
 }
 
-/// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]: (platform,
-/// readiness timeout, estimator by default). `several`: name the vehicle in the banner.
+/// A started vehicle: the platform, its readiness timeout, its estimator by default and, over
+/// MAVLink, where its texts for the ground station go.
+type Started = (
+    Box<dyn Platform>,
+    Duration,
+    EstimatorPlugin,
+    Option<TextSender>,
+);
+
+/// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]. `several`: name
+/// the vehicle in the banner.
 fn start_platform(
     config: &Config,
     plan: VehiclePlan,
     several: bool,
     links: &mut SharedLinks,
-) -> Result<(Box<dyn Platform>, Duration, EstimatorPlugin)> {
+) -> Result<Started> {
     let VehiclePlan {
         id,
         platform_origin,
@@ -225,7 +236,7 @@ fn start_platform(
     } else {
         String::new()
     };
-    let (platform, ready_timeout, estimator): (Box<dyn Platform>, _, _) = match platform {
+    let (platform, ready_timeout, estimator, texts): Started = match platform {
         PlatformPlan::Sim { file, world } => {
             let environment = Environment {
                 wind_mps: Vec3::from(config.sim.wind_enu_mps),
@@ -247,6 +258,7 @@ fn start_platform(
                 Box::new(sim),
                 SIM_READY_TIMEOUT,
                 EstimatorPlugin::GroundTruth,
+                None,
             )
         }
         PlatformPlan::Mavlink(profile) => {
@@ -277,10 +289,12 @@ fn start_platform(
                 None => MavlinkPlatform::start(*profile, session, link),
             }
             .with_context(|| format!("vehicle {id}"))?;
+            let texts = platform.texts();
             (
                 Box::new(platform),
                 ready_timeout,
                 EstimatorPlugin::AutopilotOdometry,
+                Some(texts),
             )
         }
     };
@@ -290,7 +304,7 @@ fn start_platform(
     } else {
         Box::new(Shifted::new(platform, origin))
     };
-    Ok((platform, ready_timeout, estimator))
+    Ok((platform, ready_timeout, estimator, texts))
 }
 
 /// The simulator is ready at once; this only bounds a broken setup.
@@ -327,12 +341,15 @@ async fn run_async(args: RunArgs) -> Result<()> {
     let obstacles = virtual_world
         .as_ref()
         .map(|v| std::sync::Arc::new(ShapeIndex::new(v.world.shapes())));
+    let mut texts = Vec::new();
     for (k, plan) in vehicles.into_iter().enumerate() {
         let id = plan.id.clone();
         let ranges = virtual_world.as_ref().zip(obstacles.clone()).map(|(v, o)| {
             VirtualRanges::new(o, v.sensor(&plan, &config), config.sim.vehicle_radius_m)
         });
-        let (platform, ready, estimator) = start_platform(&config, plan, several, &mut links)?;
+        let (platform, ready, estimator, sender) =
+            start_platform(&config, plan, several, &mut links)?;
+        texts.extend(sender.map(|s| (id.clone(), s)));
         // Outside the shift: the scans are cast in the shared frame, where the world is.
         let platform: Box<dyn Platform> = match ranges {
             Some(ranges) => Box::new(VirtualSensors::new(platform, ranges, &id, k as u64)),
@@ -372,7 +389,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
         &config,
         api,
         fleet,
-        ready_timeout,
+        (ready_timeout, texts),
         virtual_world.map(|v| v.world),
     )
     .await
@@ -391,7 +408,7 @@ async fn serve_vehicles(
     config: &Config,
     api: Api,
     fleet: Vec<(DroneCore, Box<dyn Platform>)>,
-    ready_timeout: Duration,
+    (ready_timeout, texts): (Duration, Vec<(String, TextSender)>),
     virtual_world: Option<kestrel::sim::world::World>,
 ) -> Result<()> {
     let mut host = match virtual_world {
@@ -459,6 +476,10 @@ async fn serve_vehicles(
         max_time: (args.exit_when_done || args.no_api)
             .then(|| Duration::from_secs_f64(args.max_time_s.max(1.0))),
         between_ticks,
+        on_event: (!texts.is_empty()).then(|| {
+            let mut ground = crate::cli_announce::GroundTexts::new(texts);
+            Box::new(move |e: &_| ground.on_event(e)) as crate::cli_serve::EventTap
+        }),
     };
     let outcome = crate::cli_serve::serve(host, options).await?;
     crate::cli_serve::report(&outcome, args.exit_when_done)

@@ -32,7 +32,13 @@ pub struct ServeOptions {
     pub max_time: Option<Duration>,
     /// Run by the control loop between ticks (the fleet bus).
     pub between_ticks: Option<kestrel::host::runtime::BetweenTicks>,
+    /// Given every event the console printer receives, never waiting (texts for the ground
+    /// station, `cli_announce`).
+    pub on_event: Option<EventTap>,
 }
+
+/// See [`ServeOptions::on_event`].
+pub type EventTap = Box<dyn FnMut(&HostEvent) + Send>;
 
 /// The API address (`--listen`, else the config's `[api] listen`) and token
 /// (`KESTREL_API_TOKEN`, else the config).
@@ -332,10 +338,16 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
         println!("API on http://{address} ({auth})");
     }
     let mut events = spawned.events;
+    let mut on_event = options.on_event.take();
     let printer = tokio::spawn(async move {
         loop {
             match events.recv().await {
-                Ok(e) => print_event(&e),
+                Ok(e) => {
+                    print_event(&e);
+                    if let Some(tap) = on_event.as_mut() {
+                        tap(&e);
+                    }
+                }
                 Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
                     println!("({n} events not shown)")
                 }

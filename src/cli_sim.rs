@@ -251,6 +251,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             .exit_when_done
             .then(|| Duration::from_secs_f64(args.max_sim_time_s)),
         between_ticks: None,
+        on_event: None,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

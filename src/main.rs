@@ -4,6 +4,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
+mod cli_announce;
 mod cli_console;
 mod cli_evaluate;
 mod cli_explore;

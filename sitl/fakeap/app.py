@@ -61,6 +61,10 @@ def parse_args(argv=None):
                     help="telemetry (autopilot to companion) delayed a further 0..J ms at random, order kept")
     ap.add_argument("--reject", action="append", default=[], metavar="CMD:RESULT[:COUNT]",
                     help="reject command id CMD with MAV_RESULT RESULT (COUNT times, default always)")
+    ap.add_argument("--gcs-port-base", type=int, default=0, metavar="PORT",
+                    help="forward what the companion sends that is not for the autopilot (its HEARTBEAT, "
+                         "STATUSTEXT) to UDP 127.0.0.1:PORT+N, as PX4 with MAVLink forwarding on does to "
+                         "its ground-station link (0 = off)")
     ap.add_argument("--log-jsonl", metavar="PATH", default=None,
                     help="append every log entry (modes, acks, events, faults) as JSON lines")
     ap.add_argument("--quiet", action="store_true")

@@ -2,6 +2,7 @@
 commands, params, stream scheduling, frames and the control-channel view."""
 import json
 import math
+import socket
 import sys
 import time
 from collections import deque
@@ -43,6 +44,7 @@ class Vehicle(TelemetryMixin, SetpointMixin):
         self.last_ack_result = None
         self.out_delay = DelayLine()
         self.in_delay = DelayLine()
+        self.gcs_sock = None
         self.rebooting_until = 0.0
         self.boot_count = 0
         x, y, yaw = start_pose
@@ -244,7 +246,22 @@ class Vehicle(TelemetryMixin, SetpointMixin):
         t = getattr(msg, field, 0)
         return t in (0, self.sysid)
 
+    def forward_to_gcs(self, msg):
+        """PX4 with MAVLink forwarding on (MAV_x_FORWARD): a message from the companion that is
+        not for this autopilot (no target, e.g. HEARTBEAT and STATUSTEXT, or another system's)
+        goes on, byte for byte, to the ground-station link (here UDP --gcs-port-base + N)."""
+        port = getattr(self.opts, "gcs_port_base", 0)
+        if not port or getattr(msg, "target_system", 0) == self.sysid:
+            return
+        if self.gcs_sock is None:
+            self.gcs_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self.gcs_sock.sendto(msg.get_msgbuf(), ("127.0.0.1", port + self.index))
+        except OSError:
+            pass  # no ground station listening: UDP drops
+
     def dispatch(self, msg, wall):
+        self.forward_to_gcs(msg)
         try:
             self._dispatch(msg, wall)
         except Exception as exc:  # a malformed request must never kill the fake

@@ -1,21 +1,24 @@
 //! [`MavlinkPlatform`]: the synchronous [`Platform`] the core drives, over the async link.
 //!
-//! In: each control tick's setpoint and requests (sent on a bounded channel, never waiting).
-//! Out: the latest snapshot (`watch`) plus the scans and request results queued since the last
-//! poll. Create it inside a tokio runtime; dropping it stops its tasks.
+//! In: each control tick's setpoint and requests (sent on a bounded channel, never waiting);
+//! texts for the ground station through a [`TextSender`] (the same, from any thread). Out: the
+//! latest snapshot (`watch`) plus the scans and request results queued since the last poll.
+//! Create it inside a tokio runtime; dropping it stops its tasks.
 
 use super::hub::{HubTasks, LinkHub, TransportEnds};
 use super::link::{
     self, Control, Event, SessionIo, Snapshot, CONTROL_QUEUE, EVENT_QUEUE, INBOUND_QUEUE,
-    OUTBOUND_QUEUE,
+    OUTBOUND_QUEUE, TEXT_QUEUE,
 };
 use super::peer::PeerPolicy;
 use super::profile::Profile;
 use super::router::{self, ROUTER_QUEUE};
 use super::session::{Session, SessionConfig};
+use super::statustext::StatusText;
 use super::udp_in;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
 use crate::types::Setpoint;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc, watch};
@@ -53,6 +56,7 @@ pub struct MavlinkPlatform {
     events: mpsc::Receiver<Event>,
     /// How many takeovers the core was told of.
     takeovers_seen: u64,
+    texts: TextSender,
     dropped_controls: u64,
     tasks: Vec<JoinHandle<()>>,
     /// The shared connection's tasks, when behind one ([`start_hub`]).
@@ -127,9 +131,11 @@ impl MavlinkPlatform {
         let (control_tx, control_rx) = mpsc::channel(CONTROL_QUEUE);
         let (snapshot_tx, snapshot_rx) = watch::channel(Snapshot::default());
         let (events_tx, events_rx) = mpsc::channel(EVENT_QUEUE);
+        let (texts_tx, texts_rx) = mpsc::channel(TEXT_QUEUE);
         let io = SessionIo {
             inbound,
             control: control_rx,
+            texts: texts_rx,
             transport,
             outbound,
             snapshot: snapshot_tx,
@@ -142,10 +148,47 @@ impl MavlinkPlatform {
             snapshot: snapshot_rx,
             events: events_rx,
             takeovers_seen: 0,
+            texts: TextSender {
+                tx: texts_tx,
+                dropped: Arc::new(AtomicU64::new(0)),
+            },
             dropped_controls: 0,
             tasks,
             _hub: hub,
         }
+    }
+}
+
+impl MavlinkPlatform {
+    /// Where Kestrel's texts for this vehicle's ground station go (STATUSTEXT on its link).
+    pub fn texts(&self) -> TextSender {
+        self.texts.clone()
+    }
+}
+
+/// Hands texts to one vehicle's session without waiting: a full queue drops the text, counted.
+#[derive(Debug, Clone)]
+pub struct TextSender {
+    tx: mpsc::Sender<StatusText>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl TextSender {
+    /// Queues `text`; false when it was dropped (queue full, or the vehicle is gone).
+    pub fn send(&self, text: StatusText) -> bool {
+        let sent = self.tx.try_send(text).is_ok();
+        if !sent {
+            let n = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+            if n.is_power_of_two() {
+                tracing::warn!(target: "mavlink", "{n} texts for the ground station dropped");
+            }
+        }
+        sent
+    }
+
+    /// Texts dropped so far at this end.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
     }
 }
 

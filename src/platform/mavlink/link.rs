@@ -10,6 +10,7 @@
 //! - the router (optional, `router.rs`) copies frames between the autopilot and ground stations.
 
 use super::session::Session;
+use super::statustext::StatusText;
 use crate::platform::{PlatformEvent, PlatformRequest, RequestResult};
 use crate::types::Measurement;
 use crate::types::PlatformStatus;
@@ -27,11 +28,13 @@ const TICK: Duration = Duration::from_millis(5);
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
 const RECONNECT_MIN: Duration = Duration::from_millis(200);
 const RECONNECT_MAX: Duration = Duration::from_secs(2);
-/// Queue sizes: inbound frames, outbound frames, control outputs, scans and results.
+/// Queue sizes: inbound frames, outbound frames, control outputs, scans and results, texts for
+/// the ground station (the session's own queue behind it drops the oldest).
 pub const INBOUND_QUEUE: usize = 2048;
 pub const OUTBOUND_QUEUE: usize = 512;
 pub const CONTROL_QUEUE: usize = 64;
 pub const EVENT_QUEUE: usize = 1024;
+pub const TEXT_QUEUE: usize = 32;
 
 pub type Connection = mavlink::AsyncConnection<MavMessage>;
 
@@ -189,6 +192,7 @@ pub async fn connection_task(
 pub struct SessionIo {
     pub inbound: mpsc::Receiver<Inbound>,
     pub control: mpsc::Receiver<Control>,
+    pub texts: mpsc::Receiver<StatusText>,
     pub transport: mpsc::Receiver<TransportEvent>,
     pub outbound: mpsc::Sender<Outbound>,
     pub snapshot: watch::Sender<Snapshot>,
@@ -218,6 +222,11 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
                     session.on_message(start.elapsed(), &m.header, &m.msg);
                     false
                 }
+            },
+            // Disabled once every sender is gone (`None` does not match).
+            Some(text) = io.texts.recv() => {
+                session.announce(text);
+                false
             },
             t = io.transport.recv() => {
                 match t {

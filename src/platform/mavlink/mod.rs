@@ -12,6 +12,7 @@
 //! - [`setpoint`]: ENU setpoints → SET_POSITION_TARGET_LOCAL_NED, streamed only while fresh;
 //! - [`actions`]: requests as wait/command/confirm sequences;
 //! - [`takeover`]: whether Kestrel or someone else (a pilot, a ground station) flies the vehicle;
+//! - [`statustext`]: Kestrel's own texts for the ground station: chunked, paced, bounded;
 //! - [`session`]: all of the above for one autopilot, driven by messages, control ticks and time;
 //! - [`link`], [`router`]: tokio tasks for the connection (with reconnection), reading,
 //!   writing and ground-station forwarding;
@@ -37,13 +38,14 @@ pub mod profile;
 pub mod router;
 pub mod session;
 pub mod setpoint;
+pub mod statustext;
 pub mod takeover;
 #[cfg(test)]
 mod testutil;
 pub mod tlog;
 pub mod udp_in;
 
-pub use facade::{start_hub, LinkConfig, LinkError, MavlinkPlatform};
+pub use facade::{start_hub, LinkConfig, LinkError, MavlinkPlatform, TextSender};
 pub use hub::LinkHub;
 pub use profile::{Profile, ProfileError};
 pub use session::{Session, SessionConfig};

@@ -2,8 +2,10 @@
 //!
 //! In: decoded messages from the link ([`Session::on_message`]), each control tick's setpoint
 //! and requests ([`Session::on_control`]), and a housekeeping tick ([`Session::on_tick`]), all
-//! with the time. Out: the messages to send ([`Session::drain_outgoing`]: HEARTBEAT at 1 Hz,
-//! COMMAND_LONGs, setpoints, stream requests) and the [`PlatformFeedback`] for the core. The
+//! with the time; Kestrel's own texts for the ground station ([`Session::announce`]). Out: the
+//! messages to send ([`Session::drain_outgoing`]: our HEARTBEAT at 1 Hz, as an onboard computer,
+//! so ground stations list Kestrel; COMMAND_LONGs, setpoints, stream requests; STATUSTEXTs,
+//! paced by [`Outbox`]) and the [`PlatformFeedback`] for the core. The
 //! async transport in `link.rs` only moves bytes; tests and replay drive this directly.
 //!
 //! When the vehicle is taken from Kestrel (`takeover.rs`: a mode it did not ask for, a disarm in
@@ -17,6 +19,7 @@ use super::legacy;
 use super::model::{ModelEvent, VehicleModel};
 use super::profile::{IntervalFallback, Profile, TakeoffMethod};
 use super::setpoint::{self, SetpointStreamer};
+use super::statustext::{Outbox, StatusText};
 use super::takeover::{ControlWatch, ModeReport, Takeover, WatchedModes};
 use crate::platform::{
     Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult,
@@ -69,6 +72,8 @@ pub struct SessionStats {
     pub setpoints_sent: u64,
     pub commands_sent: u64,
     pub link_losses: u64,
+    /// Kestrel's texts dropped because too many waited (see [`Outbox`]).
+    pub texts_dropped: u64,
 }
 
 pub struct Session {
@@ -94,6 +99,7 @@ pub struct Session {
     handed_over: bool,
     last_setpoint_at: Option<Duration>,
     events: Vec<PlatformEvent>,
+    texts: Outbox,
     stats: SessionStats,
 }
 
@@ -126,6 +132,7 @@ impl Session {
             next_origin_at: None,
             next_silence_report: None,
             link_was_lost: false,
+            texts: Outbox::default(),
             stats: SessionStats::default(),
         }
     }
@@ -171,6 +178,20 @@ impl Session {
     /// Messages to send, in order.
     pub fn drain_outgoing(&mut self) -> Vec<(MavHeader, MavMessage)> {
         std::mem::take(&mut self.outgoing)
+    }
+
+    /// A text for the ground station (sent as STATUSTEXT, paced, while the link is up).
+    pub fn announce(&mut self, text: StatusText) {
+        if !self.texts.push(text) {
+            self.stats.texts_dropped = self.texts.dropped();
+            if self.stats.texts_dropped.is_power_of_two() {
+                tracing::warn!(
+                    target: "mavlink",
+                    "{} texts for the ground station dropped (too many at once)",
+                    self.stats.texts_dropped
+                );
+            }
+        }
     }
 
     /// The transport failed (connect or read error): visible in the status until the link is up.
@@ -319,6 +340,11 @@ impl Session {
             self.send_origin(now);
             self.run_actions(now);
             self.check_stream_setup();
+            if self.our_system().is_some() {
+                for text in self.texts.poll(now) {
+                    self.push(MavMessage::STATUSTEXT(text));
+                }
+            }
             if let Some((system, _)) = self.model.autopilot() {
                 for cmd in self.tracker.poll(now, system) {
                     self.stats.commands_sent += 1;
@@ -605,7 +631,43 @@ mod tests {
         assert_eq!(out[0].1.message_name(), "HEARTBEAT");
         assert_eq!(out[0].0.system_id, 1);
         assert_eq!(out[0].0.component_id, 191);
+        let MavMessage::HEARTBEAT(ours) = &out[0].1 else {
+            panic!("{:?}", out[0].1);
+        };
+        // What QGroundControl lists as an onboard computer, not a second vehicle.
+        assert_eq!(ours.mavtype, MavType::MAV_TYPE_ONBOARD_CONTROLLER);
+        assert_eq!(ours.autopilot, MavAutopilot::MAV_AUTOPILOT_INVALID);
         assert!(names(&out).contains(&"COMMAND_LONG"), "{:?}", names(&out));
+    }
+
+    #[test]
+    fn texts_wait_for_the_link_then_go_out_as_statustext_from_our_component() {
+        use crate::platform::mavlink::statustext::{Severity, StatusText};
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        let long = "go_to #2 started (position=[10.0, 0.0, 5.0], speed=2)";
+        s.announce(StatusText {
+            severity: Severity::Info,
+            text: long.into(),
+        });
+        s.on_tick(MS(0));
+        assert!(s.drain_outgoing().is_empty(), "no autopilot yet");
+        s.on_message(MS(10), &autopilot_header(), &hb(0x0304_0000, false));
+        s.on_tick(MS(20));
+        let texts: Vec<_> = s
+            .drain_outgoing()
+            .into_iter()
+            .filter_map(|(h, m)| match m {
+                MavMessage::STATUSTEXT(t) => Some((h, t)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(texts.len(), 2, "9 + 53 bytes: two chunks");
+        assert!(texts
+            .iter()
+            .all(|(h, t)| (h.system_id, h.component_id, t.id) == (1, 191, 1)));
+        let bytes: Vec<u8> = texts.iter().flat_map(|(_, t)| t.text.to_vec()).collect();
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(text.starts_with(&format!("Kestrel: {long}\0")), "{text}");
     }
 
     #[test]
