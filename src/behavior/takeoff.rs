@@ -1,5 +1,6 @@
 //! `takeoff`: arm, enter offboard, climb `height` metres above the ground at `speed`.
 
+use super::progress::Progress;
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
@@ -67,7 +68,14 @@ pub struct Takeoff {
     /// Hold point on the ground while arming, then the climb target.
     target: Vec3,
     yaw_rad: f64,
+    /// How the climb gets on (from the first tick in the air).
+    climb: Option<Progress>,
+    /// The autopilot's own climb (NAV_TAKEOFF) stopped short: Kestrel finishes it on setpoints.
+    finishing: bool,
 }
+
+/// An autopilot climb that has not got on for this long is finished on Kestrel's setpoints (s).
+const NATIVE_STALL_S: f64 = 3.0;
 
 /// Re-send arm/offboard requests at this period until the platform shows them.
 const REQUEST_PERIOD: Duration = Duration::from_secs(1);
@@ -79,6 +87,8 @@ impl Takeoff {
             phase: Phase::WaitReady { since: None },
             target: Vec3::zeros(),
             yaw_rad: 0.0,
+            climb: None,
+            finishing: false,
         }
     }
 }
@@ -216,16 +226,32 @@ impl Behavior for Takeoff {
         {
             return Step::Succeeded;
         }
-        let reference =
-            if ctx.capabilities.native_takeoff && error > ctx.config.takeoff_threshold_m * 4.0 {
-                None
-            } else {
-                Some(MotionReference::hold(
-                    self.target,
-                    self.yaw_rad,
-                    self.goal.speed,
-                ))
-            };
+        let stuck_s = self
+            .climb
+            .get_or_insert_with(|| Progress::new(ctx.now))
+            .update(error.abs(), ctx.config.takeoff_threshold_m, ctx.now);
+        let far_below = error > ctx.config.takeoff_threshold_m * 4.0;
+        if stuck_s > ctx.config.no_progress_timeout_s && far_below {
+            return Step::Failed(Failure::new(
+                FailureCode::NoProgress,
+                format!(
+                    "no progress for {:.0} s, {error:.2} m below the takeoff height",
+                    ctx.config.no_progress_timeout_s
+                ),
+            ));
+        }
+        // The autopilot's own climb (NAV_TAKEOFF) may stop short of the height (its own
+        // acceptance): Kestrel then finishes the climb on its setpoints instead of waiting.
+        self.finishing |= stuck_s > NATIVE_STALL_S;
+        let reference = if ctx.capabilities.native_takeoff && far_below && !self.finishing {
+            None
+        } else {
+            Some(MotionReference::hold(
+                self.target,
+                self.yaw_rad,
+                self.goal.speed,
+            ))
+        };
         Step::Running {
             reference,
             feedback: self.feedback(ctx),
@@ -422,5 +448,47 @@ mod tests {
         scene.platform.ready_to_fly = true;
         let (_, requests) = run(&mut takeoff, &scene, s(40));
         assert!(requests.contains(&PlatformRequest::Arm), "{requests:?}");
+    }
+
+    #[test]
+    fn an_autopilot_climb_that_stops_short_is_finished_on_setpoints() {
+        let mut scene = Scene::flying();
+        scene.capabilities.native_takeoff = true;
+        let mut t = Takeoff::new(TakeoffGoal {
+            height: 3.0,
+            speed: 1.0,
+        });
+        t.capture_start(&scene.ctx(0));
+        t.phase = Phase::Climbing;
+        // NAV_TAKEOFF climbing: the autopilot flies, Kestrel sends nothing.
+        scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, 1.0));
+        assert!(matches!(
+            run(&mut t, &scene, Duration::from_secs(1)).0,
+            Step::Running {
+                reference: None,
+                ..
+            }
+        ));
+        // Stopped at 2.69 m of 3: after a few seconds Kestrel climbs the rest itself.
+        scene.set_position(Vec3::new(0.0, 0.0, 2.69), Vec3::zeros());
+        assert!(matches!(
+            run(&mut t, &scene, Duration::from_secs(3)).0,
+            Step::Running {
+                reference: None,
+                ..
+            }
+        ));
+        match run(&mut t, &scene, Duration::from_secs(7)).0 {
+            Step::Running {
+                reference: Some(MotionReference::Position { position_enu_m, .. }),
+                ..
+            } => assert!((position_enu_m.z - 3.0).abs() < 1e-9),
+            other => panic!("{other:?}"),
+        }
+        // Still not climbing at all: no_progress, never a wait for ever.
+        assert!(matches!(
+            run(&mut t, &scene, Duration::from_secs(30)).0,
+            Step::Failed(f) if f.code == FailureCode::NoProgress
+        ));
     }
 }
