@@ -24,7 +24,7 @@ impl Default for TrajectoryLimits {
             cruise_speed_mps: 1.0,
             max_acceleration_mps2: 1.5,
             min_corner_speed_mps: 0.15,
-            max_lag_m: 0.6,
+            max_lag_m: 0.3,
         }
     }
 }
