@@ -4,7 +4,7 @@
 //! Results and targets are in BENCHMARKS.md (`## Core`).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use kestrel::behavior::fleet::{FleetInput, FleetView};
+use kestrel::behavior::fleet::FleetInput;
 use kestrel::behavior::Registry;
 use kestrel::config::Config;
 use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
@@ -16,6 +16,7 @@ use kestrel::host::Host;
 use kestrel::mission::{Action, MissionUpdate};
 use kestrel::platform::{Capabilities, PlatformFeedback};
 use kestrel::sim::world::World;
+use kestrel::types::FleetView;
 use kestrel::types::{FlightStatus, LinkHealth, PlatformStatus, Pose, Vec3};
 use serde_json::json;
 use std::hint::black_box;

@@ -6,7 +6,7 @@
 //! [`DroneCore::deliver`] before a later tick), plus the behavior events that happened. The core never reads the clock and never does I/O, so a
 //! real-time driver, the simulator and tests tick exactly the same code.
 
-use crate::behavior::fleet::{DroneView, FleetInput, FleetView};
+use crate::behavior::fleet::FleetInput;
 use crate::behavior::services::{ServiceAnswer, ServiceCall, ServiceDesk};
 use crate::behavior::{
     BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Failure,
@@ -21,6 +21,7 @@ use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
 use crate::safety::{Override, SafetyConfig, SafetyStage};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
+use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

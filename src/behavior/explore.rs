@@ -811,13 +811,13 @@ mod tests {
             .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
     }
 
-    fn other(x: f64, z: f64) -> crate::behavior::fleet::DroneView {
-        crate::behavior::fleet::DroneView::at_rest("other", Vec3::new(x, 0.0, z), z > 0.1)
+    fn other(x: f64, z: f64) -> crate::types::DroneView {
+        crate::types::DroneView::at_rest("other", Vec3::new(x, 0.0, z), z > 0.1)
     }
 
     #[test]
     fn a_drone_lands_beside_one_giving_way_above_but_moves_away_from_one_level_or_landed() {
-        let landing_from = |other_drone: crate::behavior::fleet::DroneView| {
+        let landing_from = |other_drone: crate::types::DroneView| {
             let mut scene = Scene::flying();
             scene.fleet.drones.push(other_drone);
             let mut explore = Explore::new(ExploreGoal::default());

@@ -106,7 +106,7 @@ pub struct BehaviorContext<'a> {
     /// Slow work (plans) asked on one tick, answered on a later one.
     pub services: &'a services::ServiceDesk,
     /// Every drone's latest state (this one included), as the host saw it before this tick.
-    pub fleet: &'a fleet::FleetView,
+    pub fleet: &'a crate::types::FleetView,
     /// The fleet's merged map (`None`: mapping off, or outside a tick).
     pub fleet_map: Option<&'a crate::mapping::OccupancyGrid>,
 }

@@ -1,11 +1,11 @@
 //! Test support: a hand-set vehicle state to build [`BehaviorContext`]s from.
 
-use super::fleet::FleetView;
 use super::services::ServiceDesk;
 use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::types::FleetView;
 use crate::types::{Capabilities, RequestResult};
 use crate::types::{
     EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,

@@ -25,7 +25,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 
 use super::wire::{DroneState, StateMsg};
-use crate::behavior::fleet::DroneView;
+use crate::types::DroneView;
 use crate::types::{LinkHealth, Vec3};
 
 /// Most remote drones, and remote nodes, kept (a flood of made-up ids cannot grow the host's

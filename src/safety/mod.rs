@@ -9,9 +9,9 @@
 
 pub mod geofence;
 
-use crate::behavior::fleet::FleetView;
 use crate::config::GeofenceSection;
 use crate::control::{ControllerConfig, Setpoint, SpeedCaps, YawTarget};
+use crate::types::FleetView;
 use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
 use serde::Serialize;

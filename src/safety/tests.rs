@@ -1,5 +1,5 @@
 use super::*;
-use crate::behavior::fleet::DroneView;
+use crate::types::DroneView;
 use crate::types::{Pose, Validity};
 
 /// No speed limit of a behavior: the vehicle's limits alone.
