@@ -5,7 +5,7 @@
 //! radius_m, polygon_enu_m}` (metres; altitudes relative to home, polygon ENU `earth`).
 
 use super::ApiState;
-use crate::config::GeofenceSection;
+use crate::safety::GeofenceSection;
 use axum::extract::State;
 use axum::Json;
 

@@ -12,7 +12,7 @@ use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
 use crate::mission::executor::{ExecutorConfig, InFlightFailure, LinkRegained};
 use crate::mission::Limits;
-use crate::safety::SafetyConfig;
+use crate::safety::{GeofenceSection, SafetyConfig};
 use crate::sim::world::SensorConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -169,32 +169,6 @@ impl Default for ApiSection {
             header_read_timeout_s: 10.0,
             idle_timeout_s: 120.0,
             request_timeout_s: 30.0,
-        }
-    }
-}
-
-/// Where missions may send the vehicle. Altitudes are relative to home (the arming point, or
-/// the vehicle's position before the first arming).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct GeofenceSection {
-    /// Ceiling above home (m).
-    pub max_altitude_m: f64,
-    /// Floor relative to home (m); negative allows goals below the home altitude.
-    pub min_altitude_m: f64,
-    /// Largest horizontal distance from home (m); absent = no radius limit.
-    pub radius_m: Option<f64>,
-    /// Polygon [[x, y], ..] (m, ENU `earth`) the vehicle must stay inside; absent = none.
-    pub polygon_enu_m: Option<Vec<[f64; 2]>>,
-}
-
-impl Default for GeofenceSection {
-    fn default() -> Self {
-        Self {
-            max_altitude_m: 120.0,
-            min_altitude_m: 0.0,
-            radius_m: Some(1000.0),
-            polygon_enu_m: None,
         }
     }
 }

@@ -84,7 +84,7 @@ pub struct HostInfo {
     pub simulated: bool,
     pub behaviors: Vec<BehaviorInfo>,
     /// The `[geofence]` section missions are checked against.
-    pub geofence: crate::config::GeofenceSection,
+    pub geofence: crate::safety::GeofenceSection,
 }
 
 /// The API's way to the host. Cheap to clone.

@@ -1,12 +1,39 @@
 //! The geofence in flight: ceiling and floor relative to home, a radius around home and an
 //! optional polygon in `earth`, with the nearest point inside for what lies outside.
 //!
-//! In: the `[geofence]` section (the same limits missions are validated against) and home.
-//! Out: whether a point is inside, and the point clamped a margin inside.
+//! In: the `[geofence]` section (the same limits missions are validated against; the config
+//! embeds and validates it) and home. Out: whether a point is inside, and the point clamped a
+//! margin inside.
 
-use crate::config::GeofenceSection;
 use crate::types::Vec3;
 use nalgebra::Vector2;
+use serde::{Deserialize, Serialize};
+
+/// Where missions may send the vehicle. Altitudes are relative to home (the arming point, or
+/// the vehicle's position before the first arming).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GeofenceSection {
+    /// Ceiling above home (m).
+    pub max_altitude_m: f64,
+    /// Floor relative to home (m); negative allows goals below the home altitude.
+    pub min_altitude_m: f64,
+    /// Largest horizontal distance from home (m); absent = no radius limit.
+    pub radius_m: Option<f64>,
+    /// Polygon [[x, y], ..] (m, ENU `earth`) the vehicle must stay inside; absent = none.
+    pub polygon_enu_m: Option<Vec<[f64; 2]>>,
+}
+
+impl Default for GeofenceSection {
+    fn default() -> Self {
+        Self {
+            max_altitude_m: 120.0,
+            min_altitude_m: 0.0,
+            radius_m: Some(1000.0),
+            polygon_enu_m: None,
+        }
+    }
+}
 
 /// The fence around one home.
 #[derive(Debug, Clone, PartialEq)]

@@ -9,11 +9,11 @@
 
 pub mod geofence;
 
-use crate::config::GeofenceSection;
 use crate::control::{ControllerConfig, Setpoint, SpeedCaps, YawTarget};
 use crate::types::FleetView;
 use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
+pub use geofence::GeofenceSection;
 use serde::Serialize;
 
 /// What the stage enforces (from `[geofence]`, `[safety]`, `[controller]`, `[behaviors]`).
