@@ -13,6 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use crate::exploration::service::{Allocation, ExploreError, ExploreRequest};
+use crate::exploration::worker::ExploreJob;
 use crate::mapping::server::MapSnapshot;
 use crate::planning::worker::{PlanJob, PlanWorker};
 use crate::planning::{PlanError, PlanRequest, PlannedPath};
@@ -26,14 +27,6 @@ pub enum ServiceCall {
     Plan(PlanJob),
     /// A question for the fleet's frontier allocator (answered by the host).
     Explore(ExploreJob),
-}
-
-/// One drone's question to the frontier allocator.
-#[derive(Debug)]
-pub struct ExploreJob {
-    pub ticket: u64,
-    pub request: ExploreRequest,
-    pub cancel: Arc<AtomicBool>,
 }
 
 impl ServiceCall {

@@ -18,15 +18,23 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use super::service::{
-    Allocation, ClaimView, ExploreError, FrontierService, FrontierView, RemoteClaim,
+    Allocation, ClaimView, ExploreError, ExploreRequest, FrontierService, FrontierView, RemoteClaim,
 };
-use crate::behavior::services::ExploreJob;
 use crate::mapping::grid::{GridPatch, OccupancyGrid};
 use crate::mapping::merged::FleetMap;
 use crate::planning::worker::Delivery;
 
 /// Most jobs waiting in the host for the batch in flight; more are answered `Unavailable`.
 const MAX_WAITING_JOBS: usize = 256;
+
+/// One drone's question to the frontier allocator, as its behavior filed it (the behavior's
+/// ticket and the flag its ticket sets when dropped).
+#[derive(Debug)]
+pub struct ExploreJob {
+    pub ticket: u64,
+    pub request: ExploreRequest,
+    pub cancel: Arc<AtomicBool>,
+}
 
 /// The outcome of one [`ExploreJob`].
 #[derive(Debug)]
@@ -327,7 +335,6 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
     use crate::exploration::allocation::AllocatorKind;
-    use crate::exploration::service::ExploreRequest;
     use crate::exploration::space::SpaceParams;
     use crate::mapping::config::MapConfig;
     use crate::mapping::grid::{Cell, CellBox, GridSpec, UNKNOWN};
