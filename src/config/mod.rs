@@ -13,7 +13,7 @@ use crate::estimator::EstimatorPlugin;
 use crate::mission::executor::{ExecutorConfig, InFlightFailure, LinkRegained};
 use crate::mission::Limits;
 use crate::safety::{GeofenceSection, SafetyConfig};
-use crate::sim::world::SensorConfig;
+use crate::types::SensorConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -119,7 +119,7 @@ impl Default for SimSection {
             wind_enu_mps: [0.0; 3],
             turbulence_mps2: 0.0,
             sensor: None,
-            vehicle_radius_m: crate::sim::dynamics::MultirotorParams::default().radius_m,
+            vehicle_radius_m: crate::types::DEFAULT_VEHICLE_RADIUS_M,
         }
     }
 }

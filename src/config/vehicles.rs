@@ -11,7 +11,7 @@
 //! Without the list the config flies one vehicle: `[drone] id` over `[mavlink]`, as always.
 
 use crate::platform::mavlink::config::MavlinkSection;
-use crate::sim::world::SensorConfig;
+use crate::types::SensorConfig;
 use serde::{Deserialize, Serialize};
 
 /// The most vehicles one host flies (each has its own link tasks and core).

@@ -13,8 +13,8 @@
 //! fence variant rings the square with poles 0.6 m apart, 0.5 m inside the border, leaving one
 //! opening at least 2 m wide, and puts the random poles and the starts inside it.
 
-use crate::sim::sensors::SensorConfig;
 use crate::sim::world::{Bounds, World};
+use crate::types::SensorConfig;
 use rand::Rng;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

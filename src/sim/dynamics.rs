@@ -5,7 +5,7 @@
 //! tilt limit, horizontal/vertical speed limits, yaw-rate limit, air drag toward the wind
 //! velocity, gravity when the motors stop, and ground contact.
 
-use crate::types::{wrap_angle_rad, Vec3};
+use crate::types::{wrap_angle_rad, Vec3, DEFAULT_VEHICLE_RADIUS_M};
 use serde::{Deserialize, Serialize};
 
 const GRAVITY_MPS2: f64 = 9.81;
@@ -41,7 +41,7 @@ impl Default for MultirotorParams {
             max_yaw_rate_radps: 2.0,
             yaw_time_constant_s: 0.1,
             drag_per_s: 0.3,
-            radius_m: 0.15,
+            radius_m: DEFAULT_VEHICLE_RADIUS_M,
         }
     }
 }

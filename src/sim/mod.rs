@@ -13,6 +13,7 @@ pub mod vehicle;
 pub mod virtual_world;
 pub mod world;
 
+use crate::types::SensorConfig;
 use crate::types::Vec3;
 use dynamics::MultirotorParams;
 use rand::SeedableRng;
@@ -21,7 +22,7 @@ use rand_distr::{Distribution, Normal};
 use spatial::ShapeIndex;
 use std::time::Duration;
 use vehicle::SimVehicle;
-use world::{SensorConfig, Shape, World};
+use world::{Shape, World};
 
 /// Disturbances applied to every vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -18,10 +18,10 @@
 //! [`VirtualRanges`] is the math (obstacle index, sensor, radius; no I/O, no clock);
 //! [`VirtualSensors`] the thin `Platform` adapter.
 
-use super::sensors::{self, SensorConfig};
+use super::sensors;
 use super::spatial::ShapeIndex;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use crate::types::{LinkHealth, Measurement, RangeScan, Setpoint, Vec3};
+use crate::types::{LinkHealth, Measurement, RangeScan, SensorConfig, Setpoint, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;

@@ -7,9 +7,8 @@
 //! casts real vehicles' range sensors against them (`sim::virtual_world`), so a file is bounded
 //! ([`MAX_WORLD_BYTES`], [`MAX_SHAPES`]) and every number checked, the error naming the field.
 
-pub use super::sensors::SensorConfig;
 pub use super::shape::Shape;
-use crate::types::GeoPoint;
+use crate::types::{GeoPoint, SensorConfig};
 use crate::types::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

@@ -1,6 +1,6 @@
 //! Shared data with units and frames: the vocabulary every layer speaks (poses, states,
 //! setpoints, platform requests and reports, measurements, range scans, geographic points, the
-//! fleet view).
+//! fleet view, a simulated vehicle's sensor).
 //! It depends on nothing else in Kestrel.
 //!
 //! Inside Kestrel the world frame is ENU (x east, y north, z up) and the body frame is FLU
@@ -14,6 +14,7 @@ mod measurement;
 mod platform;
 pub mod scan;
 mod setpoint;
+mod simulated;
 mod state;
 
 pub use fleet::{DroneView, FleetView};
@@ -23,6 +24,7 @@ pub use measurement::Measurement;
 pub use platform::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult};
 pub use scan::{Beam, RangeScan};
 pub use setpoint::{AcceptedSetpoints, PositionLoop, Setpoint, YawTarget};
+pub use simulated::{SensorConfig, DEFAULT_VEHICLE_RADIUS_M};
 pub use state::{
     Battery, EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Validity, VehicleState,
 };
