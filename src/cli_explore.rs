@@ -15,8 +15,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::exploration::allocation::AllocatorKind;
 use kestrel::exploration::evaluate::{self, EvalParams};
+use kestrel::flightlog::files;
 use kestrel::flightlog::FlightLog;
-use kestrel::host::logfiles;
 use kestrel::host::runtime::Pace;
 use kestrel::host::sim::{sim_world, simulated_host_in};
 use kestrel::host::Host;
@@ -106,16 +106,16 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     let start = std::time::SystemTime::now();
     let (file, log_path) = match &args.log {
         Some(path) => (
-            logfiles::create_at(path, args.log_overwrite)
+            files::create_at(path, args.log_overwrite)
                 .with_context(|| format!("creating flight log {}", path.display()))?,
             path.clone(),
         ),
         None => {
             let kind = format!("kestrel-explore-{stem}-{}-{}", args.drones, args.seed);
             let dir = config.drone.log_dir.clone().unwrap_or_default();
-            let (file, path) = logfiles::create(&dir, &kind, start)
+            let (file, path) = files::create(&dir, &kind, start)
                 .with_context(|| format!("creating a flight log in {}", dir.display()))?;
-            logfiles::prune(&dir, &kind, config.drone.log_keep, &path)
+            files::prune(&dir, &kind, config.drone.log_keep, &path)
                 .context("pruning old flight logs")?;
             (file, path)
         }

@@ -5,7 +5,7 @@ use crate::cli_flights::{self, Flights};
 use anyhow::{Context, Result};
 use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
-use kestrel::host::logfiles;
+use kestrel::flightlog::files;
 use kestrel::host::logwriter::{self, LogFile};
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
 use kestrel::host::status::{EventBody, HostEvent};
@@ -176,7 +176,7 @@ pub fn header(info: &RunInfo) -> serde_json::Value {
     serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
         "command": info.command,
-        "start_time": logfiles::rfc3339(info.start),
+        "start_time": files::rfc3339(info.start),
         "drones": info.drones,
         "seed": info.seed,
         "world": info.world.map(|p| p.display().to_string()),
@@ -192,14 +192,14 @@ pub fn header(info: &RunInfo) -> serde_json::Value {
 pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile)> {
     let (file, path) = match &choice.explicit {
         Some(path) => {
-            let file = logfiles::create_at(path, choice.overwrite)
+            let file = files::create_at(path, choice.overwrite)
                 .with_context(|| format!("creating flight log {}", path.display()))?;
             (file, path.clone())
         }
         None => {
-            let (file, path) = logfiles::create(&choice.dir, &choice.kind, choice.start)
+            let (file, path) = files::create(&choice.dir, &choice.kind, choice.start)
                 .with_context(|| format!("creating a flight log in {}", choice.dir.display()))?;
-            match logfiles::prune(&choice.dir, &choice.kind, choice.keep, &path) {
+            match files::prune(&choice.dir, &choice.kind, choice.keep, &path) {
                 Ok(deleted) if !deleted.is_empty() => println!(
                     "deleted {} old flight log(s) (keeping {})",
                     deleted.len(),

@@ -8,7 +8,7 @@
 
 use super::error::{ApiError, ErrorBody};
 use super::ApiState;
-use crate::host::logfiles::{self, LogEntry};
+use crate::flightlog::files::{self, LogEntry};
 use crate::host::Command;
 use axum::body::Body;
 use axum::extract::{Path, State};
@@ -33,7 +33,7 @@ pub(super) async fn listed(s: &ApiState, name: &str) -> Result<(PathBuf, LogEntr
     };
     let listed = {
         let (dir, current) = (dir.clone(), file.path.clone());
-        tokio::task::spawn_blocking(move || logfiles::list(&dir, Some(&current)))
+        tokio::task::spawn_blocking(move || files::list(&dir, Some(&current)))
             .await
             .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?
             .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?

@@ -39,7 +39,7 @@ impl Modify for BearerAuth {
         MissionView, Uploaded, Updated, BehaviorInfo, routes::Health, routes::StatusAnswer,
         routes::UpdateAnswer, routes::UploadAnswer, crate::api::saved::Durability,
         crate::host::store::StoreHealth, crate::host::store::Problem, routes::Fault,
-        crate::host::logfiles::LogEntry
+        crate::flightlog::files::LogEntry
     )),
     modifiers(&BearerAuth),
     tags((name = "missions"), (name = "vehicles"), (name = "frames"), (name = "system"))

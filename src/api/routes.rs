@@ -8,8 +8,8 @@ use super::body::{parse, JsonBody};
 use super::error::{ApiError, ErrorBody};
 use super::saved::{changes_saved, Durability};
 use super::ApiState;
+use crate::flightlog::files::{self, LogEntry};
 use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded, ValidatedUpload};
-use crate::host::logfiles::{self, LogEntry};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::store::StoreHealth;
 use crate::host::HostError;
@@ -349,7 +349,7 @@ pub async fn logs(State(s): State<ApiState>) -> Result<Json<Vec<LogEntry>>, ApiE
         .parent()
         .map(std::path::Path::to_path_buf)
         .unwrap_or_default();
-    let listed = tokio::task::spawn_blocking(move || logfiles::list(&dir, Some(&file.path)))
+    let listed = tokio::task::spawn_blocking(move || files::list(&dir, Some(&file.path)))
         .await
         .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?
         .map_err(|e| ApiError::NotFound(format!("listing flight logs: {e}")))?;

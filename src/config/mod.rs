@@ -85,7 +85,7 @@ impl Default for DroneSection {
             control_rate_hz: 100.0,
             geodetic_origin: None,
             log_dir: None,
-            log_keep: crate::host::logfiles::DEFAULT_KEEP,
+            log_keep: crate::flightlog::files::DEFAULT_KEEP,
         }
     }
 }

@@ -33,7 +33,7 @@ impl LogFile {
     }
 }
 
-/// Starts the writer thread of `file` (opened by `logfiles`), found at `path`.
+/// Starts the writer thread of `file` (opened by `flightlog::files`), found at `path`.
 pub fn open(file: std::fs::File, path: &Path) -> std::io::Result<(ChannelWriter, LogFile)> {
     let (tx, rx) = sync_channel::<Vec<u8>>(QUEUE);
     let dropped = Arc::new(AtomicU64::new(0));

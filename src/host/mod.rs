@@ -12,7 +12,6 @@ pub mod coverage;
 pub mod demo;
 pub mod engine;
 pub mod fleet;
-pub mod logfiles;
 pub mod logwriter;
 pub mod map_view;
 pub mod payload;

@@ -19,7 +19,10 @@
 //!   written when a real-time run's control loop starts, so the logs of a fleet's nodes can be
 //!   put on one clock (`kestrel evaluate --log A --log B`).
 //!
-//! Outside tools read it line by line; later records never change earlier ones.
+//! Outside tools read it line by line; later records never change earlier ones. The files
+//! themselves (one per run, named by its start, pruned to a limit) are [`files`]'s.
+
+pub mod files;
 
 use crate::behavior::BehaviorEvent;
 use crate::types::{Setpoint, VehicleState};
@@ -47,7 +50,7 @@ impl FlightLog {
 
     /// Writes to a new file at `path`; an existing file is never overwritten.
     pub fn create(path: &std::path::Path) -> std::io::Result<Self> {
-        let file = crate::host::logfiles::create_at(path, false)?;
+        let file = files::create_at(path, false)?;
         Ok(Self::new(Box::new(std::io::BufWriter::new(file)), 10.0))
     }
 
