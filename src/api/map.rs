@@ -10,9 +10,8 @@ use super::error::{ApiError, ErrorBody};
 use super::routes::DroneQuery;
 use super::scans::{body_scans, ScanInput};
 use super::ApiState;
-use crate::host::engine::MapView;
+use crate::host::map_view::{GridSpec, MapView};
 use crate::host::{Command, HostError};
-use crate::mapping::GridSpec;
 use axum::body::Bytes;
 use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap};
@@ -96,17 +95,7 @@ pub async fn info(
 ) -> Result<Json<MapInfo>, ApiError> {
     let view = fetch(&s, q.drone).await?;
     let spec = *view.grid.spec();
-    let threshold = view
-        .occupied_threshold
-        .unwrap_or(crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD);
-    let (mut unknown, mut free, mut occupied) = (0, 0, 0);
-    for &v in view.grid.data() {
-        match v {
-            v if v < 0 => unknown += 1,
-            v if v >= threshold => occupied += 1,
-            _ => free += 1,
-        }
-    }
+    let cells = view.cell_counts();
     let o = spec.origin_enu_m;
     Ok(Json(MapInfo {
         drone: view.drone,
@@ -120,9 +109,9 @@ pub async fn info(
         layers: view.layers,
         revision: view.revision,
         updated_at_s: view.updated_at_s,
-        cells_unknown: unknown,
-        cells_free: free,
-        cells_occupied: occupied,
+        cells_unknown: cells.unknown,
+        cells_free: cells.free,
+        cells_occupied: cells.occupied,
         occupied_threshold: view.occupied_threshold,
     }))
 }

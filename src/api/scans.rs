@@ -35,7 +35,6 @@ pub fn body_scans(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mapping::scan;
     use nalgebra::Vector3;
     use serde_json::{json, Value};
 
@@ -105,7 +104,7 @@ mod tests {
             "points_flu_m": [[2, 0, 0]], "z_min_m": 0.5, "z_max_m": 0.2,
             "range_min_m": 0.1, "range_max_m": 10 });
         let body = json!({ "scans": [
-            planar(json!(0.0), 3), planar(json!(0.0), scan::MAX_BEAMS + 1), cloud,
+            planar(json!(0.0), 3), planar(json!(0.0), scans::MAX_BEAMS + 1), cloud,
             planar(json!(1e308), 1)
         ]});
         match body_scans(body.to_string().as_bytes(), false, None) {
@@ -126,7 +125,7 @@ mod tests {
 
     #[test]
     fn a_binary_scan_with_a_non_finite_angle_is_refused() {
-        let bytes = scan::encode_binary(
+        let bytes = scans::encode_binary(
             Vector3::new(1.0, 2.0, 1.0),
             0.5,
             0.1,
@@ -140,7 +139,7 @@ mod tests {
 
     #[test]
     fn a_binary_scan_is_decoded() {
-        let bytes = scan::encode_binary(
+        let bytes = scans::encode_binary(
             Vector3::new(1.0, 2.0, 1.0),
             0.5,
             0.1,

@@ -2,10 +2,13 @@
 //! facts a client needs to read it.
 //!
 //! In: a drone's [`MapServer`] or the fleet's [`FleetMap`]. Out: a [`MapView`], serialised by
-//! the API off the control loop.
+//! the API off the control loop, and its cells counted by kind; the API names the grid's
+//! [`GridSpec`] through here rather than through `mapping`.
 
+use crate::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::server::MapServer;
+pub use crate::mapping::GridSpec;
 use crate::mapping::OccupancyGrid;
 
 /// A copy of one map.
@@ -46,4 +49,29 @@ impl MapView {
             occupied_threshold: None,
         }
     }
+
+    /// How many cells are unknown, free and occupied (at or above the view's threshold, else
+    /// the planners' default).
+    pub fn cell_counts(&self) -> CellCounts {
+        let threshold = self
+            .occupied_threshold
+            .unwrap_or(DEFAULT_OCCUPIED_THRESHOLD);
+        let mut counts = CellCounts::default();
+        for &v in self.grid.data() {
+            match v {
+                v if v < 0 => counts.unknown += 1,
+                v if v >= threshold => counts.occupied += 1,
+                _ => counts.free += 1,
+            }
+        }
+        counts
+    }
+}
+
+/// The cells of a map by kind.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CellCounts {
+    pub unknown: usize,
+    pub free: usize,
+    pub occupied: usize,
 }

@@ -6,6 +6,8 @@
 //! message. Every size is checked before anything is built with it.
 
 use crate::mapping::scan::{self, CloudProjection, PinholeRow, RangeScan};
+/// The `KSC1` encoder and the most beams of a scan, for clients of the API (and its tests).
+pub use crate::mapping::scan::{encode_binary, MAX_BEAMS};
 use crate::mission::ValidationError;
 use nalgebra::Vector3;
 use serde::Deserialize;
