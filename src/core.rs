@@ -12,7 +12,7 @@ use crate::behavior::{
     BehaviorConfig, BehaviorContext, BehaviorEvent, BehaviorId, BehaviorServer, Failure,
     FailureCode, ParsedGoal, Registry, ServerError,
 };
-use crate::control::{Controller, ControllerConfig, Setpoint};
+use crate::control::{Controller, ControllerConfig, MotionReference, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::estimator::{self, Estimator, EstimatorPlugin};
@@ -105,6 +105,8 @@ pub struct DroneCore {
     state: EstimatedState,
     platform: PlatformStatus,
     home_enu_m: Option<Vec3>,
+    /// The point the last motion reference held the vehicle at (position references only).
+    held_at_enu_m: Option<Vec3>,
     last_tick: Option<Duration>,
     now: Duration,
     /// When the estimate last had a valid position; `None` before the first.
@@ -134,6 +136,7 @@ impl DroneCore {
             state: EstimatedState::default(),
             platform: PlatformStatus::default(),
             home_enu_m: None,
+            held_at_enu_m: None,
             last_tick: None,
             now: Duration::ZERO,
             position_at: None,
@@ -245,6 +248,7 @@ impl DroneCore {
             frames: &self.frames,
             geo_origin: &self.config.geo_origin,
             home_enu_m: self.home_enu_m,
+            held_at_enu_m: self.held_at_enu_m,
             config: &self.config.behaviors,
             map: self.map.as_ref(),
             request_results: &[],
@@ -305,6 +309,7 @@ impl DroneCore {
             frames: &self.frames,
             geo_origin: &self.config.geo_origin,
             home_enu_m: self.home_enu_m,
+            held_at_enu_m: self.held_at_enu_m,
             config: &self.config.behaviors,
             map: self.map.as_ref(),
             request_results: &feedback.request_results,
@@ -353,6 +358,9 @@ impl DroneCore {
             );
         }
         let out = self.server.tick(&ctx);
+        if out.reference.is_some() {
+            self.held_at_enu_m = out.reference.as_ref().and_then(MotionReference::held_at);
+        }
         let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
         let caps = self.controller.caps(
             out.reference

@@ -3,8 +3,9 @@
 //! against both fake autopilots, with the telemetry delayed 50 ms plus a further 0-50 ms of
 //! jitter (up to 100 ms in all) and the autopilot's own hold wandering as real PX4 SIH's does,
 //! in several seeded runs. In every run every goal is reached
-//! within 0.1 m (the fake's true position), the vehicle lands within 0.1 m of where its landing
-//! began, and its true horizontal speed never exceeds the behaviors' `speed` by more than 3 %.
+//! within 0.1 m (the fake's true position), the vehicle lands within 0.1 m of the last goal
+//! (with the wander: goals within 0.15 m of the truth, touchdown within 0.2 m), and its true horizontal speed never exceeds the behaviors'
+//! `speed` by more than 3 %. One test per seeded run, so that the runs fly side by side.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod mavlink_support;
@@ -14,7 +15,6 @@ use mavlink_support::{alongside, closest_approaches, Fake, Kestrel, Personality}
 use serde_json::{json, Value};
 use std::time::Duration;
 
-const SEEDS: [u64; 3] = [1, 2, 3];
 const SPEED_MPS: f64 = 1.0;
 const HEIGHT_M: f64 = 3.0;
 
@@ -62,16 +62,43 @@ fn local(sample: &Value, key: &str) -> [f64; 3] {
 const WANDER_MPS: &str = "0.25";
 
 /// How near its last goal the vehicle touches down (m): within 0.1 m on an autopilot that holds
-/// its position; with the wander, the autopilot's own land mode (which lands the vehicle) drifts
-/// as real PX4's AUTO.LAND did, within half a metre.
+/// its position. With the wander, Kestrel flies the descent (PX4's `land = "setpoints"`) and waits
+/// near the ground until it is over its point again, but the autopilot's drift in the last
+/// few decimetres is not all taken out: within 0.2 m.
 const TOUCHDOWN_M: f64 = 0.1;
-const TOUCHDOWN_WANDERING_M: f64 = 0.5;
+const TOUCHDOWN_WANDERING_M: f64 = 0.2;
 
 fn fly(p: Personality, seed: u64) {
-    fly_with(p, p.profile(), seed, &[], TOUCHDOWN_M);
+    fly_with(p, p.profile(), seed, &[], HOLDS);
 }
 
-fn fly_with(p: Personality, profile: &str, seed: u64, fake_args: &[&str], touchdown_m: f64) {
+/// How near each point the vehicle must come, and how near its last goal it touches down (m).
+#[derive(Clone, Copy)]
+struct Tolerance {
+    /// Added to each point's own tolerance (`targets`).
+    slack_m: f64,
+    touchdown_m: f64,
+}
+
+/// An autopilot that holds its position: every goal within 0.1 m, touchdown within 0.1 m.
+const HOLDS: Tolerance = Tolerance {
+    slack_m: 0.0,
+    touchdown_m: TOUCHDOWN_M,
+};
+
+/// With the wander, Kestrel sees the vehicle 50-100 ms late while the autopilot's own drift
+/// moves it at up to about 0.5 m/s: a goal Kestrel saw reached within 0.1 m may be up to 0.05 m
+/// further in truth (seen: 0.100 m in 12 runs). Touchdown as `TOUCHDOWN_WANDERING_M`.
+const WANDERS: Tolerance = Tolerance {
+    slack_m: 0.05,
+    touchdown_m: TOUCHDOWN_WANDERING_M,
+};
+
+fn fly_with(p: Personality, profile: &str, seed: u64, fake_args: &[&str], tolerance: Tolerance) {
+    let Tolerance {
+        slack_m,
+        touchdown_m,
+    } = tolerance;
     let seed_arg = seed.to_string();
     let mut args = vec![
         "--seed",
@@ -112,7 +139,7 @@ fn fly_with(p: Personality, profile: &str, seed: u64, fake_args: &[&str], touchd
     let approaches = closest_approaches(&samples, &points);
     for ((target, within), d) in targets().iter().zip(&approaches) {
         assert!(
-            d <= within,
+            *d <= within + slack_m,
             "{p:?} seed {seed}: goal {target:?} missed by {d:.3} m (all: {approaches:.3?})\n{}",
             kestrel.output()
         );
@@ -120,12 +147,16 @@ fn fly_with(p: Personality, profile: &str, seed: u64, fake_args: &[&str], touchd
     let end = fake.state();
     assert_eq!(end["on_ground"], true, "{p:?} seed {seed}: {end}");
     let touchdown = local(&end, "position_enu_m");
-    // The vehicle lands where its last go_to took it.
-    let land_at = points[4];
+    // The vehicle lands where its last go_to took it: PX4 (`land = "setpoints"`) under the
+    // go_to's goal, flown by Kestrel; ArduPilot (`land = "mode"`) where its own LAND stops it.
+    let log = kestrel.flight_log();
+    let land_at = [points[4][0], points[4][1]];
     let off = (touchdown[0] - land_at[0]).hypot(touchdown[1] - land_at[1]);
     assert!(
         off <= touchdown_m,
-        "{p:?} seed {seed}: landed {off:.3} m from {land_at:?} at {touchdown:?}"
+        "{p:?} seed {seed}: landed {off:.3} m from {land_at:?} at {touchdown:?}\n{}\n{}",
+        kestrel.output(),
+        fake.diagnostics()
     );
     // What the vehicle flew (the fake's truth), and what Kestrel asked for: with the autopilot's
     // own wander on top, only the command is Kestrel's to keep within the limit.
@@ -136,8 +167,7 @@ fn fly_with(p: Personality, profile: &str, seed: u64, fake_args: &[&str], touchd
             v[0].hypot(v[1])
         })
         .fold(0.0, f64::max);
-    let commanded = kestrel
-        .flight_log()
+    let commanded = log
         .iter()
         .filter_map(|r| r["setpoint"]["velocity_enu_mps"].as_array().cloned())
         .map(|v| v[0].as_f64().unwrap().hypot(v[1].as_f64().unwrap()))
@@ -161,21 +191,25 @@ fn fly_with(p: Personality, profile: &str, seed: u64, fake_args: &[&str], touchd
     );
 }
 
-#[test]
-fn px4_converges_on_every_goal_with_telemetry_jitter_in_every_seeded_run() {
-    let _alongside = alongside();
-    for seed in SEEDS {
-        fly(Personality::Px4, seed);
-    }
+/// Each seeded run of one autopilot, as its own test.
+macro_rules! seeded_runs {
+    ($personality:expr, $($name:ident: $seed:expr),+) => {$(
+        #[test]
+        fn $name() {
+            let _alongside = alongside();
+            fly($personality, $seed);
+        }
+    )+};
 }
 
-#[test]
-fn ardupilot_converges_on_every_goal_with_telemetry_jitter_in_every_seeded_run() {
-    let _alongside = alongside();
-    for seed in SEEDS {
-        fly(Personality::Ardupilot, seed);
-    }
-}
+seeded_runs!(Personality::Px4,
+    px4_converges_on_every_goal_with_telemetry_jitter_seed_1: 1,
+    px4_converges_on_every_goal_with_telemetry_jitter_seed_2: 2,
+    px4_converges_on_every_goal_with_telemetry_jitter_seed_3: 3);
+seeded_runs!(Personality::Ardupilot,
+    ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_1: 1,
+    ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_2: 2,
+    ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_3: 3);
 
 /// The other way of driving (`[drive] setpoints = "position_target"`: a moving reference point
 /// held by the autopilot's own position loop) converges as well on an autopilot that holds its
@@ -194,26 +228,27 @@ fn px4_driven_by_position_targets_converges_too() {
         );
     assert!(text.contains("position_target"));
     std::fs::write(&profile, text).unwrap();
+    fly_with(Personality::Px4, profile.to_str().unwrap(), 1, &[], HOLDS);
+}
+
+/// PX4 whose own hold wanders as real PX4 SIH's did: every goal still reached (`WANDERS`).
+fn fly_wandering(seed: u64) {
+    let _alongside = alongside();
     fly_with(
         Personality::Px4,
-        profile.to_str().unwrap(),
-        1,
-        &[],
-        TOUCHDOWN_M,
+        Personality::Px4.profile(),
+        seed,
+        &["--velocity-wander-mps", WANDER_MPS],
+        WANDERS,
     );
 }
 
-/// PX4 whose own hold wanders as real PX4 SIH's did: every goal still within 0.1 m, in every run.
 #[test]
-fn px4_converges_on_every_goal_while_its_own_hold_wanders() {
-    let _alongside = alongside();
-    for seed in [4, 5] {
-        fly_with(
-            Personality::Px4,
-            Personality::Px4.profile(),
-            seed,
-            &["--velocity-wander-mps", WANDER_MPS],
-            TOUCHDOWN_WANDERING_M,
-        );
-    }
+fn px4_converges_on_every_goal_while_its_own_hold_wanders_seed_4() {
+    fly_wandering(4);
+}
+
+#[test]
+fn px4_converges_on_every_goal_while_its_own_hold_wanders_seed_5() {
+    fly_wandering(5);
 }

@@ -452,7 +452,11 @@ fn a_landed_drone_takes_off_again_and_rtl_goes_to_the_new_home() {
     );
     h.fly(0, "land", json!({ "speed": 1.0 }), 20.0);
     h.take_off(0, 2.5);
-    assert!((h.position(0) - Vec3::new(4.0, 3.0, 2.5)).norm() < 0.1);
+    assert!(
+        (h.position(0) - Vec3::new(4.0, 3.0, 2.5)).norm() < 0.1,
+        "{}",
+        h.position(0)
+    );
     h.fly(
         0,
         "go_to",

@@ -2,8 +2,9 @@
 # Field check on the real PX4 SITL (SIH quadcopter, built by ../shared/anchors/build-px4.sh): the
 # same mission as tests/convergence_e2e.rs (takeoff 3 m, path-facing go_to 5 m, path-facing
 # follow_path, go_to, land; 1 m/s) flown RUNS times per way of driving, each on a fresh PX4.
-# Prints per run whether the mission succeeded, each item's end time, and the fastest horizontal
-# speed PX4 reported (its LOCAL_POSITION_NED on the GCS link) against the 1 m/s limit.
+# Prints per run whether the mission succeeded, each item's end time, the fastest horizontal
+# speed PX4 reported (its LOCAL_POSITION_NED on the GCS link) against the 1 m/s limit, how far
+# from where its landing began PX4 touched down, and any (false) pilot takeover.
 #
 #   bash benches/field/px4_sih_missions.sh [RUNS] [velocity|position_target ...]
 #
@@ -44,7 +45,14 @@ for mode in $modes; do
 import json, math, sys
 v = [math.hypot(d['vx'], d['vy']) for d in map(json.loads, open(sys.argv[1])) if d.get('z', 0) < -2.5]
 print('%.2f' % max(v) if v else 'n/a')" "$out/$name.gcs.jsonl")
-        echo "$name: rc=$rc fastest=${fastest} m/s  $ends"
+        # Touchdown: PX4's last position against Kestrel's at the start of `land` (ENU -> NED).
+        touchdown=$(python3 -c "
+import json, math, sys
+gcs = [d for d in map(json.loads, open(sys.argv[1])) if 'x' in d]
+began = next((r for r in map(json.loads, open(sys.argv[2])) if r.get('type') == 'pose' and r.get('behavior') == 'land'), None)
+print('%.2f' % math.hypot(gcs[-1]['x'] - began['y'], gcs[-1]['y'] - began['x']) if gcs and began else 'n/a')" "$out/$name.gcs.jsonl" "$out/$name.jsonl")
+        takeover=$(grep -c 'pilot took over' "$out/$name.out")
+        echo "$name: rc=$rc fastest=${fastest} m/s touchdown=${touchdown} m from where landing began, takeovers=$takeover  $ends"
     done
 done
 bash "$anchors/run-px4-sih.sh" 0 stop > /dev/null

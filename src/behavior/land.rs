@@ -1,12 +1,15 @@
 //! `land`: descend at `speed` until touchdown, then disarm.
 //!
-//! Touchdown is the platform's landed state, or (for platforms without a land detector) no
-//! descent for one second after at least 0.2 m of descent.
+//! With `native_land` the autopilot lands (its land mode) and disarms. Otherwise Kestrel flies
+//! the descent, holding the point where the landing began against the autopilot's own drift,
+//! tells the platform every tick ([`PlatformRequest::LandOnSetpoints`]), and keeps pushing down
+//! until disarmed. Touchdown is the platform's landed state, or (for platforms without a land
+//! detector) no descent for one second after at least 0.2 m of descent.
 
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
-use crate::control::MotionReference;
+use crate::control::{MotionReference, YawTarget};
 use crate::types::PlatformRequest;
 use crate::types::{FlightStatus, Vec3};
 use schemars::JsonSchema;
@@ -52,10 +55,22 @@ pub struct Land {
     still_since: Option<Duration>,
     touchdown_at: Option<Duration>,
     requested_native: bool,
+    /// Time the descent has waited over its point so far (s).
+    gated_s: f64,
+    /// The last descent was slowed to wait for the vehicle: stillness is not touchdown.
+    waiting_over_point: bool,
 }
 
 /// Disarming must be confirmed within this time after touchdown.
 const DISARM_TIMEOUT_S: f64 = 5.0;
+/// Height above home (m) below which the descent waits for the vehicle to be over its point.
+const GATE_HEIGHT_M: f64 = 1.0;
+/// Off the point by at most this (m): full descent speed; by [`GATE_STOP_M`]: none.
+const GATE_FULL_M: f64 = 0.04;
+const GATE_STOP_M: f64 = 0.12;
+/// The descent waits at most this long in all (s): a vehicle that cannot hold its point still
+/// lands (the battery does not wait).
+const GATE_BUDGET_S: f64 = 20.0;
 
 impl Land {
     pub(crate) fn new(goal: LandGoal) -> Self {
@@ -67,6 +82,8 @@ impl Land {
             still_since: None,
             touchdown_at: None,
             requested_native: false,
+            gated_s: 0.0,
+            waiting_over_point: false,
         }
     }
 }
@@ -79,7 +96,7 @@ impl Behavior for Land {
                 "not armed: already on the ground",
             ));
         }
-        self.hold_xy = ctx.position();
+        self.hold_xy = landing_point(ctx);
         self.yaw_rad = ctx.yaw();
         self.start_z = ctx.position().z;
         Ok(())
@@ -95,6 +112,9 @@ impl Behavior for Land {
             "actual_land_height": ctx.position().z,
             "actual_land_speed": ctx.state.velocity_enu_mps.z,
         });
+        if !ctx.capabilities.native_land && ctx.platform.armed {
+            requests.push(PlatformRequest::LandOnSetpoints);
+        }
         if let Some(t) = self.touchdown_at {
             if !ctx.platform.armed {
                 return Step::Succeeded;
@@ -109,8 +129,10 @@ impl Behavior for Land {
                 ));
             }
             requests.push(PlatformRequest::Disarm);
+            // On the ground, still pushing down until disarmed: the setpoints go on (PX4 leaves
+            // OFFBOARD for its failsafe when they stop) and hold the vehicle on the ground.
             return Step::Running {
-                reference: None,
+                reference: Some(self.descent(ctx)),
                 feedback,
             };
         }
@@ -131,28 +153,66 @@ impl Behavior for Land {
         if self.touched_down(ctx) {
             self.touchdown_at = Some(ctx.now);
             requests.push(PlatformRequest::Disarm);
-            return Step::Running {
-                reference: None,
-                feedback,
-            };
         }
-        // A target far below the ground: the controller's speed limit sets the descent rate.
-        let target = Vec3::new(self.hold_xy.x, self.hold_xy.y, ctx.position().z - 10.0);
-        let reference = MotionReference::hold(target, self.yaw_rad, self.goal.speed);
         Step::Running {
-            reference: Some(reference),
+            reference: Some(self.descent(ctx)),
             feedback,
         }
     }
 }
 
+/// Where to land: under the point the previous item held the vehicle at (a go_to's goal, a
+/// path's end), when the vehicle is still near it (a vehicle arriving at speed overshoots it by
+/// its velocity times the autopilot's lag, some decimetres on PX4); else where it is.
+fn landing_point(ctx: &BehaviorContext) -> Vec3 {
+    let here = ctx.position();
+    match ctx.held_at_enu_m {
+        Some(p) if (p.xy() - here.xy()).norm() <= super::REACHED_POINT_REACH_M => {
+            Vec3::new(p.x, p.y, here.z)
+        }
+        _ => here,
+    }
+}
+
 impl Land {
+    /// Straight down at `speed` over the landing point: the position loop pulls the vehicle
+    /// back over it (against the autopilot's own drift or an overshoot of the item before)
+    /// while the feed-forward descends. (A hold target far below would pull sideways only at
+    /// the slope of the line to it, a few cm/s.)
+    ///
+    /// Within [`GATE_HEIGHT_M`] of the ground the descent slows while the vehicle is off the
+    /// point, and stops [`GATE_STOP_M`] off it, until back over it ([`GATE_BUDGET_S`] at most),
+    /// so a drifting autopilot touches down where it was told to.
+    fn descent(&mut self, ctx: &BehaviorContext) -> MotionReference {
+        let off_m = (ctx.position().xy() - self.hold_xy.xy()).norm();
+        let low = ctx
+            .home_enu_m
+            .is_none_or(|home| ctx.position().z - home.z < GATE_HEIGHT_M);
+        let mut speed = self.goal.speed;
+        if low && self.gated_s < GATE_BUDGET_S {
+            let share = ((GATE_STOP_M - off_m) / (GATE_STOP_M - GATE_FULL_M)).clamp(0.0, 1.0);
+            if share < 1.0 {
+                self.gated_s += ctx.dt_s;
+            }
+            speed *= share;
+        }
+        self.waiting_over_point = speed < self.goal.speed;
+        MotionReference::Trajectory {
+            position_enu_m: Vec3::new(self.hold_xy.x, self.hold_xy.y, ctx.position().z),
+            velocity_enu_mps: Vec3::new(0.0, 0.0, -speed),
+            acceleration_enu_mps2: Vec3::zeros(),
+            yaw: YawTarget::Angle(self.yaw_rad),
+            max_speed_mps: self.goal.speed,
+        }
+    }
+
     fn touched_down(&mut self, ctx: &BehaviorContext) -> bool {
         if ctx.platform.flight == FlightStatus::Landed {
             return true;
         }
         let descended = self.start_z - ctx.position().z > 0.2;
-        let still = ctx.state.velocity_enu_mps.z.abs() < 0.2 * self.goal.speed;
+        let still =
+            ctx.state.velocity_enu_mps.z.abs() < 0.2 * self.goal.speed && !self.waiting_over_point;
         if descended && still {
             let since = *self.still_since.get_or_insert(ctx.now);
             seconds_since(ctx.now, since) > 1.0
@@ -181,23 +241,45 @@ mod tests {
         let mut land = Land::new(LandGoal { speed: 0.5 });
         land.activate(&scene.ctx(0)).unwrap();
         let ms = Duration::from_millis;
-        // Descending: a reference below, never a disarm.
+        // Descending: a reference below, never a disarm; the platform is told every tick.
         scene.set_position(Vec3::new(1.0, 2.0, 1.0), Vec3::new(0.0, 0.0, -0.5));
         let (step, requests) = run(&mut land, &scene, ms(2000));
-        assert!(requests.is_empty());
+        assert_eq!(requests, [PlatformRequest::LandOnSetpoints]);
         match step {
             Step::Running {
-                reference: Some(MotionReference::Position { position_enu_m, .. }),
+                reference:
+                    Some(MotionReference::Trajectory {
+                        position_enu_m,
+                        velocity_enu_mps,
+                        ..
+                    }),
                 ..
-            } => assert!(position_enu_m.z < 0.0 && position_enu_m.x == 1.0),
+            } => assert!(velocity_enu_mps.z == -0.5 && position_enu_m.x == 1.0),
             other => panic!("{other:?}"),
         }
         // On the ground (the platform still says flying): still for a second, then disarm.
         scene.set_position(Vec3::new(1.0, 2.0, 0.0), Vec3::zeros());
-        assert!(run(&mut land, &scene, ms(4000)).1.is_empty());
-        assert!(run(&mut land, &scene, ms(4500)).1.is_empty());
-        let (_, requests) = run(&mut land, &scene, ms(5100));
-        assert_eq!(requests, [PlatformRequest::Disarm]);
+        let hint = [PlatformRequest::LandOnSetpoints];
+        assert_eq!(run(&mut land, &scene, ms(4000)).1, hint);
+        assert_eq!(run(&mut land, &scene, ms(4500)).1, hint);
+        let (step, requests) = run(&mut land, &scene, ms(5100));
+        assert_eq!(
+            requests,
+            [PlatformRequest::LandOnSetpoints, PlatformRequest::Disarm]
+        );
+        // Still pushing down over the same point until disarmed: the setpoints never stop.
+        match step {
+            Step::Running {
+                reference:
+                    Some(MotionReference::Trajectory {
+                        position_enu_m,
+                        velocity_enu_mps,
+                        ..
+                    }),
+                ..
+            } => assert!(velocity_enu_mps.z == -0.5 && position_enu_m.x == 1.0),
+            other => panic!("{other:?}"),
+        }
         scene.platform.armed = false;
         assert_eq!(run(&mut land, &scene, ms(5200)).0, Step::Succeeded);
     }
@@ -212,7 +294,10 @@ mod tests {
         scene.platform.flight = FlightStatus::Landed;
         scene.platform.last_error = Some("disarm refused: vehicle in air".into());
         let (_, requests) = run(&mut land, &scene, Duration::from_secs(3));
-        assert_eq!(requests, [PlatformRequest::Disarm]);
+        assert_eq!(
+            requests,
+            [PlatformRequest::LandOnSetpoints, PlatformRequest::Disarm]
+        );
         let (step, _) = run(&mut land, &scene, Duration::from_secs(9));
         assert_eq!(
             step,
@@ -221,6 +306,67 @@ mod tests {
                 "landed but disarm refused: disarm refused: vehicle in air"
             ))
         );
+    }
+
+    #[test]
+    fn near_the_ground_the_descent_waits_until_the_vehicle_is_over_its_point() {
+        let mut scene = Scene::flying();
+        scene.dt_s = 0.1;
+        scene.set_position(Vec3::new(1.0, 2.0, 3.0), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        let descent = |step: Step| match step {
+            Step::Running {
+                reference:
+                    Some(MotionReference::Trajectory {
+                        position_enu_m,
+                        velocity_enu_mps,
+                        ..
+                    }),
+                ..
+            } => (position_enu_m, velocity_enu_mps.z),
+            other => panic!("{other:?}"),
+        };
+        let ms = Duration::from_millis;
+        // Low and drifted 0.3 m off: no descent, pulled back over the point.
+        scene.set_position(Vec3::new(1.3, 2.0, 0.5), Vec3::zeros());
+        let (point, vz) = descent(run(&mut land, &scene, ms(1000)).0);
+        assert_eq!((point.x, point.y, vz), (1.0, 2.0, 0.0));
+        // Still for seconds while waiting: not a touchdown, no disarm.
+        for t in (1100..4000).step_by(100) {
+            let (_, requests) = run(&mut land, &scene, ms(t));
+            assert_eq!(requests, [PlatformRequest::LandOnSetpoints], "at {t} ms");
+        }
+        // Back over it: full speed down.
+        scene.set_position(Vec3::new(1.02, 2.0, 0.5), Vec3::zeros());
+        assert_eq!(descent(run(&mut land, &scene, ms(4100)).0).1, -0.5);
+        // Half-way off: half speed.
+        scene.set_position(Vec3::new(1.08, 2.0, 0.5), Vec3::zeros());
+        let vz = descent(run(&mut land, &scene, ms(4200)).0).1;
+        assert!((vz + 0.25).abs() < 1e-9, "{vz}");
+        // A vehicle that cannot hold its point still lands: the wait is bounded.
+        scene.set_position(Vec3::new(1.3, 2.0, 0.5), Vec3::zeros());
+        let mut t = 4300;
+        while descent(run(&mut land, &scene, ms(t)).0).1 == 0.0 {
+            t += 100;
+            assert!(t < 60_000, "waited for ever");
+        }
+        assert!(t > 20_000, "gave up waiting after {t} ms");
+    }
+
+    #[test]
+    fn it_lands_under_the_point_the_previous_item_held_when_near_it() {
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(1.3, 2.0, 3.0), Vec3::new(0.7, 0.0, 0.0));
+        scene.held_at_enu_m = Some(Vec3::new(1.0, 2.0, 3.0));
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        assert_eq!(land.hold_xy.xy(), Vec3::new(1.0, 2.0, 0.0).xy());
+        // Far from it (an item stopped half-way): where the vehicle is.
+        scene.held_at_enu_m = Some(Vec3::new(5.0, 2.0, 3.0));
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        assert_eq!(land.hold_xy.xy(), Vec3::new(1.3, 2.0, 0.0).xy());
     }
 
     #[test]

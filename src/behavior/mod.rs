@@ -97,6 +97,9 @@ pub struct BehaviorContext<'a> {
     pub geo_origin: &'a GeodeticOrigin,
     /// Where the vehicle last armed, in `earth`; `None` before the first arming.
     pub home_enu_m: Option<Vec3>,
+    /// The point the previous motion reference held the vehicle at (a go_to's goal as it
+    /// ends, a path's end), `None` after a velocity.
+    pub held_at_enu_m: Option<Vec3>,
     pub config: &'a BehaviorConfig,
     /// The drone's map (`None` when mapping is off), for behaviors that plan.
     pub map: Option<&'a MapServer>,
@@ -122,10 +125,23 @@ impl BehaviorContext<'_> {
     pub fn hold_here(&self) -> MotionReference {
         MotionReference::hold(self.position(), self.yaw(), self.config.hold_speed_mps)
     }
+    /// After an item succeeded: hold the point it took the vehicle to (its goal, which a
+    /// vehicle arriving at speed overshoots by some decimetres on PX4) when near it, else here.
+    pub fn hold_reached(&self) -> MotionReference {
+        match self.held_at_enu_m {
+            Some(p) if (p - self.position()).norm() <= REACHED_POINT_REACH_M => {
+                MotionReference::hold(p, self.yaw(), self.config.hold_speed_mps)
+            }
+            _ => self.hold_here(),
+        }
+    }
     pub fn is_flying(&self) -> bool {
         self.platform.flight.is_airborne() && self.platform.armed
     }
 }
+
+/// How near the vehicle the point an item held must be to be held after it (m).
+pub const REACHED_POINT_REACH_M: f64 = 0.5;
 
 /// Result of one behavior tick.
 #[derive(Debug, Clone, PartialEq)]

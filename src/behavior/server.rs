@@ -404,10 +404,12 @@ impl BehaviorServer {
         if let Some(pos) = self.active.iter().position(|a| a.info.id == id) {
             let a = self.active.remove(pos);
             if a.resource == Resource::Motion {
-                self.hold = if ctx.is_flying() {
-                    Some(ctx.hold_here())
-                } else {
+                self.hold = if !ctx.is_flying() {
                     None
+                } else if result == BehaviorResult::Succeeded {
+                    Some(ctx.hold_reached())
+                } else {
+                    Some(ctx.hold_here())
                 };
             }
             self.events.push(BehaviorEvent::Finished {

@@ -20,6 +20,8 @@ pub(crate) struct Scene {
     pub config: BehaviorConfig,
     pub capabilities: Capabilities,
     pub dt_s: f64,
+    /// What the previous reference held (`BehaviorContext::held_at_enu_m`).
+    pub held_at_enu_m: Option<Vec3>,
     /// Acks the platform reports in the next contexts.
     pub request_results: Vec<RequestResult>,
     pub services: ServiceDesk,
@@ -56,6 +58,7 @@ impl Scene {
                 velocity_lag_s: None,
             },
             dt_s: 1.0,
+            held_at_enu_m: None,
             request_results: Vec::new(),
             services: ServiceDesk::default(),
             fleet: FleetView::default(),
@@ -82,6 +85,7 @@ impl Scene {
             frames: &self.frames,
             geo_origin: &self.origin,
             home_enu_m: None,
+            held_at_enu_m: self.held_at_enu_m,
             config: &self.config,
             map: None,
             request_results: &self.request_results,

@@ -44,6 +44,17 @@ impl MotionReference {
         }
     }
 
+    /// The point the reference holds the vehicle at, or tracks it along (`None` for a
+    /// velocity).
+    pub fn held_at(&self) -> Option<Vec3> {
+        match self {
+            Self::Position { position_enu_m, .. } | Self::Trajectory { position_enu_m, .. } => {
+                Some(*position_enu_m)
+            }
+            Self::Velocity { .. } => None,
+        }
+    }
+
     /// Hold `position_enu_m` with heading `yaw_rad`.
     pub fn hold(position_enu_m: Vec3, yaw_rad: f64, max_speed_mps: f64) -> Self {
         Self::Position {

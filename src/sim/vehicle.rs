@@ -245,7 +245,9 @@ impl SimVehicle {
             PlatformRequest::Takeoff { .. } | PlatformRequest::Land => {
                 Err("the simulator flies takeoff and landing on setpoints".into())
             }
-            PlatformRequest::PointGimbal { .. } | PlatformRequest::TakePhoto => Ok(()),
+            PlatformRequest::PointGimbal { .. }
+            | PlatformRequest::TakePhoto
+            | PlatformRequest::LandOnSetpoints => Ok(()),
         }
     }
 }

@@ -23,6 +23,10 @@ pub enum PlatformRequest {
     },
     /// The autopilot's own landing (PX4 AUTO.LAND, ArduPilot LAND).
     Land,
+    /// Kestrel is flying the vehicle down to touchdown on its own setpoints (platforms without
+    /// `native_land`), repeated every tick of the landing: the autopilot's land mode or its
+    /// disarm meanwhile end Kestrel's landing, they are not a pilot taking over.
+    LandOnSetpoints,
     /// Point the gimbal (FLU body angles).
     PointGimbal {
         pitch_rad: f64,

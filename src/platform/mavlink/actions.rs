@@ -162,6 +162,8 @@ impl Action {
                     profile.mode_confirm_timeout,
                 ));
             }
+            // Nothing to ask the autopilot: the session keeps it for the takeover watch.
+            PlatformRequest::LandOnSetpoints => {}
             PlatformRequest::Disarm => {
                 steps.push_back(Step::Command {
                     what: "disarming",
@@ -221,7 +223,9 @@ impl Action {
                 }
             }
             PlatformRequest::Land => match profile.land {
-                LandMethod::Mode => steps.push_back(Step::SetMode(profile.roles.land.clone())),
+                LandMethod::Mode | LandMethod::Setpoints => {
+                    steps.push_back(Step::SetMode(profile.roles.land.clone()))
+                }
                 LandMethod::NavLand => {
                     steps.push_back(Step::Command {
                         what: "landing",

@@ -60,6 +60,10 @@ pub enum LandMethod {
     Mode,
     /// MAV_CMD_NAV_LAND.
     NavLand,
+    /// Kestrel flies the descent on its setpoints, holding its position loop down to touchdown,
+    /// and disarms on the autopilot's landed state (the behavior `land` without `native_land`).
+    /// A request for the autopilot's own landing still switches to the `land` mode.
+    Setpoints,
 }
 
 /// What to do when SET_MESSAGE_INTERVAL is refused.

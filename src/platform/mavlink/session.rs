@@ -17,7 +17,7 @@ use super::actions::{self, Action, Ctx, Origin};
 use super::commands::{CommandId, CommandOutcome, CommandSpec, CommandTracker};
 use super::legacy;
 use super::model::{ModelEvent, VehicleModel};
-use super::profile::{IntervalFallback, Profile, TakeoffMethod};
+use super::profile::{IntervalFallback, LandMethod, Profile, TakeoffMethod};
 use super::setpoint::{self, SetpointStreamer};
 use super::statustext::{Outbox, StatusText};
 use super::takeover::{ControlWatch, ModeReport, Takeover, WatchedModes};
@@ -40,6 +40,9 @@ const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
 const ORIGIN_PERIOD: Duration = Duration::from_secs(2);
 const ORIGIN_ATTEMPTS: u8 = 10;
 const SILENCE_REPORT_PERIOD: Duration = Duration::from_secs(5);
+/// The behavior `land` repeats [`PlatformRequest::LandOnSetpoints`] every tick: a landing not
+/// heard of for this long has ended (stopped, or another behavior flies).
+const LANDING_HINT_TTL: Duration = Duration::from_millis(500);
 
 /// Settings of a session besides the profile.
 #[derive(Debug, Clone, PartialEq)]
@@ -100,6 +103,8 @@ pub struct Session {
     last_setpoint_at: Option<Duration>,
     events: Vec<PlatformEvent>,
     texts: Outbox,
+    /// When the behavior `land` last said it flies the descent on setpoints.
+    landing_on_setpoints_at: Option<Duration>,
     stats: SessionStats,
 }
 
@@ -133,6 +138,7 @@ impl Session {
             next_silence_report: None,
             link_was_lost: false,
             texts: Outbox::default(),
+            landing_on_setpoints_at: None,
             stats: SessionStats::default(),
         }
     }
@@ -145,7 +151,7 @@ impl Session {
                 position_loop: self.profile.position_loop,
             },
             native_takeoff: self.profile.takeoff == TakeoffMethod::NavTakeoff,
-            native_land: true,
+            native_land: self.profile.land != LandMethod::Setpoints,
             velocity_lag_s: Some(self.profile.velocity_lag.as_secs_f64()),
         }
     }
@@ -279,6 +285,10 @@ impl Session {
             armed: self.model.armed(),
             was_airborne,
         };
+        let landing = self
+            .landing_on_setpoints_at
+            .is_some_and(|t| now.saturating_sub(t) <= LANDING_HINT_TTL);
+        self.watch.landing_on_setpoints(landing);
         let Some(takeover) = self.watch.report(report) else {
             return;
         };
@@ -384,6 +394,10 @@ impl Session {
     }
 
     fn request(&mut self, now: Duration, request: PlatformRequest) {
+        if request == PlatformRequest::LandOnSetpoints {
+            self.landing_on_setpoints_at = Some(now);
+            return;
+        }
         if let Some(mode) = actions::mode_of(request, &self.profile) {
             self.watch.commanded(mode);
         }

@@ -15,8 +15,8 @@
 //! leaves OFFBOARD when Kestrel's setpoints stop reaching it). A disarm in the air that Kestrel
 //! did not ask for counts too. Not a takeover: a mode Kestrel asked for shown late, PX4 ending
 //! its NAV_TAKEOFF in its hold mode, the mode change or disarm that ends Kestrel's landing on
-//! the ground, a disarm on the ground, and
-//! whatever happened while the link was down (the autopilot's link-loss failsafe flew the
+//! the ground, the land mode or a disarm while Kestrel lands the vehicle on its own setpoints, a
+//! disarm on the ground, and whatever happened while the link was down (the autopilot's link-loss failsafe flew the
 //! vehicle; the mission's link-loss policy decides what follows, `mission::executor::link`).
 //! Once taken, the vehicle is Kestrel's again only when it is back in Kestrel's mode (Kestrel
 //! asked for it again on an operator's order, e.g. RESUME).
@@ -59,6 +59,8 @@ pub struct ControlWatch {
     in_control: bool,
     /// Kestrel asked to disarm (since its last arm request).
     disarm_requested: bool,
+    /// Kestrel flies a landing on its own setpoints (the session's hint is fresh).
+    landing_on_setpoints: bool,
     last_mode: Option<u32>,
 }
 
@@ -69,6 +71,7 @@ impl ControlWatch {
             commanded: modes.offboard,
             in_control: false,
             disarm_requested: false,
+            landing_on_setpoints: false,
             last_mode: None,
         }
     }
@@ -88,6 +91,14 @@ impl ControlWatch {
         self.disarm_requested = !arm;
     }
 
+    /// Whether Kestrel is flying a landing on its setpoints now: meanwhile the autopilot
+    /// switching to its land mode (PX4 does at touchdown when the setpoints pause) or disarming
+    /// ends that landing; a ground station's NAV_LAND lands the vehicle where Kestrel was
+    /// landing it anyway. Any other mode is still a takeover.
+    pub fn landing_on_setpoints(&mut self, landing: bool) {
+        self.landing_on_setpoints = landing;
+    }
+
     /// The link was lost or the autopilot rebooted: what it does meanwhile is not a takeover.
     pub fn link_lost(&mut self) {
         self.in_control = false;
@@ -104,6 +115,10 @@ impl ControlWatch {
         if in_kestrels_mode {
             return None;
         }
+        if self.landing_on_setpoints && r.armed && r.custom_mode == self.modes.land {
+            self.commanded = self.modes.land;
+            return None;
+        }
         if self.commanded == self.modes.land && !r.was_airborne {
             // Landed: PX4 leaves its land mode by itself as it disarms (AUTO.LOITER), and may
             // say so (CURRENT_MODE) before HEARTBEAT shows the disarm.
@@ -112,8 +127,10 @@ impl ControlWatch {
         }
         if !r.armed {
             self.in_control = false;
-            let expected =
-                self.disarm_requested || self.commanded == self.modes.land || !r.was_airborne;
+            let expected = self.disarm_requested
+                || self.landing_on_setpoints
+                || self.commanded == self.modes.land
+                || !r.was_airborne;
             return (!expected).then_some(Takeover::Disarmed);
         }
         if previous == Some(r.custom_mode) {
@@ -212,6 +229,38 @@ mod tests {
         w.commanded(LAND);
         assert_eq!(w.report(flying(LAND)), None);
         assert_eq!(w.report(flying(POSCTL)), Some(Takeover::Mode(POSCTL)));
+    }
+
+    #[test]
+    fn a_landing_on_setpoints_may_end_in_the_land_mode_or_a_disarm() {
+        let mut w = in_offboard();
+        w.landing_on_setpoints(true);
+        assert_eq!(w.report(flying(LAND)), None, "PX4 at touchdown");
+        let disarmed = ModeReport {
+            custom_mode: LAND,
+            armed: false,
+            was_airborne: true,
+        };
+        assert_eq!(w.report(disarmed), None);
+        assert!(!w.in_control());
+        // Disarmed by the autopilot's land detector while still in OFFBOARD.
+        let mut w = in_offboard();
+        w.landing_on_setpoints(true);
+        let disarmed = ModeReport {
+            custom_mode: OFFBOARD,
+            armed: false,
+            was_airborne: true,
+        };
+        assert_eq!(w.report(disarmed), None);
+        // A pilot's own mode during the landing is still a takeover.
+        let mut w = in_offboard();
+        w.landing_on_setpoints(true);
+        assert_eq!(w.report(flying(POSCTL)), Some(Takeover::Mode(POSCTL)));
+        // Once the landing is over (the hint is stale), the land mode is a takeover again.
+        let mut w = in_offboard();
+        w.landing_on_setpoints(true);
+        w.landing_on_setpoints(false);
+        assert_eq!(w.report(flying(LAND)), Some(Takeover::Mode(LAND)));
     }
 
     #[test]
