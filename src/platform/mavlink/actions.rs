@@ -602,9 +602,9 @@ mod tests {
             (None, 0),
             "no stream: no mode command"
         );
-        let sp = crate::control::Setpoint::Velocity {
+        let sp = crate::types::Setpoint::Velocity {
             velocity_enu_mps: crate::types::Vec3::zeros(),
-            yaw: crate::control::YawTarget::Rate(0.0),
+            yaw: crate::types::YawTarget::Rate(0.0),
         };
         let mut sent = 0;
         for t in (0..1300).step_by(20) {
