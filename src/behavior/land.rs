@@ -175,10 +175,11 @@ fn landing_point(ctx: &BehaviorContext) -> Vec3 {
 }
 
 impl Land {
-    /// Straight down at `speed` over the landing point: the position loop pulls the vehicle
+    /// Straight down at `speed` over the landing point: the position hold pulls the vehicle
     /// back over it (against the autopilot's own drift or an overshoot of the item before)
     /// while the feed-forward descends. (A hold target far below would pull sideways only at
-    /// the slope of the line to it, a few cm/s.)
+    /// the slope of the line to it, a few cm/s; a trajectory reference's unbounded integral
+    /// wound up against the 0.5 m/s cap and swung 1.5 m on real PX4 SIH.)
     ///
     /// Within [`GATE_HEIGHT_M`] of the ground the descent slows while the vehicle is off the
     /// point, and stops [`GATE_STOP_M`] off it, until back over it ([`GATE_BUDGET_S`] at most),
@@ -197,10 +198,9 @@ impl Land {
             speed *= share;
         }
         self.waiting_over_point = speed < self.goal.speed;
-        MotionReference::Trajectory {
+        MotionReference::Position {
             position_enu_m: Vec3::new(self.hold_xy.x, self.hold_xy.y, ctx.position().z),
-            velocity_enu_mps: Vec3::new(0.0, 0.0, -speed),
-            acceleration_enu_mps2: Vec3::zeros(),
+            velocity_ff_enu_mps: Vec3::new(0.0, 0.0, -speed),
             yaw: YawTarget::Angle(self.yaw_rad),
             max_speed_mps: self.goal.speed,
         }
@@ -248,13 +248,13 @@ mod tests {
         match step {
             Step::Running {
                 reference:
-                    Some(MotionReference::Trajectory {
+                    Some(MotionReference::Position {
                         position_enu_m,
-                        velocity_enu_mps,
+                        velocity_ff_enu_mps,
                         ..
                     }),
                 ..
-            } => assert!(velocity_enu_mps.z == -0.5 && position_enu_m.x == 1.0),
+            } => assert!(velocity_ff_enu_mps.z == -0.5 && position_enu_m.x == 1.0),
             other => panic!("{other:?}"),
         }
         // On the ground (the platform still says flying): still for a second, then disarm.
@@ -271,13 +271,13 @@ mod tests {
         match step {
             Step::Running {
                 reference:
-                    Some(MotionReference::Trajectory {
+                    Some(MotionReference::Position {
                         position_enu_m,
-                        velocity_enu_mps,
+                        velocity_ff_enu_mps,
                         ..
                     }),
                 ..
-            } => assert!(velocity_enu_mps.z == -0.5 && position_enu_m.x == 1.0),
+            } => assert!(velocity_ff_enu_mps.z == -0.5 && position_enu_m.x == 1.0),
             other => panic!("{other:?}"),
         }
         scene.platform.armed = false;
@@ -318,13 +318,13 @@ mod tests {
         let descent = |step: Step| match step {
             Step::Running {
                 reference:
-                    Some(MotionReference::Trajectory {
+                    Some(MotionReference::Position {
                         position_enu_m,
-                        velocity_enu_mps,
+                        velocity_ff_enu_mps,
                         ..
                     }),
                 ..
-            } => (position_enu_m, velocity_enu_mps.z),
+            } => (position_enu_m, velocity_ff_enu_mps.z),
             other => panic!("{other:?}"),
         };
         let ms = Duration::from_millis;
