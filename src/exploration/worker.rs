@@ -92,6 +92,8 @@ pub struct FrontierWorker {
 impl FrontierWorker {
     pub fn new(delivery: Delivery) -> Self {
         let (batch_tx, batch_rx) = mpsc::sync_channel::<Batch>(1);
+        // Bounded by the batch queue (depth 1): one answer per batch taken from it.
+        #[allow(clippy::disallowed_methods)]
         let (done_tx, done_rx) = mpsc::channel();
         let thread = std::thread::Builder::new()
             .name("kestrel-frontiers".into())

@@ -69,6 +69,8 @@ pub struct PlanWorker {
 impl PlanWorker {
     pub fn new(delivery: Delivery) -> Self {
         let (job_tx, job_rx) = mpsc::sync_channel::<(usize, PlanJob)>(QUEUE_DEPTH);
+        // Bounded by the job queue: one answer per job taken from it.
+        #[allow(clippy::disallowed_methods)]
         let (answer_tx, answer_rx) = mpsc::channel();
         let watchdog = Arc::new(Watchdog::default());
         let deadline = match delivery {
