@@ -476,6 +476,11 @@ async fn serve_vehicles(
         max_time: (args.exit_when_done || args.no_api)
             .then(|| Duration::from_secs_f64(args.max_time_s.max(1.0))),
         between_ticks,
+        texts_pending: (!texts.is_empty()).then(|| {
+            let senders: Vec<TextSender> = texts.iter().map(|(_, s)| s.clone()).collect();
+            Box::new(move || senders.iter().any(TextSender::pending))
+                as Box<dyn Fn() -> bool + Send>
+        }),
         on_event: (!texts.is_empty()).then(|| {
             let mut ground = crate::cli_announce::GroundTexts::new(texts);
             Box::new(move |e: &_| ground.on_event(e)) as crate::cli_serve::EventTap

@@ -35,7 +35,14 @@ pub struct ServeOptions {
     /// Given every event the console printer receives, never waiting (texts for the ground
     /// station, `cli_announce`).
     pub on_event: Option<EventTap>,
+    /// True while texts for the ground station have not left yet: waited for (at most
+    /// [`TEXTS_FLUSH`]) before exiting, so the ground station sees the mission's last words.
+    pub texts_pending: Option<Box<dyn Fn() -> bool + Send>>,
 }
+
+/// How long an exiting Kestrel waits for its last texts to the ground station (a few at the
+/// session's pace; longer only when the link is down, and then they cannot go anyway).
+pub const TEXTS_FLUSH: Duration = Duration::from_secs(3);
 
 /// See [`ServeOptions::on_event`].
 pub type EventTap = Box<dyn FnMut(&HostEvent) + Send>;
@@ -406,6 +413,15 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
         .is_err()
     {
         tracing::warn!("some events were not printed");
+    }
+    if let Some(pending) = options.texts_pending.take() {
+        let deadline = Instant::now() + TEXTS_FLUSH;
+        while pending() && Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        if pending() {
+            tracing::warn!("some texts for the ground station were not sent (is the link down?)");
+        }
     }
     Ok(Outcome {
         results: outcomes(&host, &flights),

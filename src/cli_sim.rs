@@ -253,6 +253,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             .then(|| Duration::from_secs_f64(args.max_sim_time_s)),
         between_ticks: None,
         on_event: None,
+        texts_pending: None,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -132,6 +132,8 @@ impl MavlinkPlatform {
         let (snapshot_tx, snapshot_rx) = watch::channel(Snapshot::default());
         let (events_tx, events_rx) = mpsc::channel(EVENT_QUEUE);
         let (texts_tx, texts_rx) = mpsc::channel(TEXT_QUEUE);
+        let texts_done = Arc::new(AtomicU64::new(0));
+        let frames_out = outbound.downgrade();
         let io = SessionIo {
             inbound,
             control: control_rx,
@@ -140,6 +142,7 @@ impl MavlinkPlatform {
             outbound,
             snapshot: snapshot_tx,
             events: events_tx,
+            texts_done: texts_done.clone(),
         };
         tasks.push(handle.spawn(link::session_task(session, io)));
         Self {
@@ -151,6 +154,9 @@ impl MavlinkPlatform {
             texts: TextSender {
                 tx: texts_tx,
                 dropped: Arc::new(AtomicU64::new(0)),
+                accepted: Arc::new(AtomicU64::new(0)),
+                done: texts_done,
+                frames_out,
             },
             dropped_controls: 0,
             tasks,
@@ -171,13 +177,20 @@ impl MavlinkPlatform {
 pub struct TextSender {
     tx: mpsc::Sender<StatusText>,
     dropped: Arc<AtomicU64>,
+    /// Texts queued here, and those of them the session sent on or dropped.
+    accepted: Arc<AtomicU64>,
+    done: Arc<AtomicU64>,
+    /// The frames to the autopilot (ours among them), to see they were written.
+    frames_out: mpsc::WeakSender<link::Outbound>,
 }
 
 impl TextSender {
     /// Queues `text`; false when it was dropped (queue full, or the vehicle is gone).
     pub fn send(&self, text: StatusText) -> bool {
+        self.accepted.fetch_add(1, Ordering::AcqRel);
         let sent = self.tx.try_send(text).is_ok();
         if !sent {
+            self.accepted.fetch_sub(1, Ordering::AcqRel);
             let n = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
             if n.is_power_of_two() {
                 tracing::warn!(target: "mavlink", "{n} texts for the ground station dropped");
@@ -189,6 +202,19 @@ impl TextSender {
     /// Texts dropped so far at this end.
     pub fn dropped(&self) -> u64 {
         self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// True while a text queued here has not yet left for the autopilot: still waiting for
+    /// the session's pacing or for the link, or in the frames the connection has not written.
+    /// A process about to exit waits (bounded) for this to turn false, so the ground station
+    /// sees the last words (`... finished`).
+    pub fn pending(&self) -> bool {
+        let unsent = self.accepted.load(Ordering::Acquire) > self.done.load(Ordering::Acquire);
+        let unwritten = self
+            .frames_out
+            .upgrade()
+            .is_some_and(|out| out.capacity() < out.max_capacity());
+        unsent || unwritten
     }
 }
 
@@ -318,5 +344,73 @@ impl Platform for MavlinkPlatform {
                 tracing::warn!(target: "mavlink", "{} control outputs dropped", self.dropped_controls);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::platform::mavlink::statustext::Severity;
+    use crate::platform::mavlink::testutil::{autopilot_header, hb, px4_profile};
+    use mavlink::dialects::ardupilotmega::MavMessage;
+    use mavlink::{MAVLinkMessageRaw, MAVLinkV2MessageRaw};
+
+    /// The connection's side: the autopilot's heartbeat in, our frames out.
+    async fn heard(ends: &TransportEnds) {
+        ends.inbound
+            .send(link::Inbound {
+                header: autopilot_header(),
+                msg: hb(0x0304_0000, false),
+                raw: Arc::new(MAVLinkMessageRaw::V2(MAVLinkV2MessageRaw::new())),
+            })
+            .await
+            .unwrap();
+        ends.transport
+            .send(link::TransportEvent::Connected)
+            .await
+            .unwrap();
+    }
+
+    #[tokio::test]
+    async fn a_text_is_pending_until_its_frames_were_taken_by_the_connection() {
+        let (hub, mut ends) = LinkHub::new();
+        let config = SessionConfig {
+            target_system: Some(1),
+            ..SessionConfig::default()
+        };
+        let platform = MavlinkPlatform::start_shared(px4_profile(), config, &hub).unwrap();
+        let texts = platform.texts();
+        assert!(!texts.pending(), "nothing queued");
+        let sent = texts.send(StatusText {
+            severity: Severity::Notice,
+            text: "mission 1 finished".into(),
+        });
+        assert!(sent);
+        // No autopilot heard: the text waits for the link.
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        assert!(texts.pending(), "no link yet: the text waits");
+        heard(&ends).await;
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(5);
+        let mut statustext = None;
+        while statustext.is_none() {
+            let out = tokio::time::timeout_at(deadline, ends.outbound.recv())
+                .await
+                .expect("the text goes out once the autopilot is heard")
+                .unwrap();
+            if let link::Outbound::Message(_, msg) = out {
+                if let MavMessage::STATUSTEXT(t) = *msg {
+                    statustext = Some(t);
+                }
+            }
+        }
+        let text = String::from_utf8_lossy(&statustext.unwrap().text.to_vec()).to_string();
+        assert!(text.starts_with("Kestrel: mission 1 finished"), "{text}");
+        // Pending until the connection took every frame queued with it.
+        let settle = tokio::time::Instant::now() + Duration::from_secs(2);
+        while texts.pending() && tokio::time::Instant::now() < settle {
+            while ends.outbound.try_recv().is_ok() {}
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        assert!(!texts.pending(), "sent and written: nothing pending");
     }
 }

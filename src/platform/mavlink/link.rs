@@ -18,6 +18,7 @@ use crate::types::RangeScan;
 use crate::types::Setpoint;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::{AsyncMavConnection, MAVLinkMessageRaw, MavHeader, MavlinkVersion, Message};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc, watch};
@@ -197,6 +198,8 @@ pub struct SessionIo {
     pub outbound: mpsc::Sender<Outbound>,
     pub snapshot: watch::Sender<Snapshot>,
     pub events: mpsc::Sender<Event>,
+    /// Texts taken from `texts` that left (handed to `outbound`) or were dropped.
+    pub texts_done: Arc<AtomicU64>,
 }
 
 /// Runs the session until the facade is dropped.
@@ -206,6 +209,7 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut dropped_out = 0u64;
     let mut takeover: Option<(u64, PlatformEvent)> = None;
+    let mut texts_taken = 0u64;
     loop {
         let publish = tokio::select! {
             biased;
@@ -225,6 +229,7 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
             },
             // Disabled once every sender is gone (`None` does not match).
             Some(text) = io.texts.recv() => {
+                texts_taken += 1;
                 session.announce(text);
                 false
             },
@@ -256,6 +261,10 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
                 }
             }
         }
+        io.texts_done.store(
+            texts_taken.saturating_sub(session.texts_waiting() as u64),
+            Ordering::Release,
+        );
         if publish {
             let fb = session.feedback(start.elapsed());
             for e in fb.events {

@@ -186,6 +186,11 @@ impl Session {
         std::mem::take(&mut self.outgoing)
     }
 
+    /// Texts waiting to go out (paced, or waiting for the link).
+    pub fn texts_waiting(&self) -> usize {
+        self.texts.len()
+    }
+
     /// A text for the ground station (sent as STATUSTEXT, paced, while the link is up).
     pub fn announce(&mut self, text: StatusText) {
         if !self.texts.push(text) {

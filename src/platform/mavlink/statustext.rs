@@ -199,6 +199,15 @@ impl Outbox {
         self.dropped
     }
 
+    /// Texts waiting for the bucket (or for the link).
+    pub fn len(&self) -> usize {
+        self.queue.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.queue.is_empty()
+    }
+
     fn next_id(&self) -> u16 {
         self.last_id.checked_add(1).unwrap_or(1)
     }
