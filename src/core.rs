@@ -387,6 +387,10 @@ impl DroneCore {
             caps,
             &self.fleet,
         );
+        self.controller.sent(
+            setpoint.as_ref(),
+            flying && self.platform.flight == crate::types::FlightStatus::Flying,
+        );
         TickOutput {
             setpoint,
             safety,

@@ -5,6 +5,7 @@
 //! closed with a P(ID) into a yaw rate. When the platform accepts only position setpoints the
 //! controller forwards positions instead ("bypass", as Aerostack2's controller handler does).
 
+use super::disturbance::DisturbanceObserver;
 use super::pid::{saturate_proportionally, Pid, PidGains};
 use super::reference::{AcceptedSetpoints, MotionReference, Setpoint, YawTarget};
 use super::shaper::{ReferenceShaper, SpeedCaps};
@@ -76,6 +77,8 @@ pub struct Controller {
     yaw_pid: Pid,
     /// The moving reference point given to an autopilot that closes the position loop.
     shaper: ReferenceShaper,
+    /// What the vehicle does beyond its velocity commands, taken off a position hold's.
+    disturbance: DisturbanceObserver,
     mode: Option<Mode>,
 }
 
@@ -86,6 +89,7 @@ impl Controller {
             trajectory_pid: Pid::new(config.trajectory),
             yaw_pid: Pid::new(config.yaw),
             shaper: ReferenceShaper::default(),
+            disturbance: DisturbanceObserver::new(config.velocity_lag()),
             config,
             accepted,
             mode: None,
@@ -102,7 +106,21 @@ impl Controller {
         self.trajectory_pid.reset();
         self.yaw_pid.reset();
         self.shaper.reset();
+        self.disturbance.reset();
         self.mode = None;
+    }
+
+    /// What went out this tick, after the safety stage, and whether the vehicle is flying (not
+    /// on the ground, taking off or landing): the disturbance observer runs only on the
+    /// velocity commands of a flying vehicle (on the ground, a command to climb or sink that
+    /// the ground stops would read as a push).
+    pub fn sent(&mut self, setpoint: Option<&Setpoint>, flying: bool) {
+        match setpoint {
+            Some(Setpoint::Velocity {
+                velocity_enu_mps, ..
+            }) if flying => self.disturbance.commanded(*velocity_enu_mps),
+            _ => self.disturbance.reset(),
+        }
     }
 
     /// One control step. `dt_s` is the time since the previous step.
@@ -164,7 +182,12 @@ impl Controller {
                         caps.up_mps.max(caps.down_mps),
                     ),
                 );
-                let v = caps.clamp(caps.clamp(v) + velocity_ff_enu_mps);
+                let push = if state.valid.velocity {
+                    self.disturbance.update(state.velocity_enu_mps, dt_s)
+                } else {
+                    Vec3::zeros()
+                };
+                let v = caps.clamp(caps.clamp(v) + velocity_ff_enu_mps - push);
                 self.velocity_setpoint(v, yaw, state, dt_s)
             }
             MotionReference::Velocity {

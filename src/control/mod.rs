@@ -4,6 +4,7 @@
 //! Out: a [`reference::Setpoint`] of a kind the platform accepts.
 
 pub mod controller;
+pub mod disturbance;
 pub mod pid;
 pub mod reference;
 pub mod shaper;
