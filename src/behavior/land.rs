@@ -59,6 +59,9 @@ pub struct Land {
     gated_s: f64,
     /// The last descent was slowed to wait for the vehicle: stillness is not touchdown.
     waiting_over_point: bool,
+    /// The height the descent has come down to (m): it goes down at the descent's speed and
+    /// holds while the descent waits, never more than [`DESCENT_LEAD_M`] from the vehicle.
+    descent_z: Option<f64>,
 }
 
 /// Disarming must be confirmed within this time after touchdown.
@@ -71,6 +74,8 @@ const GATE_STOP_M: f64 = 0.12;
 /// The descent waits at most this long in all (s): a vehicle that cannot hold its point still
 /// lands (the battery does not wait).
 const GATE_BUDGET_S: f64 = 20.0;
+/// How far the descent's height may run ahead of (or behind) the vehicle (m).
+const DESCENT_LEAD_M: f64 = 0.25;
 
 impl Land {
     pub(crate) fn new(goal: LandGoal) -> Self {
@@ -84,6 +89,7 @@ impl Land {
             requested_native: false,
             gated_s: 0.0,
             waiting_over_point: false,
+            descent_z: None,
         }
     }
 }
@@ -105,6 +111,7 @@ impl Behavior for Land {
     fn resume(&mut self, ctx: &BehaviorContext) {
         self.hold_xy = ctx.position();
         self.still_since = None;
+        self.descent_z = None;
     }
 
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
@@ -183,7 +190,9 @@ impl Land {
     ///
     /// Within [`GATE_HEIGHT_M`] of the ground the descent slows while the vehicle is off the
     /// point, and stops [`GATE_STOP_M`] off it, until back over it ([`GATE_BUDGET_S`] at most),
-    /// so a drifting autopilot touches down where it was told to.
+    /// so a drifting autopilot touches down where it was told to. The height is held too while
+    /// it waits (a hold at the vehicle's own height let the autopilot's vertical drift set it
+    /// down off the point, 0.4-0.8 m on the wandering fake PX4).
     fn descent(&mut self, ctx: &BehaviorContext) -> MotionReference {
         let off_m = (ctx.position().xy() - self.hold_xy.xy()).norm();
         let low = ctx
@@ -198,8 +207,12 @@ impl Land {
             speed *= share;
         }
         self.waiting_over_point = speed < self.goal.speed;
+        let z = ctx.position().z;
+        let descent_z = (self.descent_z.unwrap_or(z) - speed * ctx.dt_s)
+            .clamp(z - DESCENT_LEAD_M, z + DESCENT_LEAD_M);
+        self.descent_z = Some(descent_z);
         MotionReference::Position {
-            position_enu_m: Vec3::new(self.hold_xy.x, self.hold_xy.y, ctx.position().z),
+            position_enu_m: Vec3::new(self.hold_xy.x, self.hold_xy.y, descent_z),
             velocity_ff_enu_mps: Vec3::new(0.0, 0.0, -speed),
             yaw: YawTarget::Angle(self.yaw_rad),
             max_speed_mps: self.goal.speed,
@@ -306,6 +319,48 @@ mod tests {
                 "landed but disarm refused: disarm refused: vehicle in air"
             ))
         );
+    }
+
+    #[test]
+    fn the_descent_holds_its_height_while_it_waits_and_leads_the_vehicle_down_otherwise() {
+        let mut scene = Scene::flying();
+        scene.dt_s = 0.1;
+        scene.set_position(Vec3::new(1.0, 2.0, 3.0), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        let point = |step: Step| match step {
+            Step::Running {
+                reference: Some(MotionReference::Position { position_enu_m, .. }),
+                ..
+            } => position_enu_m,
+            other => panic!("{other:?}"),
+        };
+        let ms = Duration::from_millis;
+        // High up: the height comes down 0.05 m a tick (0.5 m/s), at most 0.25 m ahead.
+        let z1 = point(run(&mut land, &scene, ms(100)).0).z;
+        let z2 = point(run(&mut land, &scene, ms(200)).0).z;
+        assert!(
+            (z1 - 2.95).abs() < 1e-9 && (z2 - 2.9).abs() < 1e-9,
+            "{z1} {z2}"
+        );
+        for t in (300..2000).step_by(100) {
+            run(&mut land, &scene, ms(t));
+        }
+        let lead = point(run(&mut land, &scene, ms(2000)).0).z;
+        assert!((lead - 2.75).abs() < 1e-9, "{lead}");
+        // Low and off the point: the height where the wait began holds, though the vehicle
+        // sinks under it (the autopilot's own drift), so it is not set down off the point.
+        scene.set_position(Vec3::new(1.0, 2.0, 0.5), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        scene.set_position(Vec3::new(1.3, 2.0, 0.5), Vec3::zeros());
+        let waiting_at = point(run(&mut land, &scene, ms(100)).0).z;
+        assert!((waiting_at - 0.5).abs() < 1e-9, "{waiting_at}");
+        scene.set_position(Vec3::new(1.3, 2.0, 0.4), Vec3::zeros());
+        for t in (200..4000).step_by(100) {
+            let z = point(run(&mut land, &scene, ms(t)).0).z;
+            assert!((z - waiting_at).abs() < 1e-9, "{z} at {t} ms");
+        }
     }
 
     #[test]
