@@ -14,8 +14,9 @@ out=${1:-target/exploration-table}
 seeds=${SEEDS:-"0 1"}
 jobs=${JOBS:-2}
 mkdir -p "$out"
-cargo build --release --quiet
-bin=target/release/kestrel
+# KESTREL_BIN=path runs a binary built elsewhere (same sources; the runs are deterministic).
+if [ -z "${KESTREL_BIN:-}" ]; then cargo build --release --quiet; fi
+bin=${KESTREL_BIN:-target/release/kestrel}
 
 run() { # world drones seed allocator
     local tag="$1-$2-$3-$4"
