@@ -15,7 +15,9 @@
 //!
 //! The drone asks the fleet's frontier allocator (a service: asked on one tick, answered on a
 //! later one) for a goal and the path to it through space observed free with the safety
-//! distance all around, so it never flies where it has not seen; it asks again every
+//! distance all around (plus how far this drone has lately strayed across its path,
+//! `exploration::tracking`, so an autopilot whose own hold wanders is kept that much farther
+//! away), so it never flies where it has not seen; it asks again every
 //! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
 //! The exploration ends for this drone when the allocator has nothing for it and no other drone
@@ -43,6 +45,7 @@ use crate::exploration::allocation::AllocatorKind;
 use crate::exploration::reach::KeepOut;
 use crate::exploration::service::{Allocation, ExploreRequest, CLAIM_TTL};
 use crate::exploration::space::SpaceParams;
+use crate::exploration::tracking::TrackingMargin;
 use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
 use crate::types::{PlatformRequest, Vec3};
 use nalgebra::Vector2;
@@ -247,6 +250,8 @@ pub struct Explore {
     crumbs: Vec<Vec3>,
     /// Turn clockwise (the allocator's choice for the current sweep).
     clockwise: bool,
+    /// How far the drone strays from its path: room added to the safety distance.
+    tracking: TrackingMargin,
 }
 
 impl Explore {
@@ -269,6 +274,7 @@ impl Explore {
             started_at: Duration::ZERO,
             crumbs: Vec::new(),
             clockwise: false,
+            tracking: TrackingMargin::default(),
         }
     }
 
@@ -304,6 +310,38 @@ impl Explore {
         with_yaw(reference, yaw)
     }
 
+    /// Follows how far the drone strays across its path; says so when that widens the room
+    /// the explorer keeps.
+    fn watch_tracking(&mut self, ctx: &BehaviorContext, reference: Option<&MotionReference>) {
+        let (point, velocity) = match reference {
+            Some(MotionReference::Trajectory {
+                position_enu_m,
+                velocity_enu_mps,
+                ..
+            }) => (*position_enu_m, *velocity_enu_mps),
+            Some(MotionReference::Position {
+                position_enu_m,
+                velocity_ff_enu_mps,
+                ..
+            }) => (*position_enu_m, *velocity_ff_enu_mps),
+            _ => return,
+        };
+        let before = self.tracking.extra_m();
+        self.tracking
+            .observe(point, velocity, ctx.position(), ctx.dt_s);
+        let after = self.tracking.extra_m();
+        if after > before {
+            tracing::warn!(
+                "{}: strays up to {:.2} m from its path: exploring {:.1} m farther from obstacles \
+                 and unknown space (safety_distance {:.2} m + {after:.1} m)",
+                ctx.drone_id,
+                self.tracking.peak_m(),
+                after,
+                self.goal.safety_distance
+            );
+        }
+    }
+
     fn start_exploring(&mut self, ctx: &BehaviorContext) {
         self.base_z = ctx
             .home_enu_m
@@ -317,7 +355,7 @@ impl Explore {
         let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
         let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
         let space = SpaceParams {
-            safety_distance_m: self.goal.safety_distance,
+            safety_distance_m: self.goal.safety_distance + self.tracking.extra_m(),
             min_cells: cells(self.goal.min_frontier_length),
             min_final_cells: cells(self.goal.end_frontier_length),
             min_gain_cells: (POCKET_AREA_M2 / (resolution_m * resolution_m)).round() as usize,
@@ -390,8 +428,10 @@ impl Explore {
                 let wait_s = self
                     .sense_s()
                     .max(CLAIM_TTL.as_secs_f64() + CLAIM_LAPSE_EXTRA_S);
-                // Having flown to a frontier, its beams swept all around on the way here.
-                let flown = self.allocations > 0;
+                // Having flown to a frontier, its beams swept all around on the way here. A goal
+                // where it already hovers (given while the space round its start is still
+                // opening up) is no flight: a metre or more of track is.
+                let flown = self.allocations > 0 && self.crumbs.len() > 1;
                 // Within a metre of here for a quarter turn: its beams swept all around from
                 // here, so what it has no path to stays that way (while no one else explores).
                 let stayed = seconds(ctx.now, self.anchor.1) >= self.sense_s();
@@ -633,6 +673,7 @@ impl Explore {
             "frontiers": self.frontiers,
             "allocations": self.allocations,
             "given_up": self.given_up,
+            "tracking_margin_m": self.tracking.extra_m(),
         })
     }
 }
@@ -735,6 +776,9 @@ impl Behavior for Explore {
                 Ok(Some(reference)) => Some(self.heading(ctx, reference)),
             },
         };
+        if ctx.is_flying() {
+            self.watch_tracking(ctx, reference.as_ref());
+        }
         Step::Running {
             reference,
             feedback: self.feedback(),
@@ -910,6 +954,10 @@ mod tests {
             let mut explore = Explore::new(ExploreGoal::default());
             explore.start_exploring(&scene.ctx(0));
             explore.allocations = flown;
+            // A flight leaves a metre or more of track.
+            if flown > 0 {
+                explore.crumbs = vec![Vec3::zeros(), Vec3::new(1.5, 0.0, 0.0)];
+            }
             // It came within a metre of where it is `here_s` ago.
             explore.anchor.1 = Duration::from_secs(12 - here_s);
             let mut requests = Vec::new();
@@ -937,5 +985,22 @@ mod tests {
             !ends_after(11, 3, 1, 2, 1),
             "others hold frontiers: it waits"
         );
+    }
+
+    #[test]
+    fn a_goal_where_the_drone_hovers_is_no_flight_for_the_end_rule() {
+        // At its start, the space round the drone opens up as it turns: a goal given where it
+        // hovers, then frontiers it has no path to yet, must not end its exploration.
+        let scene = Scene::flying();
+        let mut explore = Explore::new(ExploreGoal::default());
+        explore.start_exploring(&scene.ctx(0));
+        explore.allocations = 1;
+        explore.crumbs = vec![Vec3::zeros()];
+        explore.anchor.1 = Duration::ZERO;
+        let mut requests = Vec::new();
+        explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
+        answer_done(&scene, 3, 0, 3);
+        explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
+        assert!(matches!(explore.phase, Phase::Exploring), "it waits");
     }
 }

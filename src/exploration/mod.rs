@@ -12,6 +12,7 @@
 //! - [`service`]: the allocator service: claims, given-up goals, answers.
 //! - [`worker`]: the allocator service on its own thread, fed with the map's changes.
 //! - [`watcher`]: the intra-swarm avoidance decision.
+//! - [`tracking`]: how far a drone strays from its path, as room added to its safety distance.
 //! - [`progress`]: an exploration run as operators follow it (area curve, paths, time left).
 //! - [`evaluate`]: metrics of a flight log against the true world (outside the loop).
 //! - [`worldgen`]: seeded exploration worlds.
@@ -22,6 +23,7 @@ pub mod progress;
 pub mod reach;
 pub mod service;
 pub mod space;
+pub mod tracking;
 pub mod watcher;
 pub mod worker;
 pub mod worldgen;

@@ -1,0 +1,134 @@
+//! How far a drone strays from the path it is given, as room the explorer adds to its safety
+//! distance.
+//!
+//! In: each control tick, the reference the drone flies (point and velocity) and where the
+//! drone is. Out: the extra distance (m, in whole steps of [`STEP_M`]) to keep from obstacles
+//! and unknown space on top of the goal's `safety_distance`.
+//!
+//! The explorer plans through observed-free space at `safety_distance` from everything else,
+//! assuming the drone flies its path. A real autopilot's own hold can wander 0.3-0.6 m (PX4 SIH,
+//! BENCHMARKS.md "Driving PX4"), more than the room a 0.4 m safety distance leaves a 0.15 m
+//! vehicle. Only the error across the path counts: a drone behind its moving reference is still
+//! on its path. The estimate is the recent peak, coming down slowly ([`DECAY_MPS`]), so one calm
+//! stretch does not undo what a gust showed.
+
+use crate::types::Vec3;
+
+/// Stray across the path that a safety distance already allows for (m): the simulator's
+/// drones stray up to about 0.17 m in corners (p99 0.11 m), which needs no more room.
+const ALLOWANCE_M: f64 = 0.2;
+/// The extra room is rounded up to whole steps (m), so it changes seldom (each change
+/// rebuilds the allocator's navigable space).
+pub const STEP_M: f64 = 0.1;
+/// The most extra room asked for (m): a drone that strays farther cannot explore a cluttered
+/// world safely at all, and a wider margin would close every gap.
+pub const MAX_EXTRA_M: f64 = 0.6;
+/// How fast the remembered peak comes down (m/s): 0.1 m per 20 s.
+const DECAY_MPS: f64 = 0.005;
+/// Below this reference speed the whole horizontal error counts (m/s).
+const MOVING_MPS: f64 = 0.1;
+
+#[derive(Debug, Clone, Default)]
+pub struct TrackingMargin {
+    peak_m: f64,
+}
+
+impl TrackingMargin {
+    /// One tick: the reference's point and velocity, the drone's position, the time since the
+    /// last tick.
+    pub fn observe(&mut self, point: Vec3, velocity: Vec3, position: Vec3, dt_s: f64) {
+        let error = (point - position).xy();
+        let v = velocity.xy();
+        let across = if v.norm() > MOVING_MPS {
+            (error.x * v.y - error.y * v.x).abs() / v.norm()
+        } else {
+            error.norm()
+        };
+        if across.is_finite() {
+            self.peak_m = across.max(self.peak_m - DECAY_MPS * dt_s.max(0.0));
+        }
+    }
+
+    /// The largest recent stray across the path (m).
+    pub fn peak_m(&self) -> f64 {
+        self.peak_m
+    }
+
+    /// Extra distance to keep (m): the stray beyond the allowance, in whole steps, at most
+    /// [`MAX_EXTRA_M`].
+    pub fn extra_m(&self) -> f64 {
+        let beyond = (self.peak_m - ALLOWANCE_M).max(0.0);
+        ((beyond / STEP_M - 1e-9).ceil().max(0.0) * STEP_M).min(MAX_EXTRA_M)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fly(m: &mut TrackingMargin, seconds: f64, point: Vec3, velocity: Vec3, position: Vec3) {
+        for _ in 0..(seconds * 100.0) as usize {
+            m.observe(point, velocity, position, 0.01);
+        }
+    }
+
+    #[test]
+    fn a_drone_on_its_path_or_behind_on_it_needs_no_more_room() {
+        let mut m = TrackingMargin::default();
+        let along = Vec3::new(0.75, 0.0, 0.0);
+        // 0.15 m across (the simulator's corners) and 0.5 m behind.
+        fly(
+            &mut m,
+            5.0,
+            Vec3::new(0.5, 0.15, 1.0),
+            along,
+            Vec3::new(0.0, 0.0, 1.0),
+        );
+        assert_eq!(m.extra_m(), 0.0);
+    }
+
+    #[test]
+    fn a_drone_straying_across_its_path_gets_the_stray_beyond_the_allowance_in_steps() {
+        let mut m = TrackingMargin::default();
+        let along = Vec3::new(0.0, 0.5, 0.0);
+        fly(&mut m, 1.0, Vec3::new(0.45, 0.0, 1.0), along, Vec3::zeros());
+        assert!((m.extra_m() - 0.3).abs() < 1e-9, "{}", m.extra_m());
+        // Hovering, the whole horizontal error counts.
+        let mut m = TrackingMargin::default();
+        fly(
+            &mut m,
+            1.0,
+            Vec3::new(0.3, 0.3, 1.0),
+            Vec3::zeros(),
+            Vec3::zeros(),
+        );
+        assert!((m.extra_m() - 0.3).abs() < 1e-9, "{}", m.extra_m());
+        // Never more than the most.
+        fly(
+            &mut m,
+            1.0,
+            Vec3::new(3.0, 0.0, 1.0),
+            Vec3::zeros(),
+            Vec3::zeros(),
+        );
+        assert_eq!(m.extra_m(), MAX_EXTRA_M);
+    }
+
+    #[test]
+    fn the_room_comes_back_slowly_once_the_drone_holds_its_path() {
+        let mut m = TrackingMargin::default();
+        fly(
+            &mut m,
+            0.5,
+            Vec3::new(0.5, 0.0, 1.0),
+            Vec3::zeros(),
+            Vec3::zeros(),
+        );
+        assert!((m.extra_m() - 0.3).abs() < 1e-9);
+        let on_path = Vec3::zeros();
+        fly(&mut m, 10.0, on_path, Vec3::zeros(), on_path);
+        assert!((m.extra_m() - 0.3).abs() < 1e-9, "10 s: {}", m.extra_m());
+        fly(&mut m, 60.0, on_path, Vec3::zeros(), on_path);
+        assert_eq!(m.extra_m(), 0.0);
+    }
+}
