@@ -554,6 +554,31 @@ async fn bad_requests_are_rejected_precisely_and_nothing_moves() {
         )
         .await;
     assert_eq!(code, 404);
+    // Misspelt keys are refused, named by their pointer, and act on nothing: `droneid` must not
+    // start a mission on the only drone, `mision_id` must not pick the current one.
+    for (body, pointer) in [
+        (
+            json!({"droneid": "drone_0", "action": "execute", "mission": takeoff_go_land()}),
+            "/droneid",
+        ),
+        (
+            json!({"drone_id": "drone_0", "mision_id": 1, "action": 2}),
+            "/mision_id",
+        ),
+    ] {
+        let (code, v) = k.post("/api/mission_update", &body).await;
+        assert_eq!((code, v["accepted"].clone()), (422, json!(false)), "{v}");
+        assert_eq!(v["code"], "invalid_request", "{v}");
+        assert_eq!(v["details"][0]["pointer"], pointer, "{v}");
+    }
+    let (code, v) = k
+        .post("/api/frames", &json!({"frame_id": "f", "parnt": "earth"}))
+        .await;
+    assert_eq!(
+        (code, v["error"]["details"][0]["pointer"].clone()),
+        (422, json!("/parnt")),
+        "{v}"
+    );
     let (code, v) = k
         .post(
             "/api/frames",

@@ -186,8 +186,11 @@ impl<'de> Deserialize<'de> for Action {
 /// `drone_id` may be a string (`drone_0`) or, as in older Aerostack2, a number `n` meaning
 /// `drone_n`; absent = the only drone. `mission_id` absent = for LOAD/EXECUTE a new id, for other
 /// actions the current mission. `item_id` absent = 0 for START, the end of the plan for INSERT.
-/// `mission` is a JSON string (as in the ROS message) or a JSON object.
+/// `mission` is a JSON string (as in the ROS message) or a JSON object. `type` is taken for
+/// `action` (its name before Aerostack2 renamed it). Any other key is refused: a misspelt
+/// `mision_id` must not act on the current mission.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
 pub struct MissionUpdate {
     #[serde(default, deserialize_with = "drone_id_of")]
     pub drone_id: Option<String>,
@@ -197,6 +200,7 @@ pub struct MissionUpdate {
     pub item_id: Option<i64>,
     /// 0 EXECUTE ... 11 RESET, or the action's name.
     #[schema(value_type = u8)]
+    #[serde(alias = "type")]
     pub action: Action,
     #[serde(default, deserialize_with = "mission_of")]
     #[schema(value_type = Object)]
