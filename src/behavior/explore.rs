@@ -252,6 +252,8 @@ pub struct Explore {
     clockwise: bool,
     /// How far the drone strays from its path: room added to the safety distance.
     tracking: TrackingMargin,
+    /// The point it hovers on while it has no path to fly.
+    hover_at: Option<Vec3>,
 }
 
 impl Explore {
@@ -275,6 +277,7 @@ impl Explore {
             crumbs: Vec::new(),
             clockwise: false,
             tracking: TrackingMargin::default(),
+            hover_at: None,
         }
     }
 
@@ -570,6 +573,7 @@ impl Explore {
     ) -> Result<Option<MotionReference>, Failure> {
         if self.must_give_way(ctx) {
             trace(ctx, "giveway", String::new);
+            self.hover_at = None;
             self.phase = Phase::GivingWay {
                 hold: Vec3::new(ctx.position().x, ctx.position().y, self.base_z),
                 returning: false,
@@ -590,23 +594,40 @@ impl Explore {
             self.ask(ctx);
         }
         let Some(child) = self.child.as_mut() else {
-            return Ok(Some(ctx.hold_here()));
+            return Ok(Some(self.hover(ctx)));
         };
         match child.run(ctx, requests) {
-            Step::Running { reference, .. } => Ok(Some(reference.unwrap_or(ctx.hold_here()))),
+            Step::Running {
+                reference: Some(reference),
+                ..
+            } => {
+                self.hover_at = None;
+                Ok(Some(reference))
+            }
+            Step::Running {
+                reference: None, ..
+            } => Ok(Some(self.hover(ctx))),
             Step::Succeeded => {
                 trace(ctx, "arrive", String::new);
                 self.child = None;
-                Ok(Some(ctx.hold_here()))
+                Ok(Some(self.hover(ctx)))
             }
             Step::Failed(reason) => {
                 trace(ctx, "pathfail", String::new);
                 tracing::debug!("{}: frontier path failed: {reason}", ctx.drone_id);
                 self.give_up = self.target.take().map(|t| t.xy());
                 self.child = None;
-                Ok(Some(ctx.hold_here()))
+                Ok(Some(self.hover(ctx)))
             }
         }
+    }
+
+    /// Hovers where the drone stopped, holding that point: a reference at wherever the drone
+    /// is now would let the autopilot's own drift carry it off (on PX4 SIH, 2.4 m into a wall
+    /// in 8 s while it sensed).
+    fn hover(&mut self, ctx: &BehaviorContext) -> MotionReference {
+        let at = *self.hover_at.get_or_insert_with(|| ctx.position());
+        MotionReference::hold(at, ctx.yaw(), ctx.config.hold_speed_mps)
     }
 
     /// Remembers where the drone flew (every `CRUMB_SPACING_M`), to find a landing spot.
@@ -786,6 +807,8 @@ impl Behavior for Explore {
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
+        // Paused, it may have been flown elsewhere: it hovers where it is now.
+        self.hover_at = None;
         if let Some(c) = self.child.as_mut() {
             c.resume(ctx);
         }
@@ -885,6 +908,32 @@ mod tests {
             landing_from(other(1.0, 0.0)),
             Phase::Relocating(_)
         ));
+    }
+
+    #[test]
+    fn a_drone_sensing_where_it_stopped_holds_that_point_against_drift() {
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(1.0, 2.0, 1.0), Vec3::zeros());
+        let mut explore = Explore::new(ExploreGoal::default());
+        explore.start_exploring(&scene.ctx(0));
+        let mut requests = Vec::new();
+        let point = |r: Option<MotionReference>| match r {
+            Some(MotionReference::Position { position_enu_m, .. }) => position_enu_m,
+            other => panic!("expected a hold, got {other:?}"),
+        };
+        let first = point(explore.explore_tick(&scene.ctx(1), &mut requests).unwrap());
+        // The autopilot's own drift carries it 0.5 m north: the hold stays where it stopped.
+        scene.set_position(Vec3::new(1.0, 2.5, 1.0), Vec3::new(0.0, 0.3, 0.0));
+        let later = point(explore.explore_tick(&scene.ctx(2), &mut requests).unwrap());
+        assert!((first - Vec3::new(1.0, 2.0, 1.0)).norm() < 1e-9, "{first}");
+        assert_eq!(later, first);
+        // Paused and flown elsewhere, it hovers where it is then.
+        explore.resume(&scene.ctx(3));
+        let resumed = point(explore.explore_tick(&scene.ctx(3), &mut requests).unwrap());
+        assert!(
+            (resumed - Vec3::new(1.0, 2.5, 1.0)).norm() < 1e-9,
+            "{resumed}"
+        );
     }
 
     #[test]
