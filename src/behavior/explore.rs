@@ -47,6 +47,7 @@ use crate::exploration::service::{Allocation, ExploreRequest, CLAIM_TTL};
 use crate::exploration::space::SpaceParams;
 use crate::exploration::tracking::TrackingMargin;
 use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
+use crate::mapping::grid::OccupancyGrid;
 use crate::types::{PlatformRequest, Vec3};
 use nalgebra::Vector2;
 use schemars::JsonSchema;
@@ -649,12 +650,17 @@ impl Explore {
     /// other drone (flying at its height or lower, or landed) when one is closer than
     /// `LANDING_CLEARANCE_M`: a drone never lands on another.
     fn go_land(&mut self, ctx: &BehaviorContext) -> Result<(), Failure> {
+        // The autopilot's own landing drifts as its hold does: as far from obstacles as the
+        // drone explored.
+        let obstacle_clearance_m = self.goal.safety_distance + self.tracking.extra_m();
         // Drones out of the way above (giving way) are no reason to move: this one descends
         // away from them.
         let clear = |p: &Vec3| {
             ctx.fleet.others(ctx.drone_id).all(|d| {
                 (d.position_enu_m - p).xy().norm() > LANDING_CLEARANCE_M
                     || d.position_enu_m.z > p.z + 0.5
+            }) && ctx.map.is_none_or(|m| {
+                no_obstacle_within(m.grid(), m.occupied_threshold(), p, obstacle_clearance_m)
             })
         };
         if clear(&ctx.position()) {
@@ -710,6 +716,21 @@ fn trace(ctx: &BehaviorContext, event: &str, detail: impl FnOnce() -> String) {
             detail()
         );
     }
+}
+
+/// Whether no cell of `grid` within `radius_m` of `p` (horizontally) is an obstacle.
+fn no_obstacle_within(grid: &OccupancyGrid, occupied: i8, p: &Vec3, radius_m: f64) -> bool {
+    let resolution_m = grid.spec().resolution_m;
+    let n = (radius_m / resolution_m).ceil() as i64;
+    (-n..=n).all(|dy| {
+        (-n..=n).all(|dx| {
+            let offset = Vector2::new(dx as f64, dy as f64) * resolution_m;
+            offset.norm() > radius_m
+                || grid
+                    .get_at(p.xy() + offset)
+                    .is_none_or(|value| value < occupied)
+        })
+    })
 }
 
 fn seconds(now: Duration, since: Duration) -> f64 {
@@ -908,6 +929,28 @@ mod tests {
             landing_from(other(1.0, 0.0)),
             Phase::Relocating(_)
         ));
+    }
+
+    #[test]
+    fn a_landing_spot_is_as_far_from_obstacles_as_the_drone_explored() {
+        use crate::mapping::grid::GridSpec;
+        let spec = GridSpec {
+            resolution_m: 0.1,
+            width_cells: 40,
+            height_cells: 40,
+            origin_enu_m: Vector2::zeros(),
+        };
+        let mut grid = OccupancyGrid::new(spec).unwrap();
+        // One obstacle cell at (2.05, 2.05).
+        grid.set(crate::mapping::grid::Cell { x: 20, y: 20 }, 100)
+            .unwrap();
+        let at = |x: f64| Vec3::new(x, 2.05, 0.0);
+        assert!(!no_obstacle_within(&grid, 50, &at(2.5), 0.5), "0.45 m off");
+        assert!(no_obstacle_within(&grid, 50, &at(2.7), 0.5), "0.65 m off");
+        assert!(
+            no_obstacle_within(&grid, 101, &at(2.5), 0.5),
+            "below the threshold"
+        );
     }
 
     #[test]
