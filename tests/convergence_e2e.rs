@@ -78,12 +78,11 @@ fn fly(p: Personality, seed: u64) {
 
 /// KNOWN REGRESSION (`9c730d2`): since the trajectory integral stops learning a lag at the speed
 /// cap (which ended pole collisions in exploration), ArduPilot with 50 ms of latency and jitter
-/// touches down 0.10-0.20 m from its last goal in LAND mode (it was within 0.1 m; 0.196 m seen
-/// under CI load): every goal is still reached within 0.1 m; the touchdown is asked within
-/// 0.25 m until that is fixed.
+/// touches down 0.10-0.15 m from its last goal in LAND mode (it was within 0.1 m): every goal is
+/// still reached within 0.1 m; the touchdown is asked within 0.15 m until that is fixed.
 const ARDUPILOT_LANDS: Tolerance = Tolerance {
     slack_m: 0.0,
-    touchdown_m: 0.25,
+    touchdown_m: 0.15,
 };
 
 /// How near each point the vehicle must come, and how near its last goal it touches down (m).
