@@ -69,21 +69,8 @@ const TOUCHDOWN_M: f64 = 0.1;
 const TOUCHDOWN_WANDERING_M: f64 = 0.2;
 
 fn fly(p: Personality, seed: u64) {
-    let tolerance = match p {
-        Personality::Ardupilot => ARDUPILOT_LANDS,
-        _ => HOLDS,
-    };
-    fly_with(p, p.profile(), seed, &[], tolerance);
+    fly_with(p, p.profile(), seed, &[], HOLDS);
 }
-
-/// KNOWN REGRESSION (`9c730d2`): since the trajectory integral stops learning a lag at the speed
-/// cap (which ended pole collisions in exploration), ArduPilot with 50 ms of latency and jitter
-/// touches down 0.10-0.15 m from its last goal in LAND mode (it was within 0.1 m): every goal is
-/// still reached within 0.1 m; the touchdown is asked within 0.15 m until that is fixed.
-const ARDUPILOT_LANDS: Tolerance = Tolerance {
-    slack_m: 0.0,
-    touchdown_m: 0.15,
-};
 
 /// How near each point the vehicle must come, and how near its last goal it touches down (m).
 #[derive(Clone, Copy)]
