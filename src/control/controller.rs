@@ -201,19 +201,12 @@ impl Controller {
                 yaw,
                 ..
             } => {
-                let integral_before = self.trajectory_pid.integral();
                 let correction =
                     self.trajectory_pid
                         .update(position_enu_m - position, dt_s, Vec3::zeros());
                 let feed_forward =
                     velocity_enu_mps + acceleration_enu_mps2 * self.config.velocity_lag();
                 let v = caps.clamp_keeping(feed_forward, correction);
-                // At the cap, the lag behind a reference moving at that speed cannot close: an
-                // integral of it would wind up along the path and push the vehicle straight on
-                // past the next corner.
-                if (v - (feed_forward + correction)).norm() > 1e-9 {
-                    self.trajectory_pid.hold_integral_growth(integral_before);
-                }
                 self.velocity_setpoint(v, yaw, state, dt_s)
             }
         }
@@ -454,42 +447,6 @@ mod tests {
         };
         let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01));
         assert!((v.norm() - 0.75).abs() < 1e-9, "{v}");
-    }
-
-    #[test]
-    fn a_lag_held_at_the_cap_does_not_wind_up_into_a_push_past_the_next_corner() {
-        let mut c = Controller::new(
-            ControllerConfig::default(),
-            AcceptedSetpoints {
-                velocity: true,
-                position: true,
-                position_loop: None,
-            },
-        );
-        // 20 s along +x at the cap, the vehicle 0.25 m behind all the way (it cannot catch up).
-        for k in 0..2000 {
-            let x = 0.75 * k as f64 * 0.01;
-            let r = MotionReference::Trajectory {
-                position_enu_m: Vec3::new(x + 0.25, 0.0, 1.0),
-                velocity_enu_mps: Vec3::new(0.75, 0.0, 0.0),
-                acceleration_enu_mps2: Vec3::zeros(),
-                yaw: YawTarget::Rate(0.0),
-                max_speed_mps: 0.75,
-            };
-            c.update(&state_at(Vec3::new(x, 0.0, 1.0), 0.0), &r, 0.01);
-        }
-        // The path turns to +y at the vehicle, and the vehicle is on it.
-        let at = Vec3::new(15.0, 0.0, 1.0);
-        let r = MotionReference::Trajectory {
-            position_enu_m: at,
-            velocity_enu_mps: Vec3::new(0.0, 0.5, 0.0),
-            acceleration_enu_mps2: Vec3::zeros(),
-            yaw: YawTarget::Rate(0.0),
-            max_speed_mps: 0.75,
-        };
-        let (v, _) = velocity_of(c.update(&state_at(at, 0.0), &r, 0.01));
-        assert!(v.x.abs() < 0.02, "still pushed along the old leg: {v}");
-        assert!((v.y - 0.5).abs() < 0.02, "{v}");
     }
 
     #[test]

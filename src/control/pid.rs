@@ -100,25 +100,13 @@ impl Pid {
         // Conditional integration: while the output saturates, the integral must not grow, or
         // it winds up during a long approach and overshoots the goal.
         if is_saturated(&self.raw_output(error), &limit) {
-            self.hold_integral_growth(before);
-        }
-        self.output(error, limit)
-    }
-
-    /// The accumulated error (error unit x s).
-    pub fn integral(&self) -> Vec3 {
-        self.integral
-    }
-
-    /// Conditional integration for a limit applied after the PID: the integral goes back to
-    /// `before` (taken before this step's `update`) on every axis where it grew. A caller whose
-    /// own clamp bit calls this, or the integral winds up against a limit it cannot see.
-    pub fn hold_integral_growth(&mut self, before: Vec3) {
-        for i in 0..3 {
-            if self.integral[i].abs() > before[i].abs() {
-                self.integral[i] = before[i];
+            for i in 0..3 {
+                if self.integral[i].abs() > before[i].abs() {
+                    self.integral[i] = before[i];
+                }
             }
         }
+        self.output(error, limit)
     }
 
     fn raw_output(&self, error: Vec3) -> Vec3 {
