@@ -54,11 +54,10 @@ fn assert_explored(m: &ExplorationMetrics, observable_pct: f64, what: &str) {
         m.observable_pct
     );
     assert_eq!(m.collisions, 0, "{what}: collisions");
-    // 0.15 m, not the 0.2 m it was before the speed cap: with the cap, these runs pass 0.18 m
-    // from a pole (the vehicle can no longer sprint back onto its path). To be brought back to
-    // 0.2 m: see the session note of the speed-cap change and BENCHMARKS.md.
+    // Half of the 0.4 m safety distance: the path keeps 0.4 m, the vehicle strays less than
+    // 0.2 m from it (the trajectory integral does not wind up at the speed cap).
     let clearance = m.min_obstacle_clearance_m.unwrap_or(f64::INFINITY);
-    assert!(clearance > 0.15, "{what}: {clearance:.2} m from a pole");
+    assert!(clearance > 0.2, "{what}: {clearance:.2} m from a pole");
     if let Some(sep) = m.min_separation_m {
         assert!(sep >= 0.5, "{what}: drones {sep:.2} m apart");
     }

@@ -1,5 +1,6 @@
 //! `follow_path`: fly a smooth trajectory through waypoints without stopping between them.
 
+use super::arrival::Arrival;
 use super::goal::{
     check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
 };
@@ -76,6 +77,7 @@ pub struct FollowPath {
     heading: PathHeading,
     /// How far is left (path, then the distance to its end), to fail when stuck.
     progress: Progress,
+    arrival: Arrival,
 }
 
 impl FollowPath {
@@ -88,6 +90,7 @@ impl FollowPath {
             yaw: ResolvedYaw::Fixed(0.0),
             heading: PathHeading::default(),
             progress: Progress::new(Duration::ZERO),
+            arrival: Arrival::default(),
         }
     }
 
@@ -140,6 +143,7 @@ impl InFlight for FollowPath {
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
+        self.arrival.reset();
         self.plan(ctx);
     }
 
@@ -181,10 +185,10 @@ impl InFlight for FollowPath {
                 ),
             ));
         }
-        if sample.finished
+        let within = sample.finished
             && distance_to_end < ctx.config.goal_threshold_m
-            && heading_reached(&self.yaw, ctx)
-        {
+            && heading_reached(&self.yaw, ctx);
+        if self.arrival.update(within, ctx) {
             return Step::Succeeded;
         }
         let next_point = self.waypoints.get(self.next).copied().unwrap_or(last);

@@ -1,5 +1,6 @@
 //! `go_to`: fly to a point in any frame (a moving frame is tracked), and `go_to_gps`.
 
+use super::arrival::Arrival;
 use super::goal::{
     check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw,
     YawArgs,
@@ -121,6 +122,7 @@ pub struct GoTo {
     last_target: MovingTarget,
     heading: PathHeading,
     progress: Progress,
+    arrival: Arrival,
 }
 
 impl GoTo {
@@ -131,6 +133,7 @@ impl GoTo {
             last_target: MovingTarget::default(),
             heading: PathHeading::default(),
             progress: Progress::new(Duration::ZERO),
+            arrival: Arrival::default(),
         }
     }
 
@@ -189,6 +192,7 @@ impl InFlight for GoTo {
     fn resume(&mut self, ctx: &BehaviorContext) {
         self.progress.restart(ctx.now);
         self.last_target.reset();
+        self.arrival.reset();
     }
 
     fn run(&mut self, ctx: &BehaviorContext, _requests: &mut Vec<PlatformRequest>) -> Step {
@@ -199,7 +203,8 @@ impl InFlight for GoTo {
         // Velocity of the target itself (non-zero in a moving frame), used as feed-forward.
         let target_velocity = self.last_target.update(target, ctx.now);
         let distance = (target - ctx.position()).norm();
-        if distance < ctx.config.goal_threshold_m && heading_reached(&self.yaw, ctx) {
+        let within = distance < ctx.config.goal_threshold_m && heading_reached(&self.yaw, ctx);
+        if self.arrival.update(within, ctx) {
             return Step::Succeeded;
         }
         let stuck_s = self

@@ -9,6 +9,7 @@
 //! vehicle where it is); `resume` → running again from where it is; `modify(goal)` changes the
 //! goal in flight; `stop` → aborted. Results: succeeded, failed(reason), aborted(reason).
 
+mod arrival;
 mod explore;
 mod failure;
 pub mod fleet;

@@ -79,6 +79,8 @@ pub struct Controller {
     shaper: ReferenceShaper,
     /// What the vehicle does beyond its velocity commands, taken off a position hold's.
     disturbance: DisturbanceObserver,
+    /// The trajectory reference's velocity at the previous tick.
+    reference_velocity: Option<Vec3>,
     mode: Option<Mode>,
 }
 
@@ -92,6 +94,7 @@ impl Controller {
             disturbance: DisturbanceObserver::new(config.velocity_lag()),
             config,
             accepted,
+            reference_velocity: None,
             mode: None,
         }
     }
@@ -107,6 +110,7 @@ impl Controller {
         self.yaw_pid.reset();
         self.shaper.reset();
         self.disturbance.reset();
+        self.reference_velocity = None;
         self.mode = None;
     }
 
@@ -201,6 +205,7 @@ impl Controller {
                 yaw,
                 ..
             } => {
+                self.follow_reference_velocity(velocity_enu_mps);
                 let correction =
                     self.trajectory_pid
                         .update(position_enu_m - position, dt_s, Vec3::zeros());
@@ -210,6 +215,16 @@ impl Controller {
                 self.velocity_setpoint(v, yaw, state, dt_s)
             }
         }
+    }
+
+    /// Carries the trajectory integral's forward push along with the reference's velocity
+    /// (see [`Pid::carry_forward_integral`]).
+    fn follow_reference_velocity(&mut self, velocity_enu_mps: Vec3) {
+        if let Some(before) = self.reference_velocity {
+            self.trajectory_pid
+                .carry_forward_integral(before, velocity_enu_mps);
+        }
+        self.reference_velocity = Some(velocity_enu_mps);
     }
 
     /// The caps of this tick: the reference's speed and the vehicle's limits, whichever is lower.
@@ -447,6 +462,83 @@ mod tests {
         };
         let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01));
         assert!((v.norm() - 0.75).abs() < 1e-9, "{v}");
+    }
+
+    #[test]
+    fn a_lag_learnt_on_one_leg_does_not_push_across_the_next() {
+        let mut c = Controller::new(
+            ControllerConfig::default(),
+            AcceptedSetpoints {
+                velocity: true,
+                position: true,
+                position_loop: None,
+            },
+        );
+        // 20 s along +x at the cap, the vehicle 0.25 m behind all the way (it cannot catch up).
+        for k in 0..2000 {
+            let x = 0.75 * k as f64 * 0.01;
+            let r = MotionReference::Trajectory {
+                position_enu_m: Vec3::new(x + 0.25, 0.0, 1.0),
+                velocity_enu_mps: Vec3::new(0.75, 0.0, 0.0),
+                acceleration_enu_mps2: Vec3::zeros(),
+                yaw: YawTarget::Rate(0.0),
+                max_speed_mps: 0.75,
+            };
+            c.update(&state_at(Vec3::new(x, 0.0, 1.0), 0.0), &r, 0.01);
+        }
+        // The path turns to +y at the vehicle, and the vehicle is on it.
+        let at = Vec3::new(15.0, 0.0, 1.0);
+        let r = MotionReference::Trajectory {
+            position_enu_m: at,
+            velocity_enu_mps: Vec3::new(0.0, 0.5, 0.0),
+            acceleration_enu_mps2: Vec3::zeros(),
+            yaw: YawTarget::Rate(0.0),
+            max_speed_mps: 0.75,
+        };
+        let (v, _) = velocity_of(c.update(&state_at(at, 0.0), &r, 0.01));
+        assert!(v.x.abs() < 0.02, "still pushed along the old leg: {v}");
+        assert!((v.y - 0.5).abs() < 0.02, "{v}");
+    }
+
+    #[test]
+    fn a_lag_learnt_while_moving_is_let_go_as_the_reference_stops() {
+        let mut c = Controller::new(
+            ControllerConfig::default(),
+            AcceptedSetpoints {
+                velocity: true,
+                position: true,
+                position_loop: None,
+            },
+        );
+        // 20 s along +x at 1 m/s, the vehicle 0.2 m behind (an autopilot that answers late),
+        // then the reference brakes to a stop over 1 s; the vehicle reaches the stop point.
+        let mut x = 0.0;
+        for k in 0..2100 {
+            let speed = if k < 2000 {
+                1.0
+            } else {
+                1.0 - (k - 2000) as f64 / 100.0
+            };
+            x += speed * 0.01;
+            let r = MotionReference::Trajectory {
+                position_enu_m: Vec3::new(x, 0.0, 1.0),
+                velocity_enu_mps: Vec3::new(speed, 0.0, 0.0),
+                acceleration_enu_mps2: Vec3::zeros(),
+                yaw: YawTarget::Rate(0.0),
+                max_speed_mps: 2.0,
+            };
+            let behind = if k < 2000 { 0.2 } else { 0.0 };
+            c.update(&state_at(Vec3::new(x - behind, 0.0, 1.0), 0.0), &r, 0.01);
+        }
+        let r = MotionReference::Trajectory {
+            position_enu_m: Vec3::new(x, 0.0, 1.0),
+            velocity_enu_mps: Vec3::zeros(),
+            acceleration_enu_mps2: Vec3::zeros(),
+            yaw: YawTarget::Rate(0.0),
+            max_speed_mps: 2.0,
+        };
+        let (v, _) = velocity_of(c.update(&state_at(Vec3::new(x, 0.0, 1.0), 0.0), &r, 0.01));
+        assert!(v.norm() < 0.02, "still pushed on past the stop: {v}");
     }
 
     #[test]

@@ -109,6 +109,39 @@ impl Pid {
         self.output(error, limit)
     }
 
+    /// Carries the horizontal integral's forward push (along `from`, the reference's previous
+    /// velocity) over to `to`, its velocity now: turned to the new direction and scaled by how
+    /// much of the old velocity goes on along it, never grown (so it goes with a stop, and
+    /// with a turn of a right angle or more). A lag learnt behind a moving reference (an
+    /// autopilot that answers late) belongs to that motion: kept in place it would push the
+    /// vehicle across the next leg of a path, or on past the point where the reference
+    /// stopped. A push against the motion (a tailwind's trim), across it and vertical stays.
+    pub fn carry_forward_integral(&mut self, from: Vec3, to: Vec3) {
+        let from_speed = from.xy().norm();
+        if from_speed < 1e-6 {
+            return;
+        }
+        let heading = Vec3::new(from.x, from.y, 0.0) / from_speed;
+        let along = self.integral.dot(&heading);
+        if along <= 0.0 {
+            return;
+        }
+        let to_h = Vec3::new(to.x, to.y, 0.0);
+        let kept = (to_h.dot(&heading) / from_speed).clamp(0.0, 1.0);
+        let onto = if to_h.norm() > 1e-6 {
+            to_h / to_h.norm()
+        } else {
+            heading
+        };
+        self.integral += onto * (along * kept) - heading * along;
+        for i in 0..3 {
+            let cap = self.gains.integral_limit[i];
+            if cap > 0.0 {
+                self.integral[i] = self.integral[i].clamp(-cap, cap);
+            }
+        }
+    }
+
     fn raw_output(&self, error: Vec3) -> Vec3 {
         let g = &self.gains;
         g.kp.component_mul(&error)
