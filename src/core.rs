@@ -254,7 +254,6 @@ impl DroneCore {
             request_results: &[],
             services: &self.services,
             fleet: &self.fleet,
-            fleet_map: None,
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -315,7 +314,6 @@ impl DroneCore {
             request_results: &feedback.request_results,
             services: &self.services,
             fleet: &self.fleet,
-            fleet_map: fleet.map,
         };
         // Never command blind: without a link or a position estimate, behaviors end and the
         // autopilot's own failsafe takes over.

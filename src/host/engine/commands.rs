@@ -33,12 +33,6 @@ pub struct ValidatedUpload {
 /// A request from the API (or the CLI) to the host.
 #[derive(Debug)]
 pub enum Command {
-    /// Load a mission for the drone its `target` names; `mission_id` None = a new id.
-    Upload {
-        mission: Value,
-        mission_id: Option<u32>,
-        reply: Reply<Uploaded>,
-    },
     /// What an upload for `target` is validated against (see [`Host::upload_context`]).
     UploadContext {
         target: Option<String>,
@@ -648,14 +642,6 @@ impl Host {
     pub fn handle(&mut self, command: Command) {
         // A client that gave up waiting dropped its receiver; nothing to answer then.
         match command {
-            Command::Upload {
-                mission,
-                mission_id,
-                reply,
-            } => {
-                let answer = self.upload(&mission, mission_id);
-                self.answer(reply, answer);
-            }
             Command::UploadContext { target, reply } => {
                 let _ = reply.send(self.upload_context(target.as_deref()));
             }

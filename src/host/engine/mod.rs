@@ -424,10 +424,7 @@ impl Host {
             let Some(core) = self.cores.get_mut(i) else {
                 continue;
             };
-            let fleet = FleetInput {
-                view: &view,
-                map: self.map.as_ref().map(FleetMap::merged),
-            };
+            let fleet = FleetInput { view: &view };
             let out = core.tick(now, &feedback, fleet);
             self.fleet.command(i, now, out.setpoint, &out.requests);
             for call in out.service_calls {
