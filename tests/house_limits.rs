@@ -65,7 +65,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/host/payload.rs", StringErrors(3)),
     ("src/host/scans.rs", StringErrors(1)),
     ("src/mission/model.rs", StringErrors(1)),
-    ("src/mission/validate.rs", FileLines),
     ("src/planning/graph_planner.rs", Function("plan")),
     ("src/planning/search.rs", Function("jump_point_search")),
     ("src/platform/mavlink/actions.rs", Function("plan")),
