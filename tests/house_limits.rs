@@ -50,7 +50,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/behavior/registry.rs", StringErrors(1)),
     ("src/behavior/rotate.rs", StringErrors(1)),
     ("src/behavior/sequence.rs", StringErrors(1)),
-    ("src/behavior/takeoff.rs", Function("run")),
     ("src/behavior/takeoff.rs", StringErrors(1)),
     ("src/cli_explore.rs", Function("run")),
     ("src/cli_serve.rs", Function("serve")),
