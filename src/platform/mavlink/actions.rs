@@ -136,6 +136,100 @@ pub fn mode_of(request: PlatformRequest, profile: &Profile) -> Option<u32> {
     }
 }
 
+/// NAV_TAKEOFF once armed (and, on ArduPilot, in the offboard mode), to the height above home
+/// or its altitude AMSL as the profile says; then, on PX4, the takeoff mode confirmed.
+fn takeoff_steps(
+    height_m: f64,
+    profile: &Profile,
+    model: &VehicleModel,
+) -> Result<Vec<Step>, String> {
+    let mut steps = Vec::new();
+    let offboard = profile.roles.offboard.clone();
+    if profile.takeoff != TakeoffMethod::NavTakeoff {
+        return Err(format!(
+            "profile `{}` takes off on setpoints, not with NAV_TAKEOFF",
+            profile.name
+        ));
+    }
+    steps.push(Step::Await(
+        Condition::Armed(true),
+        profile.mode_confirm_timeout,
+    ));
+    if profile.autopilot == AutopilotKind::Ardupilot {
+        steps.push(Step::Await(
+            Condition::Mode(offboard),
+            profile.mode_confirm_timeout,
+        ));
+    }
+    let altitude = match profile.takeoff_altitude {
+        TakeoffAltitude::Relative => height_m,
+        TakeoffAltitude::Amsl => {
+            let home = model.home_amsl_m().ok_or_else(|| {
+                "takeoff needs the home altitude (HOME_POSITION) first".to_string()
+            })?;
+            home + height_m
+        }
+    };
+    steps.push(Step::Command {
+        what: "takeoff",
+        spec: spec(
+            MavCmd::MAV_CMD_NAV_TAKEOFF,
+            [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, altitude as f32],
+        ),
+        fallback: None,
+    });
+    if let (AutopilotKind::Px4, Some(m)) = (profile.autopilot, &profile.roles.takeoff) {
+        steps.push(Step::Await(
+            Condition::Mode(m.clone()),
+            profile.mode_confirm_timeout,
+        ));
+    }
+    Ok(steps)
+}
+
+/// The gimbal's pitch and yaw (FLU, rad) by the profile's protocol, with the legacy mount
+/// command as the fallback of the gimbal manager's.
+fn gimbal_step(pitch_rad: f64, yaw_rad: f64, profile: &Profile) -> Step {
+    // FLU angles (pitch positive nose-down, yaw counter-clockwise) to MAVLink's FRD
+    // degrees (pitch positive up, yaw clockwise).
+    let pitch_deg = (-pitch_rad).to_degrees() as f32;
+    let yaw_deg = (-yaw_rad).to_degrees() as f32;
+    #[allow(deprecated)] // the legacy mount command is the fallback ArduPilot knows
+    let mount = spec(
+        MavCmd::MAV_CMD_DO_MOUNT_CONTROL,
+        [
+            pitch_deg,
+            0.0,
+            yaw_deg,
+            0.0,
+            0.0,
+            0.0,
+            MOUNT_MODE_MAVLINK_TARGETING,
+        ],
+    );
+    let manager = spec(
+        MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+        [
+            pitch_deg,
+            yaw_deg,
+            f32::NAN,
+            f32::NAN,
+            GIMBAL_YAW_IN_VEHICLE_FRAME,
+            0.0,
+            0.0,
+        ],
+    );
+    let (first, fallback) = match profile.gimbal {
+        GimbalProtocol::ManagerV2 => (manager, Some(mount)),
+        GimbalProtocol::MountControl => (mount, None),
+    };
+    Step::Command {
+        what: "pointing the gimbal",
+        spec: first,
+        fallback,
+    }
+}
+
 impl Action {
     /// Plans a request; `Err` when this profile cannot do it at all.
     pub fn plan(
@@ -182,45 +276,7 @@ impl Action {
                 steps.push_back(Step::SetMode(offboard));
             }
             PlatformRequest::Takeoff { height_m } => {
-                if profile.takeoff != TakeoffMethod::NavTakeoff {
-                    return Err(format!(
-                        "profile `{}` takes off on setpoints, not with NAV_TAKEOFF",
-                        profile.name
-                    ));
-                }
-                steps.push_back(Step::Await(
-                    Condition::Armed(true),
-                    profile.mode_confirm_timeout,
-                ));
-                if profile.autopilot == AutopilotKind::Ardupilot {
-                    steps.push_back(Step::Await(
-                        Condition::Mode(offboard),
-                        profile.mode_confirm_timeout,
-                    ));
-                }
-                let altitude = match profile.takeoff_altitude {
-                    TakeoffAltitude::Relative => height_m,
-                    TakeoffAltitude::Amsl => {
-                        let home = model.home_amsl_m().ok_or_else(|| {
-                            "takeoff needs the home altitude (HOME_POSITION) first".to_string()
-                        })?;
-                        home + height_m
-                    }
-                };
-                steps.push_back(Step::Command {
-                    what: "takeoff",
-                    spec: spec(
-                        MavCmd::MAV_CMD_NAV_TAKEOFF,
-                        [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, altitude as f32],
-                    ),
-                    fallback: None,
-                });
-                if let (AutopilotKind::Px4, Some(m)) = (profile.autopilot, &profile.roles.takeoff) {
-                    steps.push_back(Step::Await(
-                        Condition::Mode(m.clone()),
-                        profile.mode_confirm_timeout,
-                    ));
-                }
+                steps.extend(takeoff_steps(height_m, profile, model)?);
             }
             PlatformRequest::Land => match profile.land {
                 LandMethod::Mode | LandMethod::Setpoints => {
@@ -242,44 +298,7 @@ impl Action {
                 }
             },
             PlatformRequest::PointGimbal { pitch_rad, yaw_rad } => {
-                // FLU angles (pitch positive nose-down, yaw counter-clockwise) to MAVLink's FRD
-                // degrees (pitch positive up, yaw clockwise).
-                let pitch_deg = (-pitch_rad).to_degrees() as f32;
-                let yaw_deg = (-yaw_rad).to_degrees() as f32;
-                #[allow(deprecated)] // the legacy mount command is the fallback ArduPilot knows
-                let mount = spec(
-                    MavCmd::MAV_CMD_DO_MOUNT_CONTROL,
-                    [
-                        pitch_deg,
-                        0.0,
-                        yaw_deg,
-                        0.0,
-                        0.0,
-                        0.0,
-                        MOUNT_MODE_MAVLINK_TARGETING,
-                    ],
-                );
-                let manager = spec(
-                    MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
-                    [
-                        pitch_deg,
-                        yaw_deg,
-                        f32::NAN,
-                        f32::NAN,
-                        GIMBAL_YAW_IN_VEHICLE_FRAME,
-                        0.0,
-                        0.0,
-                    ],
-                );
-                let (first, fallback) = match profile.gimbal {
-                    GimbalProtocol::ManagerV2 => (manager, Some(mount)),
-                    GimbalProtocol::MountControl => (mount, None),
-                };
-                steps.push_back(Step::Command {
-                    what: "pointing the gimbal",
-                    spec: first,
-                    fallback,
-                });
+                steps.push_back(gimbal_step(pitch_rad, yaw_rad, profile));
             }
             PlatformRequest::TakePhoto => {
                 steps.push_back(Step::Command {
