@@ -69,7 +69,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/platform/mavlink/link.rs", StringErrors(1)),
     ("src/platform/mavlink/model/mod.rs", StringErrors(1)),
     ("src/platform/mavlink/peer.rs", StringErrors(1)),
-    ("src/platform/mavlink/profile.rs", Function("validate")),
     ("src/platform/mavlink/session/requests.rs", StringErrors(1)),
     ("src/sim/vehicle.rs", StringErrors(1)),
     ("src/sim/world.rs", StringErrors(1)),
