@@ -53,7 +53,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/behavior/takeoff.rs", StringErrors(1)),
     ("src/cli_explore.rs", Function("run")),
     ("src/cli_serve.rs", Function("serve")),
-    ("src/config/mod.rs", Function("validate")),
     ("src/exploration/allocation.rs", StringErrors(1)),
     ("src/exploration/service.rs", Function("allocate")),
     ("src/exploration/space.rs", FileLines),
