@@ -62,7 +62,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/host/scans.rs", StringErrors(1)),
     ("src/mission/model.rs", StringErrors(1)),
     ("src/planning/graph_planner.rs", Function("plan")),
-    ("src/planning/search.rs", Function("jump_point_search")),
     ("src/platform/mavlink/actions.rs", StringErrors(3)),
     ("src/platform/mavlink/commands.rs", StringErrors(1)),
     ("src/platform/mavlink/link.rs", StringErrors(1)),
