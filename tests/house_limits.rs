@@ -61,7 +61,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/host/payload.rs", StringErrors(3)),
     ("src/host/scans.rs", StringErrors(1)),
     ("src/mission/model.rs", StringErrors(1)),
-    ("src/planning/graph_planner.rs", Function("plan")),
     ("src/platform/mavlink/actions.rs", StringErrors(3)),
     ("src/platform/mavlink/commands.rs", StringErrors(1)),
     ("src/platform/mavlink/link.rs", StringErrors(1)),
