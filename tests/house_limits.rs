@@ -52,7 +52,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/behavior/sequence.rs", StringErrors(1)),
     ("src/behavior/takeoff.rs", StringErrors(1)),
     ("src/cli_explore.rs", Function("run")),
-    ("src/cli_serve.rs", Function("serve")),
     ("src/exploration/allocation.rs", StringErrors(1)),
     ("src/exploration/service.rs", Function("allocate")),
     ("src/exploration/space.rs", FileLines),
