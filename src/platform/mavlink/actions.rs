@@ -11,7 +11,7 @@ use super::profile::{
     AutopilotKind, GimbalProtocol, LandMethod, Mode, Profile, TakeoffAltitude, TakeoffMethod,
 };
 use super::setpoint::SetpointStreamer;
-use crate::types::PlatformRequest;
+use crate::types::{PlatformRequest, RequestRefused};
 use mavlink::dialects::ardupilotmega::{MavCmd, MavResult};
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -142,14 +142,14 @@ fn takeoff_steps(
     height_m: f64,
     profile: &Profile,
     model: &VehicleModel,
-) -> Result<Vec<Step>, String> {
+) -> Result<Vec<Step>, RequestRefused> {
     let mut steps = Vec::new();
     let offboard = profile.roles.offboard.clone();
     if profile.takeoff != TakeoffMethod::NavTakeoff {
-        return Err(format!(
+        return Err(RequestRefused(format!(
             "profile `{}` takes off on setpoints, not with NAV_TAKEOFF",
             profile.name
-        ));
+        )));
     }
     steps.push(Step::Await(
         Condition::Armed(true),
@@ -165,7 +165,7 @@ fn takeoff_steps(
         TakeoffAltitude::Relative => height_m,
         TakeoffAltitude::Amsl => {
             let home = model.home_amsl_m().ok_or_else(|| {
-                "takeoff needs the home altitude (HOME_POSITION) first".to_string()
+                RequestRefused::from("takeoff needs the home altitude (HOME_POSITION) first")
             })?;
             home + height_m
         }
@@ -237,7 +237,7 @@ impl Action {
         request: PlatformRequest,
         profile: &Profile,
         model: &VehicleModel,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, RequestRefused> {
         let mut steps = VecDeque::new();
         let offboard = profile.roles.offboard.clone();
         match request {
@@ -343,12 +343,12 @@ impl Action {
     }
 
     /// Advances; `Some` when finished.
-    pub fn tick(&mut self, ctx: &mut Ctx) -> Option<Result<(), String>> {
+    pub fn tick(&mut self, ctx: &mut Ctx) -> Option<Result<(), RequestRefused>> {
         // A few steps can complete in one tick (skipped mode changes, satisfied conditions).
         for _ in 0..8 {
             match self.advance(ctx) {
                 Advance::Wait => return None,
-                Advance::Fail(e) => return Some(Err(e)),
+                Advance::Fail(e) => return Some(Err(RequestRefused(e))),
                 Advance::Next => {
                     self.steps.pop_front();
                     self.running = Running::Idle;
@@ -437,6 +437,7 @@ impl Action {
                     outcome
                         .into_result(&format!("switching to {}", mode.name))
                         .err()
+                        .map(|e| e.0)
                         .unwrap_or_default(),
                 ),
             },
@@ -476,7 +477,13 @@ impl Action {
                     };
                     Advance::Wait
                 }
-                Some(outcome) => Advance::Fail(outcome.into_result(what).err().unwrap_or_default()),
+                Some(outcome) => Advance::Fail(
+                    outcome
+                        .into_result(what)
+                        .err()
+                        .map(|e| e.0)
+                        .unwrap_or_default(),
+                ),
             },
             _ => {
                 self.running = Running::Commanding {
@@ -546,7 +553,11 @@ mod tests {
                 profile,
             }
         }
-        fn tick(&mut self, a: &mut Action, now: Duration) -> (Option<Result<(), String>>, usize) {
+        fn tick(
+            &mut self,
+            a: &mut Action,
+            now: Duration,
+        ) -> (Option<Result<(), RequestRefused>>, usize) {
             let mut ctx = Ctx {
                 now,
                 profile: &self.profile,
@@ -603,7 +614,7 @@ mod tests {
         );
         w.tick(&mut a, MS(20));
         w.heartbeat(MS(2000), 0x0304_0000, true);
-        let r = w.tick(&mut a, MS(3100)).0.unwrap().unwrap_err();
+        let r = w.tick(&mut a, MS(3100)).0.unwrap().unwrap_err().to_string();
         assert!(
             r.contains("did not switch to AUTO.LAND (HEARTBEAT shows AUTO.LOITER)"),
             "{r}"
@@ -650,7 +661,12 @@ mod tests {
         for t in (1000..31_000).step_by(1000) {
             w.heartbeat(MS(t), 0x0304_0000, false);
         }
-        let r = w.tick(&mut a, MS(30_500)).0.unwrap().unwrap_err();
+        let r = w
+            .tick(&mut a, MS(30_500))
+            .0
+            .unwrap()
+            .unwrap_err()
+            .to_string();
         assert!(r.contains("Resolve system health failures"), "{r}");
     }
 }

@@ -7,7 +7,7 @@
 
 use super::Session;
 use crate::platform::mavlink::actions::{self, Action, Ctx, Origin};
-use crate::platform::{PlatformRequest, RequestResult};
+use crate::platform::{PlatformRequest, RequestRefused, RequestResult};
 use crate::types::LinkHealth;
 use std::mem::discriminant;
 use std::time::Duration;
@@ -74,7 +74,7 @@ impl Session {
         if self.model.link(now) != LinkHealth::Ok {
             self.finish(
                 Origin::Request(request),
-                Err("no link to the autopilot".into()),
+                Err(RequestRefused::from("no link to the autopilot")),
             );
             return;
         }
@@ -94,7 +94,7 @@ impl Session {
         self.actions = kept;
         for a in cancelled {
             a.abandon(&mut self.tracker);
-            self.finish(a.origin, Err(why.to_string()));
+            self.finish(a.origin, Err(RequestRefused::from(why)));
         }
     }
 
@@ -105,10 +105,10 @@ impl Session {
     }
 
     /// Reports a request's outcome to the core; a failure is also the vehicle's last error.
-    pub(super) fn finish(&mut self, origin: Origin, outcome: Result<(), String>) {
+    pub(super) fn finish(&mut self, origin: Origin, outcome: Result<(), RequestRefused>) {
         if let Err(e) = &outcome {
             tracing::debug!(target: "mavlink", "{origin:?}: {e}");
-            self.model.set_error(e.clone());
+            self.model.set_error(e.to_string());
         }
         let Origin::Request(request) = origin;
         self.results.push(RequestResult { request, outcome });
