@@ -15,6 +15,7 @@ mod missions;
 mod tick;
 
 pub use super::map_view::MapView;
+pub use bus::BusMapError;
 pub use commands::{Command, Reply};
 pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 pub use frames::{FrameRegistration, MAX_FRAMES};
