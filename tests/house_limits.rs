@@ -55,7 +55,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/exploration/allocation.rs", StringErrors(1)),
     ("src/exploration/service.rs", Function("allocate")),
     ("src/exploration/space.rs", FileLines),
-    ("src/host/fleet.rs", StringErrors(2)),
     ("src/host/payload.rs", StringErrors(2)),
     ("src/host/scans.rs", StringErrors(1)),
     ("src/mission/model.rs", StringErrors(1)),

@@ -95,7 +95,7 @@ impl Host {
     pub fn set_link_lost(&mut self, i: usize, lost: bool) -> Result<(), HostError> {
         self.fleet
             .set_link_lost(i, lost)
-            .map_err(HostError::NotSupported)
+            .map_err(|e| HostError::NotSupported(e.to_string()))
     }
 
     /// Answers a command that may have changed what is saved: the change is handed to the
