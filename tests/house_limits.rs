@@ -56,7 +56,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/exploration/service.rs", Function("allocate")),
     ("src/exploration/space.rs", FileLines),
     ("src/host/payload.rs", StringErrors(2)),
-    ("src/host/scans.rs", StringErrors(1)),
     ("src/mission/model.rs", StringErrors(1)),
     ("src/platform/mavlink/link.rs", StringErrors(1)),
     ("src/platform/mavlink/model/mod.rs", StringErrors(1)),
