@@ -377,7 +377,9 @@ impl Action {
                 Err(reason) if waited >= ctx.profile.ready_timeout => Advance::Fail(format!(
                     "the autopilot is not ready after {:.0} s: {}",
                     waited.as_secs_f64(),
-                    ctx.model.last_problem().unwrap_or(reason)
+                    ctx.model
+                        .last_problem()
+                        .unwrap_or_else(|| reason.to_string())
                 )),
                 Err(_) => {
                     self.running = Running::Waiting { since };

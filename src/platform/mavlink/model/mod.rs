@@ -23,6 +23,23 @@ use std::time::Duration;
 /// A position or attitude older than this is no longer valid.
 const ESTIMATE_TIMEOUT: Duration = Duration::from_millis(500);
 
+/// Why the autopilot cannot arm and fly offboard yet; `gps` is the GPS's fix and satellites in
+/// words, when it reported them.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NotReady {
+    /// The autopilot is not the profile's (the words say which each is).
+    #[error("{0}")]
+    WrongAutopilot(String),
+    #[error("no heartbeat from the autopilot")]
+    NoHeartbeat,
+    #[error("no position estimate yet (EKF_STATUS_REPORT flags {flags:#x}{gps})")]
+    NoEstimate { flags: u16, gps: String },
+    #[error("pre-arm checks failing")]
+    PreArmFailing,
+    #[error("no local position estimate from the autopilot{gps}")]
+    NoLocalPosition { gps: String },
+}
+
 /// What the session must react to after a message.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelEvent {
@@ -194,12 +211,12 @@ impl VehicleModel {
     }
 
     /// `Ok` when the autopilot can arm and fly offboard, else why not.
-    pub fn readiness(&self, now: Duration) -> Result<(), String> {
+    pub fn readiness(&self, now: Duration) -> Result<(), NotReady> {
         if let Some(e) = &self.wrong_autopilot {
-            return Err(e.clone());
+            return Err(NotReady::WrongAutopilot(e.clone()));
         }
         if self.link(now) != LinkHealth::Ok {
-            return Err("no heartbeat from the autopilot".into());
+            return Err(NotReady::NoHeartbeat);
         }
         let r = self.profile.readiness;
         if r.ekf_flags_required != 0 || r.ekf_flags_forbidden != 0 {
@@ -207,21 +224,20 @@ impl VehicleModel {
             if flags & r.ekf_flags_required != r.ekf_flags_required
                 || flags & r.ekf_flags_forbidden != 0
             {
-                return Err(format!(
-                    "no position estimate yet (EKF_STATUS_REPORT flags {flags:#x}{})",
-                    self.gps_words()
-                ));
+                return Err(NotReady::NoEstimate {
+                    flags,
+                    gps: self.gps_words(),
+                });
             }
         }
         if r.prearm_check_bit && self.prearm_ok == Some(false) && !self.armed {
-            return Err("pre-arm checks failing".into());
+            return Err(NotReady::PreArmFailing);
         }
         match self.position {
             Some(p) if !p.stale && Self::fresh(p.at, now) => Ok(()),
-            _ => Err(format!(
-                "no local position estimate from the autopilot{}",
-                self.gps_words()
-            )),
+            _ => Err(NotReady::NoLocalPosition {
+                gps: self.gps_words(),
+            }),
         }
     }
 
@@ -347,7 +363,7 @@ mod tests {
             d.autopilot = MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA;
         }
         m.ingest(Duration::ZERO, &ap(), &h);
-        let reason = m.readiness(Duration::ZERO).unwrap_err();
+        let reason = m.readiness(Duration::ZERO).unwrap_err().to_string();
         assert!(reason.contains("expects MAV_AUTOPILOT 12"), "{reason}");
     }
 
@@ -497,7 +513,11 @@ mod tests {
             })
         };
         m.ingest(Duration::ZERO, &ap(), &ekf(0xA7));
-        assert!(m.readiness(Duration::ZERO).unwrap_err().contains("0xa7"));
+        assert!(m
+            .readiness(Duration::ZERO)
+            .unwrap_err()
+            .to_string()
+            .contains("0xa7"));
         m.ingest(Duration::ZERO, &ap(), &ekf(0x33F));
         assert!(m.readiness(Duration::ZERO).is_ok());
     }
