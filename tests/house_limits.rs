@@ -57,8 +57,6 @@ const EXCEPTIONS: &[(&str, Limit)] = &[
     ("src/exploration/space.rs", FileLines),
     ("src/host/payload.rs", StringErrors(2)),
     ("src/mission/model.rs", StringErrors(1)),
-    ("src/sim/world.rs", StringErrors(1)),
-    ("src/types/simulated.rs", StringErrors(1)),
 ];
 
 /// One breach of a limit, where it is.

@@ -411,7 +411,7 @@ impl Config {
         if let Some(sensor) = &self.sim.sensor {
             sensor
                 .validate()
-                .map_err(|m| ("sim.sensor".to_string(), m))?;
+                .map_err(|e| ("sim.sensor".to_string(), e.to_string()))?;
         }
         Ok(())
     }
