@@ -37,7 +37,6 @@ use Limit::{FileLines, Function, StringErrors};
 /// of `src/control/`, `src/exploration/` and `src/behavior/explore.rs` are being reworked on
 /// their own and stay listed until that work lands.
 const EXCEPTIONS: &[(&str, Limit)] = &[
-    ("src/api/ws.rs", StringErrors(1)),
     ("src/behavior/explore.rs", FileLines),
     ("src/behavior/explore.rs", StringErrors(2)),
     ("src/behavior/follow_path.rs", StringErrors(1)),
