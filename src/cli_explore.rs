@@ -192,7 +192,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
             .iter()
             .map(|&(i, id)| {
                 let (ex, core) = (host.executors().get(i)?, host.cores().get(i)?);
-                ex.status(core).outcome(id)
+                Some(ex.status(core).outcome(id)?.map_err(|e| e.to_string()))
             })
             .collect();
         if results.iter().all(Option::is_some) {

@@ -242,7 +242,11 @@ fn outcomes(host: &Host, flights: &Flights) -> Vec<(String, Option<Result<(), St
         .filter_map(|&(i, id)| {
             let core = host.cores().get(i)?;
             let ex = host.executors().get(i)?;
-            Some((core.drone_id().to_string(), ex.status(core).outcome(id)))
+            let outcome = ex.status(core).outcome(id);
+            Some((
+                core.drone_id().to_string(),
+                outcome.map(|r| r.map_err(|e| e.to_string())),
+            ))
         })
         .collect()
 }
