@@ -33,7 +33,7 @@ fn default_speed() -> f64 {
 impl Goal for TakeoffGoal {
     fn check(&self) -> Result<(), String> {
         check_positive("height", self.height, "metres")?;
-        check_positive("speed", self.speed, "m/s")
+        Ok(check_positive("speed", self.speed, "m/s")?)
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]

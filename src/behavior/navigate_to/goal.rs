@@ -121,7 +121,7 @@ impl Goal for NavigateToGoal {
             check_finite("spin_rate", &[rate])?;
         }
         check_positive("sense_rate", self.sense_rate, "rad/s")?;
-        self.yaw.check()
+        Ok(self.yaw.check()?)
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {
