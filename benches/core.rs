@@ -26,12 +26,11 @@ use std::time::Duration;
 
 const RATE_HZ: f64 = 100.0;
 
-/// A fleet of one, with no merged map.
+/// A fleet of one.
 fn alone() -> FleetInput<'static> {
     static VIEW: std::sync::OnceLock<Arc<FleetView>> = std::sync::OnceLock::new();
     FleetInput {
         view: VIEW.get_or_init(Arc::default),
-        map: None,
     }
 }
 

@@ -13,6 +13,7 @@
 use crate::cli_sim::{execute, load_config, parse_speedup};
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use kestrel::config::Config;
 use kestrel::exploration::allocation::AllocatorKind;
 use kestrel::exploration::evaluate::{self, EvalParams};
 use kestrel::flightlog::files;
@@ -87,39 +88,9 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     let allocator: AllocatorKind = args.allocator.parse().map_err(anyhow::Error::msg)?;
     let mut config = load_config(args.config.as_deref())?;
     let world = World::load(&args.world)?;
-    // Drones give way to each other through the explore behavior's watcher (2.0 m, climbing
-    // 1 m); the safety stage is the last line behind it, at the 0.5 m the exploration must
-    // never go below (braking to stop 0.2 m outside it, well inside the watcher's trigger).
-    if args.config.is_none() {
-        config.safety.min_separation_m = 0.5;
-    }
-    // The area to explore is the world's: the map covers its bounds exactly (the thesis's
-    // 500 x 500 cells for 50 x 50 m), unless the config sets a size.
-    if config.map.size_m.is_none() {
-        let b = &world.bounds_m;
-        config.map.size_m = Some([b.x[1] - b.x[0], b.y[1] - b.y[0]]);
-    }
-    let stem = args
-        .world
-        .file_stem()
-        .map_or("world".into(), |s| s.to_string_lossy().into_owned());
+    fit_config(&mut config, &args, &world);
     let start = std::time::SystemTime::now();
-    let (file, log_path) = match &args.log {
-        Some(path) => (
-            files::create_at(path, args.log_overwrite)
-                .with_context(|| format!("creating flight log {}", path.display()))?,
-            path.clone(),
-        ),
-        None => {
-            let kind = format!("kestrel-explore-{stem}-{}-{}", args.drones, args.seed);
-            let dir = config.drone.log_dir.clone().unwrap_or_default();
-            let (file, path) = files::create(&dir, &kind, start)
-                .with_context(|| format!("creating a flight log in {}", dir.display()))?;
-            files::prune(&dir, &kind, config.drone.log_keep, &path)
-                .context("pruning old flight logs")?;
-            (file, path)
-        }
-    };
+    let (file, log_path) = open_log(&args, &config, start)?;
     let report_path = args
         .report
         .clone()
@@ -143,22 +114,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     }));
     host.set_log(log);
     host.step();
-    let mut flights = Vec::new();
-    let mut explore_args = match &args.explore_args {
-        Some(text) => serde_json::from_str::<Value>(text).context("--explore-args is not JSON")?,
-        None => json!({}),
-    };
-    let Some(fields) = explore_args.as_object_mut() else {
-        bail!("--explore-args must be a JSON object");
-    };
-    fields.insert("allocator".into(), json!(allocator));
-    for id in host.drone_ids() {
-        let mission = json!({
-            "target": id,
-            "plan": [{"behavior": "explore", "args": explore_args}],
-        });
-        flights.push(execute(&mut host, mission)?);
-    }
+    let flights = start_explorations(&mut host, &args, allocator)?;
     println!(
         "kestrel explore: {} drone(s) in {}, allocator {:?}, flight log {}",
         args.drones,
@@ -167,44 +123,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         log_path.display()
     );
     let started = Instant::now();
-    let max_time = Duration::from_secs_f64(args.max_sim_time_s);
-    let mut next_progress = args.progress_every_s;
-    let outcome = loop {
-        host.step();
-        let t = host.now().as_secs_f64();
-        if let Pace::Factor(f) = pace {
-            let ahead = t / f - started.elapsed().as_secs_f64();
-            if ahead > 0.0 {
-                std::thread::sleep(Duration::from_secs_f64(ahead));
-            }
-        }
-        if t >= next_progress {
-            next_progress += args.progress_every_s;
-            let view = host.exploration_view();
-            println!(
-                "t {t:7.1} s  known {:5.1} %  frontiers {:3}  ({:.1} s wall)",
-                known_pct(&host),
-                view.frontiers.len(),
-                started.elapsed().as_secs_f64()
-            );
-        }
-        let results: Vec<Option<Result<(), String>>> = flights
-            .iter()
-            .map(|&(i, id)| {
-                let (ex, core) = (host.executors().get(i)?, host.cores().get(i)?);
-                ex.status(core).outcome(id)
-            })
-            .collect();
-        if results.iter().all(Option::is_some) {
-            break Ok(results);
-        }
-        if host.now() >= max_time {
-            break Err(format!(
-                "timeout: exploration not finished after {:.0} s",
-                args.max_sim_time_s
-            ));
-        }
-    };
+    let outcome = fly(&mut host, &flights, &args, pace, started);
     host.flush_log();
     let wall_s = started.elapsed().as_secs_f64();
     let sim_s = host.now().as_secs_f64();
@@ -249,6 +168,124 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         Ok(())
     } else {
         bail!("exploration failed: {}", failures.join("; "))
+    }
+}
+
+/// The config as an exploration of `world` needs it, where the file leaves it open.
+fn fit_config(config: &mut Config, args: &ExploreArgs, world: &World) {
+    // Drones give way to each other through the explore behavior's watcher (2.0 m, climbing
+    // 1 m); the safety stage is the last line behind it, at the 0.5 m the exploration must
+    // never go below (braking to stop 0.2 m outside it, well inside the watcher's trigger).
+    if args.config.is_none() {
+        config.safety.min_separation_m = 0.5;
+    }
+    // The area to explore is the world's: the map covers its bounds exactly (the thesis's
+    // 500 x 500 cells for 50 x 50 m), unless the config sets a size.
+    if config.map.size_m.is_none() {
+        let b = &world.bounds_m;
+        config.map.size_m = Some([b.x[1] - b.x[0], b.y[1] - b.y[0]]);
+    }
+}
+
+/// The flight log: `--log`, or a new file named by the world, the drones, the seed and the
+/// start in the config's log directory (older ones pruned to its limit).
+fn open_log(
+    args: &ExploreArgs,
+    config: &Config,
+    start: std::time::SystemTime,
+) -> Result<(std::fs::File, PathBuf)> {
+    if let Some(path) = &args.log {
+        let file = files::create_at(path, args.log_overwrite)
+            .with_context(|| format!("creating flight log {}", path.display()))?;
+        return Ok((file, path.clone()));
+    }
+    let stem = args
+        .world
+        .file_stem()
+        .map_or("world".into(), |s| s.to_string_lossy().into_owned());
+    let kind = format!("kestrel-explore-{stem}-{}-{}", args.drones, args.seed);
+    let dir = config.drone.log_dir.clone().unwrap_or_default();
+    let (file, path) = files::create(&dir, &kind, start)
+        .with_context(|| format!("creating a flight log in {}", dir.display()))?;
+    files::prune(&dir, &kind, config.drone.log_keep, &path).context("pruning old flight logs")?;
+    Ok((file, path))
+}
+
+/// Gives every drone a one-item `explore` mission (with `--explore-args` and the allocator) and
+/// starts it; returns (drone, mission id) for each.
+fn start_explorations(
+    host: &mut Host,
+    args: &ExploreArgs,
+    allocator: AllocatorKind,
+) -> Result<Vec<(usize, u32)>> {
+    let mut flights = Vec::new();
+    let mut explore_args = match &args.explore_args {
+        Some(text) => serde_json::from_str::<Value>(text).context("--explore-args is not JSON")?,
+        None => json!({}),
+    };
+    let Some(fields) = explore_args.as_object_mut() else {
+        bail!("--explore-args must be a JSON object");
+    };
+    fields.insert("allocator".into(), json!(allocator));
+    for id in host.drone_ids() {
+        let mission = json!({
+            "target": id,
+            "plan": [{"behavior": "explore", "args": explore_args}],
+        });
+        flights.push(execute(host, mission)?);
+    }
+    Ok(flights)
+}
+
+/// How each flight ended (`None`: not yet), in words.
+type Outcomes = Vec<Option<std::result::Result<(), String>>>;
+
+/// Steps the host (paced to `pace`) until every flight ended, printing progress; each flight's
+/// outcome, or the timeout in words.
+fn fly(
+    host: &mut Host,
+    flights: &[(usize, u32)],
+    args: &ExploreArgs,
+    pace: Pace,
+    started: Instant,
+) -> std::result::Result<Outcomes, String> {
+    let max_time = Duration::from_secs_f64(args.max_sim_time_s);
+    let mut next_progress = args.progress_every_s;
+    loop {
+        host.step();
+        let t = host.now().as_secs_f64();
+        if let Pace::Factor(f) = pace {
+            let ahead = t / f - started.elapsed().as_secs_f64();
+            if ahead > 0.0 {
+                std::thread::sleep(Duration::from_secs_f64(ahead));
+            }
+        }
+        if t >= next_progress {
+            next_progress += args.progress_every_s;
+            let view = host.exploration_view();
+            println!(
+                "t {t:7.1} s  known {:5.1} %  frontiers {:3}  ({:.1} s wall)",
+                known_pct(host),
+                view.frontiers.len(),
+                started.elapsed().as_secs_f64()
+            );
+        }
+        let results: Outcomes = flights
+            .iter()
+            .map(|&(i, id)| {
+                let (ex, core) = (host.executors().get(i)?, host.cores().get(i)?);
+                Some(ex.status(core).outcome(id)?.map_err(|e| e.to_string()))
+            })
+            .collect();
+        if results.iter().all(Option::is_some) {
+            return Ok(results);
+        }
+        if host.now() >= max_time {
+            return Err(format!(
+                "timeout: exploration not finished after {:.0} s",
+                args.max_sim_time_s
+            ));
+        }
     }
 }
 

@@ -7,8 +7,8 @@ use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
 use kestrel::flightlog::files;
 use kestrel::host::logwriter::{self, LogFile};
-use kestrel::host::runtime::{self, Pace, RuntimeOptions};
-use kestrel::host::status::{EventBody, HostEvent};
+use kestrel::host::runtime::{self, HostHandle, Pace, RuntimeOptions};
+use kestrel::host::status::{EventBody, HostEvent, SharedEvent};
 use kestrel::host::{store, Host};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -242,7 +242,11 @@ fn outcomes(host: &Host, flights: &Flights) -> Vec<(String, Option<Result<(), St
         .filter_map(|&(i, id)| {
             let core = host.cores().get(i)?;
             let ex = host.executors().get(i)?;
-            Some((core.drone_id().to_string(), ex.status(core).outcome(id)))
+            let outcome = ex.status(core).outcome(id);
+            Some((
+                core.drone_id().to_string(),
+                outcome.map(|r| r.map_err(|e| e.to_string())),
+            ))
         })
         .collect()
 }
@@ -284,6 +288,55 @@ fn print_event(e: &HostEvent) {
     }
 }
 
+/// Serves the API on `listener` until `stop`, and says where.
+fn start_api(
+    listener: tokio::net::TcpListener,
+    handle: &HostHandle,
+    options: &ServeOptions,
+    store: Option<store::Sink>,
+    stop: watch::Receiver<bool>,
+) -> Result<tokio::task::JoinHandle<()>> {
+    let address = listener.local_addr().context("reading the API address")?;
+    let state = ApiState::new(
+        handle.clone(),
+        options.token.clone(),
+        &options.api,
+        options.log.clone(),
+    )
+    .with_store(store);
+    let app = api::router(state, &options.api);
+    let limits = api::serve::ConnLimits::from(&options.api);
+    let server = tokio::spawn(api::serve::serve(listener, app, limits, stop));
+    let auth = if options.token.is_some() {
+        "bearer token required"
+    } else {
+        "no token: loopback only"
+    };
+    println!("API on http://{address} ({auth})");
+    Ok(server)
+}
+
+/// Prints every host event (and hands it to `tap`) until the last sender is gone.
+async fn print_events(
+    mut events: tokio::sync::broadcast::Receiver<SharedEvent>,
+    mut tap: Option<EventTap>,
+) {
+    loop {
+        match events.recv().await {
+            Ok(e) => {
+                print_event(&e);
+                if let Some(tap) = tap.as_mut() {
+                    tap(&e);
+                }
+            }
+            Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
+                println!("({n} events not shown)")
+            }
+            Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
+        }
+    }
+}
+
 /// Runs the host and the API until interrupted (or, with `exit_when_done`, until every
 /// flight ended).
 pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
@@ -319,49 +372,17 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
             timeout,
         ));
     }
-    let mut server = None;
-    if let Some(listener) = listener {
-        let address = listener.local_addr().context("reading the API address")?;
-        let state = ApiState::new(
-            handle.clone(),
-            options.token.clone(),
-            &options.api,
-            options.log.clone(),
-        )
-        .with_store(store);
-        let app = api::router(state, &options.api);
-        let limits = api::serve::ConnLimits::from(&options.api);
-        server = Some(tokio::spawn(api::serve::serve(
+    let server = match listener {
+        Some(listener) => Some(start_api(
             listener,
-            app,
-            limits,
+            &handle,
+            &options,
+            store,
             shutdown_tx.subscribe(),
-        )));
-        let auth = if options.token.is_some() {
-            "bearer token required"
-        } else {
-            "no token: loopback only"
-        };
-        println!("API on http://{address} ({auth})");
-    }
-    let mut events = spawned.events;
-    let mut on_event = options.on_event.take();
-    let printer = tokio::spawn(async move {
-        loop {
-            match events.recv().await {
-                Ok(e) => {
-                    print_event(&e);
-                    if let Some(tap) = on_event.as_mut() {
-                        tap(&e);
-                    }
-                }
-                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
-                    println!("({n} events not shown)")
-                }
-                Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
-            }
-        }
-    });
+        )?),
+        None => None,
+    };
+    let printer = tokio::spawn(print_events(spawned.events, options.on_event.take()));
     let thread = spawned.thread;
     let join = tokio::task::spawn_blocking(move || thread.join());
     tokio::pin!(join);

@@ -254,7 +254,6 @@ impl DroneCore {
             request_results: &[],
             services: &self.services,
             fleet: &self.fleet,
-            fleet_map: None,
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -315,59 +314,37 @@ impl DroneCore {
             request_results: &feedback.request_results,
             services: &self.services,
             fleet: &self.fleet,
-            fleet_map: fleet.map,
         };
-        // Never command blind: without a link or a position estimate, behaviors end and the
-        // autopilot's own failsafe takes over.
-        if self.platform.link == LinkHealth::Lost && previous_link != LinkHealth::Lost {
-            self.server.stop_all(
-                Failure::new(FailureCode::LinkLost, "link to the autopilot lost"),
-                &ctx,
-            );
-            self.server.clear_hold();
-        }
-        // Someone else flies the vehicle now: end everything and command nothing (no hold
-        // either), so that Kestrel never fights the pilot; a new order takes it back.
-        let mut takeover = None;
-        for event in &feedback.events {
-            match event {
-                PlatformEvent::PilotTakeover { .. } => {
-                    let reason = event.reason();
-                    let failure = Failure::new(FailureCode::PilotTakeover, reason.clone());
-                    self.server.fail_all(failure, &ctx);
-                    self.server.clear_hold();
-                    takeover = Some(reason);
-                }
-            }
-        }
-        if self.platform.flight == crate::types::FlightStatus::Crashed {
-            let reason = self
-                .platform
-                .last_error
-                .clone()
-                .unwrap_or_else(|| "crashed".into());
-            self.server
-                .fail_all(Failure::new(FailureCode::Crashed, reason), &ctx);
-            self.server.clear_hold();
-        }
-        if let Some(reason) = &feedback.virtual_collision {
-            // The vehicle is unharmed: what runs fails, and it holds where it is.
-            self.server.fail_all(
-                Failure::new(FailureCode::VirtualCollision, reason.clone()),
-                &ctx,
-            );
-        }
+        let takeover = end_what_cannot_go_on(&mut self.server, &ctx, feedback, previous_link);
         let out = self.server.tick(&ctx);
         if out.reference.is_some() {
             self.held_at_enu_m = out.reference.as_ref().and_then(MotionReference::held_at);
         }
+        let (setpoint, safety) = self.setpoint_for(out.reference, dt_s);
+        TickOutput {
+            setpoint,
+            safety,
+            requests: out.requests,
+            service_calls: self.services.drain_calls(),
+            events: self.server.drain_events(),
+            takeover,
+        }
+    }
+
+    /// The setpoint for the behaviors' `reference` (none without a position or a link), after
+    /// the safety stage, and the stage's override if it changed it.
+    fn setpoint_for(
+        &mut self,
+        reference: Option<MotionReference>,
+        dt_s: f64,
+    ) -> (Option<Setpoint>, Option<Override>) {
         let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
         let caps = self.controller.caps(
-            out.reference
+            reference
                 .as_ref()
                 .map_or(f64::INFINITY, |r| r.max_speed_mps()),
         );
-        let setpoint = match out.reference {
+        let setpoint = match reference {
             Some(reference) if usable => {
                 Some(self.controller.update(&self.state, &reference, dt_s))
             }
@@ -391,13 +368,56 @@ impl DroneCore {
             setpoint.as_ref(),
             flying && self.platform.flight == crate::types::FlightStatus::Flying,
         );
-        TickOutput {
-            setpoint,
-            safety,
-            requests: out.requests,
-            service_calls: self.services.drain_calls(),
-            events: self.server.drain_events(),
-            takeover,
+        (setpoint, safety)
+    }
+}
+
+/// Ends what runs when Kestrel cannot go on flying the vehicle: the link just lost, a pilot's
+/// takeover, a crash, a virtual collision. Returns the takeover's reason, if one happened.
+fn end_what_cannot_go_on(
+    server: &mut BehaviorServer,
+    ctx: &BehaviorContext,
+    feedback: &PlatformFeedback,
+    previous_link: LinkHealth,
+) -> Option<String> {
+    // Never command blind: without a link or a position estimate, behaviors end and the
+    // autopilot's own failsafe takes over.
+    if ctx.platform.link == LinkHealth::Lost && previous_link != LinkHealth::Lost {
+        server.stop_all(
+            Failure::new(FailureCode::LinkLost, "link to the autopilot lost"),
+            ctx,
+        );
+        server.clear_hold();
+    }
+    // Someone else flies the vehicle now: end everything and command nothing (no hold
+    // either), so that Kestrel never fights the pilot; a new order takes it back.
+    let mut takeover = None;
+    for event in &feedback.events {
+        match event {
+            PlatformEvent::PilotTakeover { .. } => {
+                let reason = event.reason();
+                let failure = Failure::new(FailureCode::PilotTakeover, reason.clone());
+                server.fail_all(failure, ctx);
+                server.clear_hold();
+                takeover = Some(reason);
+            }
         }
     }
+    if ctx.platform.flight == crate::types::FlightStatus::Crashed {
+        let reason = ctx
+            .platform
+            .last_error
+            .clone()
+            .unwrap_or_else(|| "crashed".into());
+        server.fail_all(Failure::new(FailureCode::Crashed, reason), ctx);
+        server.clear_hold();
+    }
+    if let Some(reason) = &feedback.virtual_collision {
+        // The vehicle is unharmed: what runs fails, and it holds where it is.
+        server.fail_all(
+            Failure::new(FailureCode::VirtualCollision, reason.clone()),
+            ctx,
+        );
+    }
+    takeover
 }

@@ -6,7 +6,7 @@ mod common;
 use common::Harness;
 use common::SimConfig;
 use kestrel::host::demo::demo_missions;
-use kestrel::mission::{Action, MissionUpdate};
+use kestrel::mission::{Action, MissionEnded, MissionUpdate};
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::Vec3;
@@ -19,7 +19,7 @@ fn thesis_world(name: &str) -> World {
 
 /// Flies the demo mission of every drone on the host, as `kestrel sim` does, until every
 /// mission has ended; returns how each ended.
-fn fly_demo(h: &mut Harness, limit_s: f64) -> Vec<Result<(), String>> {
+fn fly_demo(h: &mut Harness, limit_s: f64) -> Vec<Result<(), MissionEnded>> {
     let mut ids = Vec::new();
     for mission in demo_missions(h.world()) {
         let drone = mission["target"].as_str().unwrap().to_string();
@@ -35,7 +35,7 @@ fn fly_demo(h: &mut Harness, limit_s: f64) -> Vec<Result<(), String>> {
             .unwrap();
         ids.push(updated.status.mission_id.unwrap());
     }
-    let outcomes = |h: &Harness| -> Vec<Option<Result<(), String>>> {
+    let outcomes = |h: &Harness| -> Vec<Option<Result<(), MissionEnded>>> {
         let cores = h.host.cores();
         h.host
             .executors()

@@ -18,7 +18,7 @@ pub fn body_scans(
         ApiError::Invalid(vec![ValidationError { pointer, message }])
     };
     if binary {
-        let scan = scans::decode_binary(body).map_err(|e| invalid(String::new(), e))?;
+        let scan = scans::decode_binary(body).map_err(|e| invalid(String::new(), e.to_string()))?;
         return Ok((query_drone, vec![scan]));
     }
     let batch: ScanBatch = super::body::parse(body)?;

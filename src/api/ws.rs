@@ -125,12 +125,7 @@ fn event_frame(e: &HostEvent) -> Value {
 async fn client_message(s: &ApiState, text: &str) -> (Value, Option<f64>) {
     let msg: Value = match serde_json::from_str(text) {
         Ok(v) => v,
-        Err(e) => {
-            return (
-                reply(Value::Null, Err(format!("not valid JSON: {e}"))),
-                None,
-            )
-        }
+        Err(e) => return (reply(Value::Null, Err(Refusal::NotJson(e))), None),
     };
     let request_id = msg.get("request_id").cloned().unwrap_or(Value::Null);
     match msg.get("type").and_then(Value::as_str) {
@@ -142,13 +137,7 @@ async fn client_message(s: &ApiState, text: &str) -> (Value, Option<f64>) {
                     Some(rate),
                 )
             }
-            _ => (
-                reply(
-                    request_id,
-                    Err("telemetry_rate_hz must be a positive number".into()),
-                ),
-                None,
-            ),
+            _ => (reply(request_id, Err(Refusal::BadRate)), None),
         },
         Some("mission_update") => {
             let mut fields = msg.clone();
@@ -159,22 +148,34 @@ async fn client_message(s: &ApiState, text: &str) -> (Value, Option<f64>) {
             let result = apply_update(s, fields.to_string().as_bytes())
                 .await
                 .map(|(u, saved)| json!({"drone": u.drone, "status": u.status, "durable": saved.durable}))
-                .map_err(|e| e.message());
+                .map_err(Refusal::Update);
             (reply(request_id, result), None)
         }
         other => (
             reply(
                 request_id,
-                Err(format!(
-                    "unknown message type {other:?}: use subscribe or mission_update"
-                )),
+                Err(Refusal::UnknownType(other.map(str::to_string))),
             ),
             None,
         ),
     }
 }
 
-fn reply(request_id: Value, result: Result<Value, String>) -> Value {
+/// Why a client's message was refused; the words are the reply's `reason`.
+#[derive(Debug, thiserror::Error)]
+enum Refusal {
+    #[error("not valid JSON: {0}")]
+    NotJson(serde_json::Error),
+    #[error("telemetry_rate_hz must be a positive number")]
+    BadRate,
+    /// The mission update was refused, in the words the HTTP API gives.
+    #[error("{}", .0.message())]
+    Update(ApiError),
+    #[error("unknown message type {0:?}: use subscribe or mission_update")]
+    UnknownType(Option<String>),
+}
+
+fn reply(request_id: Value, result: Result<Value, Refusal>) -> Value {
     match result {
         Ok(extra) => {
             let mut v = json!({"type": "reply", "request_id": request_id, "accepted": true, "reason": null});
@@ -184,7 +185,7 @@ fn reply(request_id: Value, result: Result<Value, String>) -> Value {
             v
         }
         Err(reason) => {
-            json!({"type": "reply", "request_id": request_id, "accepted": false, "reason": reason})
+            json!({"type": "reply", "request_id": request_id, "accepted": false, "reason": reason.to_string()})
         }
     }
 }

@@ -40,7 +40,7 @@ impl Goal for FollowPathGoal {
             check_finite(&format!("path[{i}]"), p)?;
         }
         check_positive("speed", self.speed, "m/s")?;
-        self.yaw.check()
+        Ok(self.yaw.check()?)
     }
     fn targets(&self) -> Vec<FramedPoint> {
         let frame_id = frame_or_earth(&self.frame_id);

@@ -40,7 +40,7 @@ impl Goal for FollowReferenceGoal {
         {
             return Err("speed_x, speed_y, speed_z must be >= 0 m/s".into());
         }
-        self.yaw.check()
+        Ok(self.yaw.check()?)
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {

@@ -40,7 +40,7 @@ impl Goal for GoToGoal {
     fn check(&self) -> Result<(), String> {
         check_finite("x, y, z", &[self.x, self.y, self.z])?;
         check_positive("speed", self.speed, "m/s")?;
-        self.yaw.check()
+        Ok(self.yaw.check()?)
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {
@@ -76,7 +76,7 @@ impl Goal for GoToGpsGoal {
         .validate()
         .map_err(|e| e.to_string())?;
         check_positive("speed", self.speed, "m/s")?;
-        self.yaw.check()
+        Ok(self.yaw.check()?)
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {

@@ -70,14 +70,10 @@ pub enum ResolvedYaw {
 }
 
 impl YawArgs {
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), GoalError> {
         match self.yaw_mode {
-            YawMode::Fixed if self.yaw_angle.is_none() => {
-                Err("yaw_mode fixed needs yaw_angle (rad)".into())
-            }
-            YawMode::FacePoint if self.face_point.is_none() => {
-                Err("yaw_mode face_point needs face_point [x, y, z] (m)".into())
-            }
+            YawMode::Fixed if self.yaw_angle.is_none() => Err(GoalError::FixedNeedsAngle),
+            YawMode::FacePoint if self.face_point.is_none() => Err(GoalError::FaceNeedsPoint),
             _ => Ok(()),
         }
     }
@@ -197,26 +193,58 @@ pub fn frame_or_earth(frame_id: &Option<String>) -> String {
     }
 }
 
+/// Why a goal's arguments are refused: the argument, the rule and its unit, in the words
+/// operators see.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GoalError {
+    #[error("{name} must be a positive number of {unit}, got {value}")]
+    NotPositive {
+        name: String,
+        value: f64,
+        unit: String,
+    },
+    #[error("{name} must be finite numbers")]
+    NotFinite { name: String },
+    #[error("yaw_mode fixed needs yaw_angle (rad)")]
+    FixedNeedsAngle,
+    #[error("yaw_mode face_point needs face_point [x, y, z] (m)")]
+    FaceNeedsPoint,
+}
+
+/// [`Goal::check`](super::registry::Goal::check) still answers in words: a goal's own checks
+/// hand it these in them.
+impl From<GoalError> for String {
+    fn from(e: GoalError) -> Self {
+        e.to_string()
+    }
+}
+
 /// Refuses non-finite or out-of-range numbers with the argument's name and unit.
-pub fn check_positive(name: &str, value: f64, unit: &str) -> Result<(), String> {
+pub fn check_positive(name: &str, value: f64, unit: &str) -> Result<(), GoalError> {
     if !value.is_finite() || value <= 0.0 {
-        return Err(format!(
-            "{name} must be a positive number of {unit}, got {value}"
-        ));
+        return Err(GoalError::NotPositive {
+            name: name.to_string(),
+            value,
+            unit: unit.to_string(),
+        });
     }
     Ok(())
 }
 
-pub fn check_finite(name: &str, values: &[f64]) -> Result<(), String> {
+pub fn check_finite(name: &str, values: &[f64]) -> Result<(), GoalError> {
     if values.iter().any(|v| !v.is_finite()) {
-        return Err(format!("{name} must be finite numbers"));
+        return Err(GoalError::NotFinite {
+            name: name.to_string(),
+        });
     }
     Ok(())
 }
 
 /// Parses JSON arguments into a goal type, with the path of the offending field in the error.
-pub fn parse_args<T: serde::de::DeserializeOwned>(args: &serde_json::Value) -> Result<T, String> {
-    serde_json::from_value(args.clone()).map_err(|e| e.to_string())
+pub fn parse_args<T: serde::de::DeserializeOwned>(
+    args: &serde_json::Value,
+) -> Result<T, serde_json::Error> {
+    serde_json::from_value(args.clone())
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@ fn default_speed() -> f64 {
 
 impl Goal for LandGoal {
     fn check(&self) -> Result<(), String> {
-        check_positive("speed", self.speed, "m/s")
+        Ok(check_positive("speed", self.speed, "m/s")?)
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]

@@ -111,8 +111,6 @@ pub struct BehaviorContext<'a> {
     pub services: &'a services::ServiceDesk,
     /// Every drone's latest state (this one included), as the host saw it before this tick.
     pub fleet: &'a crate::types::FleetView,
-    /// The fleet's merged map (`None`: mapping off, or outside a tick).
-    pub fleet_map: Option<&'a crate::mapping::OccupancyGrid>,
 }
 
 impl BehaviorContext<'_> {

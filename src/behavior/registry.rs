@@ -119,7 +119,7 @@ impl BehaviorSpec {
             resource,
             args_schema,
             parse: Arc::new(move |args| {
-                let goal: G = parse_args(args).map_err(Failure::invalid)?;
+                let goal: G = parse_args(args).map_err(|e| Failure::invalid(e.to_string()))?;
                 goal.check().map_err(Failure::invalid)?;
                 Ok(ParsedGoal {
                     behavior: name,

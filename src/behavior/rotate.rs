@@ -41,7 +41,11 @@ impl Goal for RotateGoal {
             }
             _ => {}
         }
-        super::goal::check_positive("yaw_speed", self.yaw_speed, "rad/s")
+        Ok(super::goal::check_positive(
+            "yaw_speed",
+            self.yaw_speed,
+            "rad/s",
+        )?)
     }
 }
 

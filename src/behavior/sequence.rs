@@ -104,7 +104,7 @@ impl Goal for RtlGoal {
     fn check(&self) -> Result<(), String> {
         check_positive("height", self.height, "metres")?;
         check_positive("speed", self.speed, "m/s")?;
-        check_positive("land_speed", self.land_speed, "m/s")
+        Ok(check_positive("land_speed", self.land_speed, "m/s")?)
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed, self.land_speed]

@@ -33,7 +33,7 @@ fn default_speed() -> f64 {
 impl Goal for TakeoffGoal {
     fn check(&self) -> Result<(), String> {
         check_positive("height", self.height, "metres")?;
-        check_positive("speed", self.speed, "m/s")
+        Ok(check_positive("speed", self.speed, "m/s")?)
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]
@@ -125,6 +125,20 @@ impl Behavior for Takeoff {
     }
 
     fn run(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Step {
+        if let Some(step) = self.wait_ready(ctx) {
+            return step;
+        }
+        if let Some(step) = self.arm(ctx, requests) {
+            return step;
+        }
+        self.climb_to_height(ctx)
+    }
+}
+
+impl Takeoff {
+    /// Waits for the vehicle to be ready to fly (a position, the autopilot's go, a link), at
+    /// most `ready_timeout_s`; then captures where it starts. `Some` while waiting or failed.
+    fn wait_ready(&mut self, ctx: &BehaviorContext) -> Option<Step> {
         if let Phase::WaitReady { since } = self.phase {
             let since = since.unwrap_or(ctx.now);
             let ready = ctx.state.valid.position
@@ -139,19 +153,19 @@ impl Behavior for Takeoff {
                             "no position estimate".into()
                         }
                     });
-                    return Step::Failed(Failure::new(
+                    return Some(Step::Failed(Failure::new(
                         FailureCode::NotReady,
                         format!(
                             "vehicle not ready to fly after {:.0} s: {reason}",
                             ctx.config.ready_timeout_s
                         ),
-                    ));
+                    )));
                 }
                 self.phase = Phase::WaitReady { since: Some(since) };
-                return Step::Running {
+                return Some(Step::Running {
                     reference: None,
                     feedback: json!({ "waiting_for": "vehicle ready to fly" }),
-                };
+                });
             }
             self.capture_start(ctx);
             self.phase = Phase::Arming {
@@ -159,6 +173,12 @@ impl Behavior for Takeoff {
                 last_request: None,
             };
         }
+        None
+    }
+
+    /// Arms and enters offboard (or asks the autopilot's own takeoff), asking again every
+    /// [`REQUEST_PERIOD`], at most `arm_timeout_s`. `Some` while arming or failed.
+    fn arm(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) -> Option<Step> {
         let ground_hold = MotionReference::hold(
             Vec3::new(self.target.x, self.target.y, ctx.position().z),
             self.yaw_rad,
@@ -186,7 +206,9 @@ impl Behavior for Takeoff {
                             "no answer from the autopilot",
                         ),
                     };
-                    return Step::Failed(failure.within("could not arm and enter offboard"));
+                    return Some(Step::Failed(
+                        failure.within("could not arm and enter offboard"),
+                    ));
                 }
                 if last_request.is_none_or(|t| ctx.now.saturating_sub(t) >= REQUEST_PERIOD) {
                     if !ctx.platform.armed {
@@ -206,12 +228,18 @@ impl Behavior for Takeoff {
                     };
                 }
                 // Stream a setpoint where the vehicle sits: PX4 needs one before OFFBOARD.
-                return Step::Running {
+                return Some(Step::Running {
                     reference: Some(ground_hold),
                     feedback: self.feedback(ctx),
-                };
+                });
             }
         }
+        None
+    }
+
+    /// Climbs to the target height (on the autopilot's own takeoff while far below, unless it
+    /// stalled) until it holds there; fails on a disarm or without progress.
+    fn climb_to_height(&mut self, ctx: &BehaviorContext) -> Step {
         if !ctx.platform.armed {
             return Step::Failed(Failure::new(
                 FailureCode::AutopilotRefused,

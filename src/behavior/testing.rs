@@ -91,7 +91,6 @@ impl Scene {
             request_results: &self.request_results,
             services: &self.services,
             fleet: &self.fleet,
-            fleet_map: None,
         }
     }
 }

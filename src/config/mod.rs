@@ -318,7 +318,7 @@ impl Config {
 
     /// Every number within its bounds, every name and address well formed.
     fn validate(&self) -> Result<(), (String, String)> {
-        use bounds::{count, non_negative, positive, within};
+        use bounds::{count, within};
         if self.drone.id.is_empty() {
             return Err(("drone.id".into(), "must not be empty".into()));
         }
@@ -337,6 +337,20 @@ impl Config {
         self.validate_controller()?;
         vehicles::validate(&self.vehicles, &self.mavlink)?;
         self.fleet.validate(&self.drone_ids())?;
+        self.validate_behaviors()?;
+        self.validate_sim()?;
+        self.mavlink.validate()?;
+        self.validate_geofence()?;
+        self.validate_mission()?;
+        self.validate_api()?;
+        self.map.validate()?;
+        self.validate_safety()?;
+        Ok(())
+    }
+
+    /// `[behaviors]`: thresholds, limits and timeouts.
+    fn validate_behaviors(&self) -> Result<(), (String, String)> {
+        use bounds::positive;
         let b = &self.behaviors;
         positive("behaviors.goal_threshold_m", b.goal_threshold_m, 10.0, "m")?;
         positive(
@@ -366,6 +380,12 @@ impl Config {
         positive("behaviors.arm_timeout_s", b.arm_timeout_s, 600.0, "s")?;
         positive("behaviors.ready_timeout_s", b.ready_timeout_s, 3600.0, "s")?;
         positive("behaviors.hold_speed_mps", b.hold_speed_mps, 20.0, "m/s")?;
+        Ok(())
+    }
+
+    /// `[sim]`: wind, turbulence, the vehicle and its sensor.
+    fn validate_sim(&self) -> Result<(), (String, String)> {
+        use bounds::{non_negative, within};
         for (axis, w) in ["x", "y", "z"].iter().zip(self.sim.wind_enu_mps) {
             within(
                 &format!("sim.wind_enu_mps.{axis}"),
@@ -391,10 +411,14 @@ impl Config {
         if let Some(sensor) = &self.sim.sensor {
             sensor
                 .validate()
-                .map_err(|m| ("sim.sensor".to_string(), m))?;
+                .map_err(|e| ("sim.sensor".to_string(), e.to_string()))?;
         }
-        self.mavlink.validate()?;
-        self.validate_geofence()?;
+        Ok(())
+    }
+
+    /// `[mission]`: the hold between plans and the return home.
+    fn validate_mission(&self) -> Result<(), (String, String)> {
+        use bounds::{non_negative, positive, within};
         non_negative(
             "mission.switch_hold_s",
             self.mission.switch_hold_s,
@@ -414,6 +438,12 @@ impl Config {
             20.0,
             "m/s",
         )?;
+        Ok(())
+    }
+
+    /// `[api]`: the address and the bounds of what clients may send and hold.
+    fn validate_api(&self) -> Result<(), (String, String)> {
+        use bounds::{count, within};
         if self.api.listen.parse::<std::net::SocketAddr>().is_err() {
             return Err((
                 "api.listen".into(),
@@ -448,7 +478,12 @@ impl Config {
             false,
             "s",
         )?;
-        self.map.validate()?;
+        Ok(())
+    }
+
+    /// `[safety]`: separation and geofence margins.
+    fn validate_safety(&self) -> Result<(), (String, String)> {
+        use bounds::non_negative;
         non_negative(
             "safety.min_separation_m",
             self.safety.min_separation_m,

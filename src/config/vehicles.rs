@@ -141,7 +141,9 @@ pub fn validate(
             return Err((key("target_system"), "must be 1..=255".into()));
         }
         if let Some(sensor) = &v.sensor {
-            sensor.validate().map_err(|m| (key("sensor"), m))?;
+            sensor
+                .validate()
+                .map_err(|e| (key("sensor"), e.to_string()))?;
         }
         for c in v.origin_enu_m {
             crate::config::bounds::within(

@@ -10,6 +10,15 @@ use crate::sim::SimWorld;
 use crate::types::LinkHealth;
 use std::time::Duration;
 
+/// Why a fault could not be injected.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FaultError {
+    #[error("fault injection is only available in the simulator")]
+    NotSimulated,
+    #[error("no vehicle {0}")]
+    NoVehicle(usize),
+}
+
 /// What a host needs from its vehicles.
 pub trait Fleet: Send {
     fn len(&self) -> usize;
@@ -32,8 +41,8 @@ pub trait Fleet: Send {
         Vec::new()
     }
     /// Fault injection: cut (`true`) or restore a vehicle's link. Only the simulator can.
-    fn set_link_lost(&mut self, _i: usize, _lost: bool) -> Result<(), String> {
-        Err("fault injection is only available in the simulator".into())
+    fn set_link_lost(&mut self, _i: usize, _lost: bool) -> Result<(), FaultError> {
+        Err(FaultError::NotSimulated)
     }
     fn is_simulated(&self) -> bool {
         false
@@ -144,11 +153,8 @@ impl Fleet for SimFleet {
         }
         out
     }
-    fn set_link_lost(&mut self, i: usize, lost: bool) -> Result<(), String> {
-        let slot = self
-            .link_lost
-            .get_mut(i)
-            .ok_or_else(|| format!("no vehicle {i}"))?;
+    fn set_link_lost(&mut self, i: usize, lost: bool) -> Result<(), FaultError> {
+        let slot = self.link_lost.get_mut(i).ok_or(FaultError::NoVehicle(i))?;
         *slot = lost;
         Ok(())
     }

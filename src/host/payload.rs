@@ -8,8 +8,8 @@ use crate::behavior::{
     Behavior, BehaviorContext, BehaviorSpec, Failure, FailureCode, FramedPoint, Goal, Registry,
     Resource, Step,
 };
-use crate::types::PlatformRequest;
 use crate::types::{wrap_angle_rad, Vec3};
+use crate::types::{PlatformRequest, RequestRefused};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -102,7 +102,7 @@ const ACK_TIMEOUT: Duration = Duration::from_secs(5);
 fn ack_of(
     ctx: &BehaviorContext,
     is_kind: impl Fn(&PlatformRequest) -> bool,
-) -> Option<Result<(), String>> {
+) -> Option<Result<(), RequestRefused>> {
     ctx.request_results
         .iter()
         .rev()
@@ -291,7 +291,7 @@ mod tests {
     use crate::behavior::testing::Scene;
     use crate::types::RequestResult;
 
-    fn ack(request: PlatformRequest, outcome: Result<(), String>) -> Vec<RequestResult> {
+    fn ack(request: PlatformRequest, outcome: Result<(), RequestRefused>) -> Vec<RequestResult> {
         vec![RequestResult { request, outcome }]
     }
 

@@ -8,6 +8,7 @@
 use crate::mapping::scan::{self, CloudProjection, PinholeRow, RangeScan};
 /// The `KSC1` encoder and the most beams of a scan, for clients of the API (and its tests).
 pub use crate::mapping::scan::{encode_binary, MAX_BEAMS};
+use crate::mapping::MapError;
 use crate::mission::ValidationError;
 use nalgebra::Vector3;
 use serde::Deserialize;
@@ -281,6 +282,6 @@ pub fn to_scans(batch: &ScanBatch) -> Result<Vec<RangeScan>, Vec<ValidationError
 }
 
 /// A binary `KSC1` scan.
-pub fn decode_binary(bytes: &[u8]) -> Result<RangeScan, String> {
-    RangeScan::decode_binary(bytes).map_err(|e| e.to_string())
+pub fn decode_binary(bytes: &[u8]) -> Result<RangeScan, MapError> {
+    RangeScan::decode_binary(bytes)
 }

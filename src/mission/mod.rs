@@ -12,7 +12,7 @@ pub mod validate;
 
 pub use executor::{ActionError, MissionExecutor, Request};
 pub use model::{
-    Action, DoneResult, ExecState, ItemOptions, ItemResult, Mission, MissionItem, MissionStatus,
-    MissionUpdate, OnFailure, PlanItem, ValidMission,
+    Action, DoneResult, ExecState, ItemOptions, ItemResult, Mission, MissionEnded, MissionItem,
+    MissionStatus, MissionUpdate, OnFailure, PlanItem, ValidMission,
 };
 pub use validate::{ContextSnapshot, Limits, ValidationContext, ValidationError};

@@ -309,17 +309,28 @@ pub struct MissionStatus {
 
 impl MissionStatus {
     /// How mission `id` ended, once it has: `Ok` when it ran to its end without error.
-    pub fn outcome(&self, id: u32) -> Option<Result<(), String>> {
+    pub fn outcome(&self, id: u32) -> Option<Result<(), MissionEnded>> {
         if self.mission_id != Some(id) || self.state != ExecState::Idle {
             return None;
         }
         if let Some(e) = &self.last_error {
-            return Some(Err(e.clone()));
+            return Some(Err(MissionEnded::Failed(e.clone())));
         }
         if self.pending_items == 0 && self.done_items > 0 {
             Some(Ok(()))
         } else {
-            Some(Err(format!("mission {id} was stopped")))
+            Some(Err(MissionEnded::Stopped(id)))
         }
     }
+}
+
+/// How a mission that did not run to its end ended.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MissionEnded {
+    /// The error that ended it (the executor's last error), in its words.
+    #[error("{0}")]
+    Failed(String),
+    /// It was stopped before its end.
+    #[error("mission {0} was stopped")]
+    Stopped(u32),
 }

@@ -58,18 +58,7 @@ impl PathPlanner for GraphAStarPlanner {
         let pos = |i: usize| nodes.get(i).map(|n| n.position_enu_m);
         let goal_pos = pos(goal).ok_or(PlanError::GoalOutsideMap)?;
 
-        // Admissible scale: no edge is cheaper per metre than this.
-        let mut scale = 1.0f64;
-        for i in 0..nodes.len() {
-            for &(j, w) in graph.neighbors(i) {
-                if let (Some(a), Some(b)) = (pos(i), pos(j)) {
-                    let len = (a - b).norm();
-                    if len > 1e-9 {
-                        scale = scale.min(w / len);
-                    }
-                }
-            }
-        }
+        let scale = admissible_scale(graph);
         let h = |i: usize| pos(i).map_or(0.0, |p| (p - goal_pos).norm() * scale);
 
         let mut g = vec![f64::INFINITY; nodes.len()];
@@ -145,19 +134,7 @@ impl PathPlanner for GraphAStarPlanner {
         {
             waypoints_enu_m.push(goal_point);
         }
-        let field = map.field();
-        let spec = map.grid().spec();
-        let mut min_clearance = f64::from(field.max_distance_m());
-        let mut prev = req.start_enu_m.xy();
-        for p in &waypoints_enu_m {
-            crate::mapping::raycast::trace_segment(spec, prev, p.xy(), |i| {
-                if let Some(d) = field.distance_m(i) {
-                    min_clearance = min_clearance.min(f64::from(d));
-                }
-                true
-            });
-            prev = p.xy();
-        }
+        let min_clearance = min_clearance_m(map, &req.start_enu_m, &waypoints_enu_m);
         Ok(PlannedPath {
             length_m: polyline_length_m(&req.start_enu_m, &waypoints_enu_m),
             waypoints_enu_m,
@@ -166,6 +143,43 @@ impl PathPlanner for GraphAStarPlanner {
             min_clearance_m: min_clearance,
         })
     }
+}
+
+/// The heuristic's scale: no edge of `graph` is cheaper per metre than this (at most 1), so the
+/// scaled straight-line distance never overestimates.
+fn admissible_scale(graph: &crate::mapping::TopoGraph) -> f64 {
+    let nodes = graph.nodes();
+    let pos = |i: usize| nodes.get(i).map(|n| n.position_enu_m);
+    let mut scale = 1.0f64;
+    for i in 0..nodes.len() {
+        for &(j, w) in graph.neighbors(i) {
+            if let (Some(a), Some(b)) = (pos(i), pos(j)) {
+                let len = (a - b).norm();
+                if len > 1e-9 {
+                    scale = scale.min(w / len);
+                }
+            }
+        }
+    }
+    scale
+}
+
+/// The least distance to a mapped obstacle along the legs from `start` through `waypoints`.
+fn min_clearance_m(map: &PlanningMap, start: &Vector3<f64>, waypoints: &[Vector3<f64>]) -> f64 {
+    let field = map.field();
+    let spec = map.grid().spec();
+    let mut min_clearance = f64::from(field.max_distance_m());
+    let mut prev = start.xy();
+    for p in waypoints {
+        crate::mapping::raycast::trace_segment(spec, prev, p.xy(), |i| {
+            if let Some(d) = field.distance_m(i) {
+                min_clearance = min_clearance.min(f64::from(d));
+            }
+            true
+        });
+        prev = p.xy();
+    }
+    min_clearance
 }
 
 #[cfg(test)]

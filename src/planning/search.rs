@@ -257,52 +257,7 @@ pub(crate) fn jump_point_search(
     };
     let index = |x: i64, y: i64| (y * w + x) as usize;
 
-    // Straight jump from (x, y) along (dx, 0) or (0, dy).
-    let jump_straight = |mut x: i64, mut y: i64, dx: i64, dy: i64| -> Option<(i64, i64)> {
-        loop {
-            if !walkable(x, y) {
-                return None;
-            }
-            if (x, y) == (gx, gy) {
-                return Some((x, y));
-            }
-            let forced = if dx != 0 {
-                (walkable(x, y - 1) && !walkable(x - dx, y - 1))
-                    || (walkable(x, y + 1) && !walkable(x - dx, y + 1))
-            } else {
-                (walkable(x - 1, y) && !walkable(x - 1, y - dy))
-                    || (walkable(x + 1, y) && !walkable(x + 1, y - dy))
-            };
-            if forced {
-                return Some((x, y));
-            }
-            x += dx;
-            y += dy;
-        }
-    };
-    let jump = |mut x: i64, mut y: i64, dx: i64, dy: i64| -> Option<(i64, i64)> {
-        if dx == 0 || dy == 0 {
-            return jump_straight(x, y, dx, dy);
-        }
-        loop {
-            if !walkable(x, y) {
-                return None;
-            }
-            if (x, y) == (gx, gy) {
-                return Some((x, y));
-            }
-            if jump_straight(x + dx, y, dx, 0).is_some()
-                || jump_straight(x, y + dy, 0, dy).is_some()
-            {
-                return Some((x, y));
-            }
-            if !(walkable(x + dx, y) && walkable(x, y + dy)) {
-                return None;
-            }
-            x += dx;
-            y += dy;
-        }
-    };
+    let goal_xy = (gx, gy);
 
     let SearchScratch { nodes, heap, .. } = scratch;
     let Some(s) = nodes.get_mut(start) else {
@@ -344,70 +299,10 @@ pub(crate) fn jump_point_search(
         }
 
         let (x, y) = ((cur as i64) % w, (cur as i64) / w);
-        dirs.clear();
-        if cur == start {
-            for (dx, dy) in [(0, 1), (1, 0), (0, -1), (-1, 0)] {
-                dirs.push((dx, dy));
-            }
-            for (dx, dy) in [(1, 1), (1, -1), (-1, -1), (-1, 1)] {
-                if walkable(x + dx, y) && walkable(x, y + dy) {
-                    dirs.push((dx, dy));
-                }
-            }
-        } else {
-            let (px, py) = ((parent as i64) % w, (parent as i64) / w);
-            let (dx, dy) = ((x - px).signum(), (y - py).signum());
-            if dx != 0 && dy != 0 {
-                let (h_open, v_open) = (walkable(x + dx, y), walkable(x, y + dy));
-                if v_open {
-                    dirs.push((0, dy));
-                }
-                if h_open {
-                    dirs.push((dx, 0));
-                }
-                if h_open && v_open {
-                    dirs.push((dx, dy));
-                }
-            } else if dx != 0 {
-                let (next, up, down) =
-                    (walkable(x + dx, y), walkable(x, y + 1), walkable(x, y - 1));
-                if next {
-                    dirs.push((dx, 0));
-                    if up {
-                        dirs.push((dx, 1));
-                    }
-                    if down {
-                        dirs.push((dx, -1));
-                    }
-                }
-                if up {
-                    dirs.push((0, 1));
-                }
-                if down {
-                    dirs.push((0, -1));
-                }
-            } else {
-                let (next, right, left) =
-                    (walkable(x, y + dy), walkable(x + 1, y), walkable(x - 1, y));
-                if next {
-                    dirs.push((0, dy));
-                    if right {
-                        dirs.push((1, dy));
-                    }
-                    if left {
-                        dirs.push((-1, dy));
-                    }
-                }
-                if right {
-                    dirs.push((1, 0));
-                }
-                if left {
-                    dirs.push((-1, 0));
-                }
-            }
-        }
+        let from = (cur != start).then(|| ((parent as i64) % w, (parent as i64) / w));
+        pruned_directions(&walkable, (x, y), from, &mut dirs);
         for &(dx, dy) in &dirs {
-            let Some((jx, jy)) = jump(x + dx, y + dy, dx, dy) else {
+            let Some((jx, jy)) = jump(&walkable, goal_xy, (x + dx, y + dy), (dx, dy)) else {
                 continue;
             };
             let steps = (jx - x).unsigned_abs().max((jy - y).unsigned_abs());
@@ -433,6 +328,137 @@ pub(crate) fn jump_point_search(
         }
     }
     Err(PlanError::NoPath)
+}
+
+/// Straight jump from `at` along `(dx, 0)` or `(0, dy)`: the first cell that is the goal or has
+/// a forced neighbour, `None` at a blocked cell.
+fn jump_straight(
+    walkable: &impl Fn(i64, i64) -> bool,
+    goal: (i64, i64),
+    (mut x, mut y): (i64, i64),
+    (dx, dy): (i64, i64),
+) -> Option<(i64, i64)> {
+    loop {
+        if !walkable(x, y) {
+            return None;
+        }
+        if (x, y) == goal {
+            return Some((x, y));
+        }
+        let forced = if dx != 0 {
+            (walkable(x, y - 1) && !walkable(x - dx, y - 1))
+                || (walkable(x, y + 1) && !walkable(x - dx, y + 1))
+        } else {
+            (walkable(x - 1, y) && !walkable(x - 1, y - dy))
+                || (walkable(x + 1, y) && !walkable(x + 1, y - dy))
+        };
+        if forced {
+            return Some((x, y));
+        }
+        x += dx;
+        y += dy;
+    }
+}
+
+/// Jump from `at` along `step`: straight as [`jump_straight`]; diagonal until the goal, a cell
+/// from which a straight jump along either component finds a jump point, or a corner it may not
+/// cut.
+fn jump(
+    walkable: &impl Fn(i64, i64) -> bool,
+    goal: (i64, i64),
+    (mut x, mut y): (i64, i64),
+    (dx, dy): (i64, i64),
+) -> Option<(i64, i64)> {
+    if dx == 0 || dy == 0 {
+        return jump_straight(walkable, goal, (x, y), (dx, dy));
+    }
+    loop {
+        if !walkable(x, y) {
+            return None;
+        }
+        if (x, y) == goal {
+            return Some((x, y));
+        }
+        if jump_straight(walkable, goal, (x + dx, y), (dx, 0)).is_some()
+            || jump_straight(walkable, goal, (x, y + dy), (0, dy)).is_some()
+        {
+            return Some((x, y));
+        }
+        if !(walkable(x + dx, y) && walkable(x, y + dy)) {
+            return None;
+        }
+        x += dx;
+        y += dy;
+    }
+}
+
+/// The directions worth searching from `(x, y)`, reached from `from` (`None` at the start:
+/// every straight direction and every diagonal whose corners are open), into `dirs`.
+fn pruned_directions(
+    walkable: &impl Fn(i64, i64) -> bool,
+    (x, y): (i64, i64),
+    from: Option<(i64, i64)>,
+    dirs: &mut Vec<(i64, i64)>,
+) {
+    dirs.clear();
+    let Some((px, py)) = from else {
+        for (dx, dy) in [(0, 1), (1, 0), (0, -1), (-1, 0)] {
+            dirs.push((dx, dy));
+        }
+        for (dx, dy) in [(1, 1), (1, -1), (-1, -1), (-1, 1)] {
+            if walkable(x + dx, y) && walkable(x, y + dy) {
+                dirs.push((dx, dy));
+            }
+        }
+        return;
+    };
+    let (dx, dy) = ((x - px).signum(), (y - py).signum());
+    if dx != 0 && dy != 0 {
+        let (h_open, v_open) = (walkable(x + dx, y), walkable(x, y + dy));
+        if v_open {
+            dirs.push((0, dy));
+        }
+        if h_open {
+            dirs.push((dx, 0));
+        }
+        if h_open && v_open {
+            dirs.push((dx, dy));
+        }
+    } else if dx != 0 {
+        let (next, up, down) = (walkable(x + dx, y), walkable(x, y + 1), walkable(x, y - 1));
+        if next {
+            dirs.push((dx, 0));
+            if up {
+                dirs.push((dx, 1));
+            }
+            if down {
+                dirs.push((dx, -1));
+            }
+        }
+        if up {
+            dirs.push((0, 1));
+        }
+        if down {
+            dirs.push((0, -1));
+        }
+    } else {
+        let (next, right, left) = (walkable(x, y + dy), walkable(x + 1, y), walkable(x - 1, y));
+        if next {
+            dirs.push((0, dy));
+            if right {
+                dirs.push((1, dy));
+            }
+            if left {
+                dirs.push((-1, dy));
+            }
+        }
+        if right {
+            dirs.push((1, 0));
+        }
+        if left {
+            dirs.push((-1, 0));
+        }
+    }
 }
 
 /// Expands a chain of jump points (each pair on a straight or diagonal line) into every cell.

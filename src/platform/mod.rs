@@ -10,7 +10,7 @@ pub mod shifted;
 
 use crate::types::Setpoint;
 pub use crate::types::{
-    Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult,
+    Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestRefused, RequestResult,
 };
 use std::time::Duration;
 

@@ -11,7 +11,9 @@ use crate::types::{
     wrap_angle_rad, Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
 };
 use crate::types::{AcceptedSetpoints, Setpoint, YawTarget};
-use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult};
+use crate::types::{
+    Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestRefused, RequestResult,
+};
 use std::time::Duration;
 
 /// Offboard ends (and the vehicle holds) when no setpoint came for this long, as on PX4.
@@ -213,11 +215,11 @@ impl SimVehicle {
         }
     }
 
-    fn handle(&mut self, request: PlatformRequest) -> Result<(), String> {
+    fn handle(&mut self, request: PlatformRequest) -> Result<(), RequestRefused> {
         match request {
             PlatformRequest::Arm => {
                 if let Some(reason) = &self.crashed {
-                    return Err(format!("arming denied: {reason}"));
+                    return Err(RequestRefused(format!("arming denied: {reason}")));
                 }
                 if self.battery_fraction < 0.05 {
                     return Err("arming denied: battery empty".into());
@@ -326,7 +328,7 @@ impl Platform for SimVehicle {
         for &request in requests {
             let outcome = self.handle(request);
             if let Err(e) = &outcome {
-                self.last_error = Some(e.clone());
+                self.last_error = Some(e.to_string());
             }
             self.pending_results
                 .push(RequestResult { request, outcome });

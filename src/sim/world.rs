@@ -8,7 +8,7 @@
 //! ([`MAX_WORLD_BYTES`], [`MAX_SHAPES`]) and every number checked, the error naming the field.
 
 pub use super::shape::Shape;
-use crate::types::{GeoPoint, SensorConfig};
+use crate::types::{GeoPoint, SensorConfig, SensorError};
 use crate::types::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -103,8 +103,31 @@ pub enum WorldError {
         path: String,
         source: serde_json::Error,
     },
-    #[error("world file {path}: {message}")]
-    Invalid { path: String, message: String },
+    #[error("world file {path}: {rule}")]
+    Invalid { path: String, rule: WorldRule },
+}
+
+/// A number of a world file out of its range, or one obstacle too many; the words start with
+/// the field (`cylinders[2].radius_m`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorldRule {
+    #[error("bounds_m must have min < max on x and y")]
+    BoundsOrder,
+    #[error("{0} obstacles (poles_xy_m, cylinders, boxes), at most {MAX_SHAPES}")]
+    TooManyShapes(usize),
+    #[error("{field} must be finite and within {MAX_EXTENT_M} m, got {values:?}")]
+    Coordinates { field: String, values: Vec<f64> },
+    #[error(
+        "{field} must be {} and at most {MAX_EXTENT_M} m, got {value}",
+        if *zero_ok { "0 or more" } else { "above 0" }
+    )]
+    Size {
+        field: String,
+        value: f64,
+        zero_ok: bool,
+    },
+    #[error(transparent)]
+    Sensor(#[from] SensorError),
 }
 
 impl World {
@@ -159,40 +182,40 @@ impl World {
         })?;
         world
             .validate()
-            .map_err(|message| WorldError::Invalid { path: p, message })?;
+            .map_err(|rule| WorldError::Invalid { path: p, rule })?;
         Ok(world)
     }
 
     /// Every number finite and in range, at most [`MAX_SHAPES`] obstacles; the message starts
     /// with the field (`cylinders[2].radius_m`).
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), WorldRule> {
         let b = &self.bounds_m;
         if !(b.x[0] < b.x[1] && b.y[0] < b.y[1]) {
-            return Err("bounds_m must have min < max on x and y".into());
+            return Err(WorldRule::BoundsOrder);
         }
         let shapes = self.poles_xy_m.len() + self.cylinders.len() + self.boxes.len();
         if shapes > MAX_SHAPES {
-            return Err(format!(
-                "{shapes} obstacles (poles_xy_m, cylinders, boxes), at most {MAX_SHAPES}"
-            ));
+            return Err(WorldRule::TooManyShapes(shapes));
         }
         let coordinates = |field: &str, values: &[f64]| match values
             .iter()
             .all(|v| v.is_finite() && v.abs() <= MAX_EXTENT_M)
         {
             true => Ok(()),
-            false => Err(format!(
-                "{field} must be finite and within {MAX_EXTENT_M} m, got {values:?}"
-            )),
+            false => Err(WorldRule::Coordinates {
+                field: field.to_string(),
+                values: values.to_vec(),
+            }),
         };
         let size = |field: &str, value: f64, zero_ok: bool| {
             let above = if zero_ok { value >= 0.0 } else { value > 0.0 };
             match above && value <= MAX_EXTENT_M {
                 true => Ok(()),
-                false => Err(format!(
-                    "{field} must be {} and at most {MAX_EXTENT_M} m, got {value}",
-                    if zero_ok { "0 or more" } else { "above 0" }
-                )),
+                false => Err(WorldRule::Size {
+                    field: field.to_string(),
+                    value,
+                    zero_ok,
+                }),
             }
         };
         coordinates("bounds_m", &[b.x[0], b.x[1], b.y[0], b.y[1]])?;
@@ -219,7 +242,7 @@ impl World {
                 coordinates(&format!("starts_xy_yaw.{n}[{i}]"), s)?;
             }
         }
-        self.sensor.validate()
+        Ok(self.sensor.validate()?)
     }
 
     /// Start poses for `n` drones: the world's own list for that count, else spots on a 2 m
@@ -387,6 +410,7 @@ mod tests {
                 .unwrap()
                 .validate()
                 .unwrap_err()
+                .to_string()
         };
         let m = refusal(
             r#""cylinders": [{"xy_m": [1, 1], "radius_m": 1}, {"xy_m": [2, 2], "radius_m": -1}]"#,

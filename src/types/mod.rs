@@ -21,10 +21,12 @@ pub use fleet::{DroneView, FleetView};
 pub use geo::{GeoError, GeoPoint};
 pub use geometry::{wrap_angle_rad, Pose, Vec2, Vec3};
 pub use measurement::Measurement;
-pub use platform::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestResult};
+pub use platform::{
+    Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestRefused, RequestResult,
+};
 pub use scan::{Beam, RangeScan};
 pub use setpoint::{AcceptedSetpoints, PositionLoop, Setpoint, YawTarget};
-pub use simulated::{SensorConfig, DEFAULT_VEHICLE_RADIUS_M};
+pub use simulated::{SensorConfig, SensorError, DEFAULT_VEHICLE_RADIUS_M};
 pub use state::{
     Battery, EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Validity, VehicleState,
 };

@@ -97,5 +97,25 @@ impl PlatformEvent {
 pub struct RequestResult {
     pub request: PlatformRequest,
     /// `Err` carries the autopilot's own reason.
-    pub outcome: Result<(), String>,
+    pub outcome: Result<(), RequestRefused>,
+}
+
+/// Why the platform did not carry out a request, in words for an operator: the autopilot's own
+/// text where it gave one, else what went wrong on the way (no answer, the link lost, a newer
+/// request). Serialized as the words alone.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+#[serde(transparent)]
+#[error("{0}")]
+pub struct RequestRefused(pub String);
+
+impl From<String> for RequestRefused {
+    fn from(reason: String) -> Self {
+        Self(reason)
+    }
+}
+
+impl From<&str> for RequestRefused {
+    fn from(reason: &str) -> Self {
+        Self(reason.to_string())
+    }
 }

@@ -14,6 +14,19 @@ const MAX_BEAMS: u32 = 3600;
 const MAX_RANGE_M: f64 = 1000.0;
 const MAX_RATE_HZ: f64 = 1000.0;
 
+/// A simulated sensor's setting out of its range: the field, its bounds and unit, the value.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SensorError {
+    #[error("sensor.beams must be 1 to {MAX_BEAMS}, got {0}")]
+    Beams(u32),
+    #[error("sensor.range_max_m must be above 0 and at most {MAX_RANGE_M} m, got {0}")]
+    Range(f64),
+    #[error("sensor.rate_hz must be above 0 and at most {MAX_RATE_HZ} Hz, got {0}")]
+    Rate(f64),
+    #[error("sensor.noise_std_m must be 0 or more and at most {MAX_RANGE_M} m, got {0}")]
+    Noise(f64),
+}
+
 /// Which range sensor the simulated drones carry. Absent fields take the defaults of the
 /// kind, so `{"kind": "lidar360"}` is a complete sensor.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -98,7 +111,7 @@ impl SensorConfig {
 
     /// Checks ranges, rates and the beam count (each bounded: a sensor is cast every time it is
     /// due, on the control loop); the message names the field and unit.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SensorError> {
         let (range, rate, noise) = match *self {
             Self::Multiranger {
                 range_max_m,
@@ -112,28 +125,20 @@ impl SensorConfig {
                 beams,
             } => {
                 if !(1..=MAX_BEAMS).contains(&beams) {
-                    return Err(format!(
-                        "sensor.beams must be 1 to {MAX_BEAMS}, got {beams}"
-                    ));
+                    return Err(SensorError::Beams(beams));
                 }
                 (range_max_m, rate_hz, noise_std_m)
             }
             Self::None => return Ok(()),
         };
         if !(range > 0.0 && range <= MAX_RANGE_M) {
-            return Err(format!(
-                "sensor.range_max_m must be above 0 and at most {MAX_RANGE_M} m, got {range}"
-            ));
+            return Err(SensorError::Range(range));
         }
         if !(rate > 0.0 && rate <= MAX_RATE_HZ) {
-            return Err(format!(
-                "sensor.rate_hz must be above 0 and at most {MAX_RATE_HZ} Hz, got {rate}"
-            ));
+            return Err(SensorError::Rate(rate));
         }
         if !(0.0..=MAX_RANGE_M).contains(&noise) {
-            return Err(format!(
-                "sensor.noise_std_m must be 0 or more and at most {MAX_RANGE_M} m, got {noise}"
-            ));
+            return Err(SensorError::Noise(noise));
         }
         Ok(())
     }

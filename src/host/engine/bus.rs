@@ -13,8 +13,21 @@ use super::Host;
 use crate::fleet_bus::remote::{RemoteFleet, SilencePolicy};
 use crate::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
 use crate::mapping::merged::LayerRegion;
+use crate::mapping::MapError;
 use crate::mission::ExecState;
 use crate::types::Vec3;
+
+/// Why a peer's map region was not taken in.
+#[derive(Debug, thiserror::Error)]
+pub enum BusMapError {
+    /// The drone's state has not yet come from that node (a map can come first: the next
+    /// keyframe brings it again).
+    #[error("map of `{drone}` from node `{node}`, which does not fly it (yet)")]
+    NotItsDrone { drone: String, node: String },
+    /// The region does not fit this Kestrel's merged map.
+    #[error(transparent)]
+    Map(#[from] MapError),
+}
 
 impl Host {
     /// Joins a fleet bus: from now on remote drones are heard and this host's map regions kept
@@ -56,13 +69,13 @@ impl Host {
     }
 
     /// Takes in a region of a peer's drone's map layer.
-    pub fn apply_bus_map(&mut self, msg: MapMsg) -> Result<(), String> {
+    pub fn apply_bus_map(&mut self, msg: MapMsg) -> Result<(), BusMapError> {
         let h = &msg.header;
         if self.remote_node_of(&h.drone) != Some(h.node.as_str()) {
-            return Err(format!(
-                "map of `{}` from node `{}`, which does not fly it (yet)",
-                h.drone, h.node
-            ));
+            return Err(BusMapError::NotItsDrone {
+                drone: h.drone.clone(),
+                node: h.node.clone(),
+            });
         }
         let Some(map) = self.map.as_mut() else {
             return Ok(());
@@ -73,7 +86,7 @@ impl Host {
             region: msg.header.region,
             cells: msg.cells,
         };
-        map.apply_remote(&region).map_err(|e| e.to_string())
+        Ok(map.apply_remote(&region)?)
     }
 
     /// This host's drones as the bus carries them.

@@ -9,19 +9,21 @@
 mod bus;
 mod commands;
 mod explore;
+mod frames;
 mod maps;
+mod missions;
+mod tick;
 
 pub use super::map_view::MapView;
-pub use commands::{
-    Command, FrameRegistration, MissionView, Reply, Updated, Uploaded, ValidatedUpload, MAX_FRAMES,
-};
+pub use bus::BusMapError;
+pub use commands::{Command, Reply};
 pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
+pub use frames::{FrameRegistration, MAX_FRAMES};
+pub use missions::{MissionView, Updated, Uploaded, ValidatedUpload};
 
 use super::fleet::Fleet;
-use super::status::{link_word, BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use super::status::{BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::{Change, Sink};
-use crate::behavior::fleet::FleetInput;
-use crate::behavior::services::ServiceAnswer;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
@@ -40,7 +42,6 @@ use crate::sim::SimWorld;
 use crate::types::FleetView;
 use crate::types::LinkHealth;
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
@@ -385,176 +386,6 @@ impl Host {
         });
     }
 
-    /// One control tick at the host's own clock.
-    pub fn step(&mut self) {
-        let now = self.now;
-        self.step_at(now);
-        self.now = now + self.tick;
-    }
-
-    /// One control tick at `now` (real-time drivers pass the wall-clock time since start).
-    pub fn step_at(&mut self, now: Duration) {
-        self.now = now;
-        for answer in self.planner.collect() {
-            if let Some(core) = self.cores.get(answer.drone) {
-                core.deliver_plan(answer);
-            }
-        }
-        for a in self.frontiers.collect() {
-            if let Some(core) = self.cores.get(a.drone) {
-                core.deliver(a.ticket, ServiceAnswer::Explore(a.result), a.cancel);
-            }
-        }
-        // One snapshot of the fleet for every core this tick, as the last tick left it.
-        let remote = self.remote.iter().flat_map(|r| r.views(now));
-        self.fleet_view = Arc::new(FleetView {
-            drones: self
-                .cores
-                .iter()
-                .map(|c| c.fleet_entry(now))
-                .chain(remote)
-                .collect(),
-        });
-        let view = self.fleet_view.clone();
-        for i in 0..self.cores.len() {
-            let mut feedback = self.fleet.poll(i, now);
-            if let Some(scans) = self.api_scans.get_mut(i) {
-                feedback.scans.append(scans);
-            }
-            let Some(core) = self.cores.get_mut(i) else {
-                continue;
-            };
-            let fleet = FleetInput {
-                view: &view,
-                map: self.map.as_ref().map(FleetMap::merged),
-            };
-            let out = core.tick(now, &feedback, fleet);
-            self.fleet.command(i, now, out.setpoint, &out.requests);
-            for call in out.service_calls {
-                if let Some(job) = call.submit(i, &mut self.planner) {
-                    self.explore_jobs.push((i, job));
-                }
-            }
-            if let Some(map) = self.map.as_mut() {
-                merge_into(map, core, &feedback.scans);
-            }
-            // The mission item each behavior event belongs to: the one running when it happened.
-            let item = match (&self.log, self.executors.get(i)) {
-                (Some(_), Some(ex)) if !out.events.is_empty() => {
-                    let st = ex.status(core);
-                    (st.state != crate::mission::ExecState::Idle).then(|| {
-                        serde_json::json!({
-                            "mission_id": st.mission_id,
-                            "item_index": st.item_index,
-                            "item": st.current_item,
-                        })
-                    })
-                }
-                _ => None,
-            };
-            let mut alerts = Vec::new();
-            if let Some(ex) = self.executors.get_mut(i) {
-                if let Some(reason) = &out.takeover {
-                    ex.pilot_took_over(reason);
-                }
-                ex.update(now, core, &out.events);
-                alerts = ex.take_alerts();
-            }
-            if let Some(reason) = &out.takeover {
-                tracing::warn!(
-                    "{}: {reason}: Kestrel stopped commanding it",
-                    core.drone_id()
-                );
-                alerts.push(reason.clone());
-            }
-            let status = feedback.status;
-            if let Some(log) = self.log.as_mut() {
-                let state = core.vehicle_state();
-                let motion = core.server().motion().map(|(name, _)| name);
-                log.pose(now, &state, motion, out.setpoint.as_ref());
-                for e in &out.events {
-                    log.behavior(now, core.drone_id(), e, item.as_ref());
-                }
-            }
-            for e in out.events {
-                self.event(i, EventBody::Behavior(e));
-            }
-            for message in alerts {
-                if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-                    log.event(now, core.drone_id(), "mission", &message);
-                }
-                self.event(i, EventBody::Alert { message });
-            }
-            if let Some(o) = out.safety {
-                if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-                    log.event(now, core.drone_id(), "safety", &o.reason);
-                }
-                tracing::warn!("safety: {}", o.reason);
-                self.event(
-                    i,
-                    EventBody::Alert {
-                        message: format!("safety: {}", o.reason),
-                    },
-                );
-            }
-            for r in &feedback.request_results {
-                if let Err(reason) = &r.outcome {
-                    let request = serde_json::to_value(r.request)
-                        .ok()
-                        .and_then(|v| v.get("request").and_then(Value::as_str).map(str::to_string))
-                        .unwrap_or_default();
-                    self.event(
-                        i,
-                        EventBody::Autopilot {
-                            text: format!("{request} refused: {reason}"),
-                        },
-                    );
-                }
-            }
-            if self.modes.get(i) != Some(&status.mode) {
-                if let Some(m) = self.modes.get_mut(i) {
-                    m.clone_from(&status.mode);
-                }
-                self.event(
-                    i,
-                    EventBody::Alert {
-                        message: format!("mode {}", status.mode),
-                    },
-                );
-            }
-            if self.links.get(i) != Some(&status.link) {
-                if let Some(l) = self.links.get_mut(i) {
-                    *l = status.link;
-                }
-                self.event(
-                    i,
-                    EventBody::Alert {
-                        message: format!("link {}", link_word(status.link)),
-                    },
-                );
-            }
-            if status.last_error.is_some() && self.errors.get(i) != Some(&status.last_error) {
-                if let Some(text) = status.last_error.clone() {
-                    self.event(i, EventBody::Autopilot { text });
-                }
-                if let Some(e) = self.errors.get_mut(i) {
-                    e.clone_from(&status.last_error);
-                }
-            }
-        }
-        let jobs = std::mem::take(&mut self.explore_jobs);
-        self.frontiers.submit(now, jobs, self.map.as_mut());
-        self.record_exploration(now);
-        self.commit();
-        self.fleet.advance(now, self.tick);
-        for (i, message) in self.fleet.take_alerts() {
-            if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-                log.event(now, core.drone_id(), "collision", &message);
-            }
-            self.event(i, EventBody::Alert { message });
-        }
-    }
-
     /// The goals of drones other Kestrel processes fly, for this fleet's frontier allocator:
     /// (drone, goal, stamp on this host's clock, as [`Host::now`]); each replaces the last set.
     pub fn set_remote_claims(&mut self, claims: Vec<RemoteClaim>) {
@@ -583,23 +414,4 @@ fn known_pct(grid: &crate::mapping::grid::OccupancyGrid) -> f64 {
     let data = grid.data();
     let known = data.iter().filter(|&&v| v >= 0).count();
     100.0 * known as f64 / data.len().max(1) as f64
-}
-
-/// Brings a drone's new map data into the merged map: the cells its own map server changed this
-/// tick, copied (the scans are ray-cast once), or its scans ray-cast again when its grid is not on
-/// the merged spec (a drone configured with a map of its own).
-fn merge_into(map: &mut FleetMap, core: &DroneCore, scans: &[RangeScan]) {
-    let Some(own) = core.map() else {
-        map.insert_all(core.drone_id(), scans);
-        return;
-    };
-    if !map.same_spec(own.grid().spec()) {
-        map.insert_all(core.drone_id(), scans);
-        return;
-    }
-    if let Some(region) = own.last_changed() {
-        if let Err(e) = map.copy_from_drone(core.drone_id(), own.grid(), region) {
-            tracing::warn!("{}: merged map not updated: {e}", core.drone_id());
-        }
-    }
 }

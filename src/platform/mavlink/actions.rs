@@ -11,7 +11,7 @@ use super::profile::{
     AutopilotKind, GimbalProtocol, LandMethod, Mode, Profile, TakeoffAltitude, TakeoffMethod,
 };
 use super::setpoint::SetpointStreamer;
-use crate::types::PlatformRequest;
+use crate::types::{PlatformRequest, RequestRefused};
 use mavlink::dialects::ardupilotmega::{MavCmd, MavResult};
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -136,6 +136,100 @@ pub fn mode_of(request: PlatformRequest, profile: &Profile) -> Option<u32> {
     }
 }
 
+/// NAV_TAKEOFF once armed (and, on ArduPilot, in the offboard mode), to the height above home
+/// or its altitude AMSL as the profile says; then, on PX4, the takeoff mode confirmed.
+fn takeoff_steps(
+    height_m: f64,
+    profile: &Profile,
+    model: &VehicleModel,
+) -> Result<Vec<Step>, RequestRefused> {
+    let mut steps = Vec::new();
+    let offboard = profile.roles.offboard.clone();
+    if profile.takeoff != TakeoffMethod::NavTakeoff {
+        return Err(RequestRefused(format!(
+            "profile `{}` takes off on setpoints, not with NAV_TAKEOFF",
+            profile.name
+        )));
+    }
+    steps.push(Step::Await(
+        Condition::Armed(true),
+        profile.mode_confirm_timeout,
+    ));
+    if profile.autopilot == AutopilotKind::Ardupilot {
+        steps.push(Step::Await(
+            Condition::Mode(offboard),
+            profile.mode_confirm_timeout,
+        ));
+    }
+    let altitude = match profile.takeoff_altitude {
+        TakeoffAltitude::Relative => height_m,
+        TakeoffAltitude::Amsl => {
+            let home = model.home_amsl_m().ok_or_else(|| {
+                RequestRefused::from("takeoff needs the home altitude (HOME_POSITION) first")
+            })?;
+            home + height_m
+        }
+    };
+    steps.push(Step::Command {
+        what: "takeoff",
+        spec: spec(
+            MavCmd::MAV_CMD_NAV_TAKEOFF,
+            [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, altitude as f32],
+        ),
+        fallback: None,
+    });
+    if let (AutopilotKind::Px4, Some(m)) = (profile.autopilot, &profile.roles.takeoff) {
+        steps.push(Step::Await(
+            Condition::Mode(m.clone()),
+            profile.mode_confirm_timeout,
+        ));
+    }
+    Ok(steps)
+}
+
+/// The gimbal's pitch and yaw (FLU, rad) by the profile's protocol, with the legacy mount
+/// command as the fallback of the gimbal manager's.
+fn gimbal_step(pitch_rad: f64, yaw_rad: f64, profile: &Profile) -> Step {
+    // FLU angles (pitch positive nose-down, yaw counter-clockwise) to MAVLink's FRD
+    // degrees (pitch positive up, yaw clockwise).
+    let pitch_deg = (-pitch_rad).to_degrees() as f32;
+    let yaw_deg = (-yaw_rad).to_degrees() as f32;
+    #[allow(deprecated)] // the legacy mount command is the fallback ArduPilot knows
+    let mount = spec(
+        MavCmd::MAV_CMD_DO_MOUNT_CONTROL,
+        [
+            pitch_deg,
+            0.0,
+            yaw_deg,
+            0.0,
+            0.0,
+            0.0,
+            MOUNT_MODE_MAVLINK_TARGETING,
+        ],
+    );
+    let manager = spec(
+        MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+        [
+            pitch_deg,
+            yaw_deg,
+            f32::NAN,
+            f32::NAN,
+            GIMBAL_YAW_IN_VEHICLE_FRAME,
+            0.0,
+            0.0,
+        ],
+    );
+    let (first, fallback) = match profile.gimbal {
+        GimbalProtocol::ManagerV2 => (manager, Some(mount)),
+        GimbalProtocol::MountControl => (mount, None),
+    };
+    Step::Command {
+        what: "pointing the gimbal",
+        spec: first,
+        fallback,
+    }
+}
+
 impl Action {
     /// Plans a request; `Err` when this profile cannot do it at all.
     pub fn plan(
@@ -143,7 +237,7 @@ impl Action {
         request: PlatformRequest,
         profile: &Profile,
         model: &VehicleModel,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, RequestRefused> {
         let mut steps = VecDeque::new();
         let offboard = profile.roles.offboard.clone();
         match request {
@@ -182,45 +276,7 @@ impl Action {
                 steps.push_back(Step::SetMode(offboard));
             }
             PlatformRequest::Takeoff { height_m } => {
-                if profile.takeoff != TakeoffMethod::NavTakeoff {
-                    return Err(format!(
-                        "profile `{}` takes off on setpoints, not with NAV_TAKEOFF",
-                        profile.name
-                    ));
-                }
-                steps.push_back(Step::Await(
-                    Condition::Armed(true),
-                    profile.mode_confirm_timeout,
-                ));
-                if profile.autopilot == AutopilotKind::Ardupilot {
-                    steps.push_back(Step::Await(
-                        Condition::Mode(offboard),
-                        profile.mode_confirm_timeout,
-                    ));
-                }
-                let altitude = match profile.takeoff_altitude {
-                    TakeoffAltitude::Relative => height_m,
-                    TakeoffAltitude::Amsl => {
-                        let home = model.home_amsl_m().ok_or_else(|| {
-                            "takeoff needs the home altitude (HOME_POSITION) first".to_string()
-                        })?;
-                        home + height_m
-                    }
-                };
-                steps.push_back(Step::Command {
-                    what: "takeoff",
-                    spec: spec(
-                        MavCmd::MAV_CMD_NAV_TAKEOFF,
-                        [0.0, 0.0, 0.0, f32::NAN, f32::NAN, f32::NAN, altitude as f32],
-                    ),
-                    fallback: None,
-                });
-                if let (AutopilotKind::Px4, Some(m)) = (profile.autopilot, &profile.roles.takeoff) {
-                    steps.push_back(Step::Await(
-                        Condition::Mode(m.clone()),
-                        profile.mode_confirm_timeout,
-                    ));
-                }
+                steps.extend(takeoff_steps(height_m, profile, model)?);
             }
             PlatformRequest::Land => match profile.land {
                 LandMethod::Mode | LandMethod::Setpoints => {
@@ -242,44 +298,7 @@ impl Action {
                 }
             },
             PlatformRequest::PointGimbal { pitch_rad, yaw_rad } => {
-                // FLU angles (pitch positive nose-down, yaw counter-clockwise) to MAVLink's FRD
-                // degrees (pitch positive up, yaw clockwise).
-                let pitch_deg = (-pitch_rad).to_degrees() as f32;
-                let yaw_deg = (-yaw_rad).to_degrees() as f32;
-                #[allow(deprecated)] // the legacy mount command is the fallback ArduPilot knows
-                let mount = spec(
-                    MavCmd::MAV_CMD_DO_MOUNT_CONTROL,
-                    [
-                        pitch_deg,
-                        0.0,
-                        yaw_deg,
-                        0.0,
-                        0.0,
-                        0.0,
-                        MOUNT_MODE_MAVLINK_TARGETING,
-                    ],
-                );
-                let manager = spec(
-                    MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
-                    [
-                        pitch_deg,
-                        yaw_deg,
-                        f32::NAN,
-                        f32::NAN,
-                        GIMBAL_YAW_IN_VEHICLE_FRAME,
-                        0.0,
-                        0.0,
-                    ],
-                );
-                let (first, fallback) = match profile.gimbal {
-                    GimbalProtocol::ManagerV2 => (manager, Some(mount)),
-                    GimbalProtocol::MountControl => (mount, None),
-                };
-                steps.push_back(Step::Command {
-                    what: "pointing the gimbal",
-                    spec: first,
-                    fallback,
-                });
+                steps.push_back(gimbal_step(pitch_rad, yaw_rad, profile));
             }
             PlatformRequest::TakePhoto => {
                 steps.push_back(Step::Command {
@@ -324,12 +343,12 @@ impl Action {
     }
 
     /// Advances; `Some` when finished.
-    pub fn tick(&mut self, ctx: &mut Ctx) -> Option<Result<(), String>> {
+    pub fn tick(&mut self, ctx: &mut Ctx) -> Option<Result<(), RequestRefused>> {
         // A few steps can complete in one tick (skipped mode changes, satisfied conditions).
         for _ in 0..8 {
             match self.advance(ctx) {
                 Advance::Wait => return None,
-                Advance::Fail(e) => return Some(Err(e)),
+                Advance::Fail(e) => return Some(Err(RequestRefused(e))),
                 Advance::Next => {
                     self.steps.pop_front();
                     self.running = Running::Idle;
@@ -358,7 +377,9 @@ impl Action {
                 Err(reason) if waited >= ctx.profile.ready_timeout => Advance::Fail(format!(
                     "the autopilot is not ready after {:.0} s: {}",
                     waited.as_secs_f64(),
-                    ctx.model.last_problem().unwrap_or(reason)
+                    ctx.model
+                        .last_problem()
+                        .unwrap_or_else(|| reason.to_string())
                 )),
                 Err(_) => {
                     self.running = Running::Waiting { since };
@@ -418,6 +439,7 @@ impl Action {
                     outcome
                         .into_result(&format!("switching to {}", mode.name))
                         .err()
+                        .map(|e| e.0)
                         .unwrap_or_default(),
                 ),
             },
@@ -457,7 +479,13 @@ impl Action {
                     };
                     Advance::Wait
                 }
-                Some(outcome) => Advance::Fail(outcome.into_result(what).err().unwrap_or_default()),
+                Some(outcome) => Advance::Fail(
+                    outcome
+                        .into_result(what)
+                        .err()
+                        .map(|e| e.0)
+                        .unwrap_or_default(),
+                ),
             },
             _ => {
                 self.running = Running::Commanding {
@@ -527,7 +555,11 @@ mod tests {
                 profile,
             }
         }
-        fn tick(&mut self, a: &mut Action, now: Duration) -> (Option<Result<(), String>>, usize) {
+        fn tick(
+            &mut self,
+            a: &mut Action,
+            now: Duration,
+        ) -> (Option<Result<(), RequestRefused>>, usize) {
             let mut ctx = Ctx {
                 now,
                 profile: &self.profile,
@@ -584,7 +616,7 @@ mod tests {
         );
         w.tick(&mut a, MS(20));
         w.heartbeat(MS(2000), 0x0304_0000, true);
-        let r = w.tick(&mut a, MS(3100)).0.unwrap().unwrap_err();
+        let r = w.tick(&mut a, MS(3100)).0.unwrap().unwrap_err().to_string();
         assert!(
             r.contains("did not switch to AUTO.LAND (HEARTBEAT shows AUTO.LOITER)"),
             "{r}"
@@ -631,7 +663,12 @@ mod tests {
         for t in (1000..31_000).step_by(1000) {
             w.heartbeat(MS(t), 0x0304_0000, false);
         }
-        let r = w.tick(&mut a, MS(30_500)).0.unwrap().unwrap_err();
+        let r = w
+            .tick(&mut a, MS(30_500))
+            .0
+            .unwrap()
+            .unwrap_err()
+            .to_string();
         assert!(r.contains("Resolve system health failures"), "{r}");
     }
 }

@@ -7,6 +7,7 @@
 //! At most one command of each id is in flight, as MAVLink acks are matched by command id.
 
 use super::events::AutopilotText;
+use crate::types::RequestRefused;
 use mavlink::dialects::ardupilotmega::{MavCmd, MavResult, COMMAND_ACK_DATA, COMMAND_LONG_DATA};
 use std::time::Duration;
 
@@ -42,22 +43,23 @@ pub enum CommandOutcome {
 
 impl CommandOutcome {
     /// `Ok` for ACCEPTED, else the reason in words.
-    pub fn into_result(self, what: &str) -> Result<(), String> {
-        match self {
-            Self::Accepted => Ok(()),
+    pub fn into_result(self, what: &str) -> Result<(), RequestRefused> {
+        let reason = match self {
+            Self::Accepted => return Ok(()),
             Self::Rejected {
                 result,
                 reason: Some(r),
-            } => Err(format!("{what} refused ({}): {r}", result_name(result))),
+            } => format!("{what} refused ({}): {r}", result_name(result)),
             Self::Rejected {
                 result,
                 reason: None,
-            } => Err(format!("{what} refused: {}", result_name(result))),
-            Self::TimedOut { attempts } => Err(format!(
-                "{what}: no answer from the autopilot after {attempts} attempts"
-            )),
-            Self::LinkLost => Err(format!("{what}: link to the autopilot lost")),
-        }
+            } => format!("{what} refused: {}", result_name(result)),
+            Self::TimedOut { attempts } => {
+                format!("{what}: no answer from the autopilot after {attempts} attempts")
+            }
+            Self::LinkLost => format!("{what}: link to the autopilot lost"),
+        };
+        Err(RequestRefused(reason))
     }
 }
 
@@ -350,7 +352,7 @@ mod tests {
         assert_eq!(t.take_outcome(id), None, "waits for the reason");
         t.poll(MS(400), 1);
         let outcome = t.take_outcome(id).unwrap();
-        let msg = outcome.into_result("arming").unwrap_err();
+        let msg = outcome.into_result("arming").unwrap_err().to_string();
         assert_eq!(
             msg,
             "arming refused (failed): Arm: Need Position Estimate; PreArm: GPS not healthy"

@@ -74,7 +74,8 @@ impl MavlinkSection {
             address("mavlink.forward", f)?;
         }
         for p in &self.allowed_peers {
-            PeerPattern::parse(p).map_err(|e| ("mavlink.allowed_peers".to_string(), e))?;
+            PeerPattern::parse(p)
+                .map_err(|e| ("mavlink.allowed_peers".to_string(), e.to_string()))?;
         }
         if self.on_link_regained.is_some() {
             return Err((

@@ -17,6 +17,7 @@ use crate::types::PlatformStatus;
 use crate::types::RangeScan;
 use crate::types::Setpoint;
 use mavlink::dialects::ardupilotmega::MavMessage;
+use mavlink::error::MessageWriteError;
 use mavlink::{AsyncMavConnection, MAVLinkMessageRaw, MavHeader, MavlinkVersion, Message};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -127,12 +128,12 @@ async fn read_loop(
     }
 }
 
-async fn write(conn: &Connection, out: Outbound) -> Result<(), String> {
+async fn write(conn: &Connection, out: Outbound) -> Result<(), MessageWriteError> {
     let r = match out {
         Outbound::Message(header, msg) => conn.send(&header, &msg).await,
         Outbound::Raw(raw) => conn.send_raw(&raw).await,
     };
-    r.map(|_| ()).map_err(|e| format!("write: {e}"))
+    r.map(|_| ())
 }
 
 /// Keeps a connection to the autopilot open for as long as the session runs.
@@ -171,7 +172,7 @@ pub async fn connection_task(
                     }
                     Some(o) => {
                         if let Err(e) = write(&conn, o).await {
-                            break e;
+                            break format!("write: {e}");
                         }
                     }
                 },

@@ -21,6 +21,11 @@ use std::time::Duration;
 /// How long the pinned peer must be silent before another address may be pinned.
 pub const PEER_SILENCE: Duration = Duration::from_secs(3);
 
+/// A peer pattern that is neither an IP address nor `IP:port` (the text given).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("`{0}` is neither an IP address nor IP:port")]
+pub struct BadPeer(pub String);
+
 /// An address allowed to be the peer: a host (any port) or one exact `IP:port`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PeerPattern {
@@ -30,13 +35,13 @@ pub enum PeerPattern {
 
 impl PeerPattern {
     /// `"192.168.1.5"` (any port) or `"192.168.1.5:14580"`.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, BadPeer> {
         if let Ok(a) = s.parse::<SocketAddr>() {
             return Ok(Self::Exact(a));
         }
         s.parse::<IpAddr>()
             .map(Self::Host)
-            .map_err(|_| format!("`{s}` is neither an IP address nor IP:port"))
+            .map_err(|_| BadPeer(s.to_string()))
     }
 
     fn matches(&self, from: SocketAddr) -> bool {

@@ -386,42 +386,7 @@ fn mode_value(kind: AutopilotKind, name: &str, raw: RawMode) -> Result<u32, Inva
 
 fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
     let PlatformKey::Mavlink = raw.platform;
-    let mut modes = Vec::with_capacity(raw.modes.len());
-    for (name, m) in &raw.modes {
-        modes.push(Mode {
-            name: name.clone(),
-            custom_mode: mode_value(raw.autopilot, name, *m)?,
-        });
-    }
-    let find = |role: &str, name: &str| -> Result<Mode, Invalid> {
-        modes
-            .iter()
-            .find(|m| m.name == name)
-            .cloned()
-            .ok_or_else(|| {
-                (
-                    format!("roles.{role}"),
-                    format!("no mode `{name}` in [modes]"),
-                )
-            })
-    };
-    let roles = Roles {
-        offboard: find("offboard", &raw.roles.offboard)?,
-        land: find("land", &raw.roles.land)?,
-        hold: find("hold", &raw.roles.hold)?,
-        rtl: raw
-            .roles
-            .rtl
-            .as_deref()
-            .map(|n| find("rtl", n))
-            .transpose()?,
-        takeoff: raw
-            .roles
-            .takeoff
-            .as_deref()
-            .map(|n| find("takeoff", n))
-            .transpose()?,
-    };
+    let (modes, roles) = modes_and_roles(&raw)?;
     if !(raw.setpoint_rate_hz.is_finite() && (2.0..=200.0).contains(&raw.setpoint_rate_hz)) {
         return Err((
             "setpoint_rate_hz".into(),
@@ -443,16 +408,7 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
                 .into(),
         ));
     }
-    let mut message_intervals = Vec::with_capacity(raw.message_intervals_hz.len());
-    for (name, hz) in &raw.message_intervals_hz {
-        let field = format!("message_intervals_hz.{name}");
-        let id = MavMessage::message_id_from_name(name)
-            .ok_or_else(|| (field.clone(), "no such MAVLink message".to_string()))?;
-        if !(hz.is_finite() && *hz > 0.0 && *hz <= 500.0) {
-            return Err((field, format!("must be within 0..=500 Hz, got {hz}")));
-        }
-        message_intervals.push((id, *hz));
-    }
+    let message_intervals = message_intervals(&raw)?;
     if raw.takeoff == TakeoffMethod::NavTakeoff
         && raw.autopilot == AutopilotKind::Px4
         && roles.takeoff.is_none()
@@ -510,6 +466,62 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
         position_loop,
         velocity_lag: seconds("drive.velocity_lag_s", raw.drive.velocity_lag_s, 0.0, 5.0)?,
     })
+}
+
+/// The profile's modes with their numbers, and the mode each role names.
+fn modes_and_roles(raw: &RawProfile) -> Result<(Vec<Mode>, Roles), Invalid> {
+    let mut modes = Vec::with_capacity(raw.modes.len());
+    for (name, m) in &raw.modes {
+        modes.push(Mode {
+            name: name.clone(),
+            custom_mode: mode_value(raw.autopilot, name, *m)?,
+        });
+    }
+    let find = |role: &str, name: &str| -> Result<Mode, Invalid> {
+        modes
+            .iter()
+            .find(|m| m.name == name)
+            .cloned()
+            .ok_or_else(|| {
+                (
+                    format!("roles.{role}"),
+                    format!("no mode `{name}` in [modes]"),
+                )
+            })
+    };
+    let roles = Roles {
+        offboard: find("offboard", &raw.roles.offboard)?,
+        land: find("land", &raw.roles.land)?,
+        hold: find("hold", &raw.roles.hold)?,
+        rtl: raw
+            .roles
+            .rtl
+            .as_deref()
+            .map(|n| find("rtl", n))
+            .transpose()?,
+        takeoff: raw
+            .roles
+            .takeoff
+            .as_deref()
+            .map(|n| find("takeoff", n))
+            .transpose()?,
+    };
+    Ok((modes, roles))
+}
+
+/// The messages asked of the autopilot, by id, with their rates (0..=500 Hz).
+fn message_intervals(raw: &RawProfile) -> Result<Vec<(u32, f64)>, Invalid> {
+    let mut message_intervals = Vec::with_capacity(raw.message_intervals_hz.len());
+    for (name, hz) in &raw.message_intervals_hz {
+        let field = format!("message_intervals_hz.{name}");
+        let id = MavMessage::message_id_from_name(name)
+            .ok_or_else(|| (field.clone(), "no such MAVLink message".to_string()))?;
+        if !(hz.is_finite() && *hz > 0.0 && *hz <= 500.0) {
+            return Err((field, format!("must be within 0..=500 Hz, got {hz}")));
+        }
+        message_intervals.push((id, *hz));
+    }
+    Ok(message_intervals)
 }
 
 fn gain(field: &str, v: f64) -> Result<f64, Invalid> {

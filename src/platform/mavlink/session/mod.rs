@@ -13,11 +13,13 @@
 //! progress and sends no setpoint until the core asks for control again (arm, offboard, takeoff
 //! or land: an operator's new order), so nothing Kestrel sends can fight the pilot.
 
-use super::actions::{self, Action, Ctx, Origin};
-use super::commands::{CommandId, CommandOutcome, CommandSpec, CommandTracker};
-use super::legacy;
+mod requests;
+mod setup;
+
+use super::actions::{self, Action};
+use super::commands::{CommandId, CommandTracker};
 use super::model::{ModelEvent, VehicleModel};
-use super::profile::{IntervalFallback, LandMethod, Profile, TakeoffMethod};
+use super::profile::{LandMethod, Profile, TakeoffMethod};
 use super::setpoint::{self, SetpointStreamer};
 use super::statustext::{Outbox, StatusText};
 use super::takeover::{ControlWatch, ModeReport, Takeover, WatchedModes};
@@ -28,17 +30,13 @@ use crate::types::GeoPoint;
 use crate::types::LinkHealth;
 use crate::types::{AcceptedSetpoints, Setpoint};
 use mavlink::dialects::ardupilotmega::{
-    MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType, HEARTBEAT_DATA,
+    MavAutopilot, MavMessage, MavModeFlag, MavState, MavType, HEARTBEAT_DATA,
 };
 use mavlink::MavHeader;
 use serde::Serialize;
-use std::mem::discriminant;
 use std::time::Duration;
 
 const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
-/// SET_GPS_GLOBAL_ORIGIN is re-sent at this period until GPS_GLOBAL_ORIGIN confirms it.
-const ORIGIN_PERIOD: Duration = Duration::from_secs(2);
-const ORIGIN_ATTEMPTS: u8 = 10;
 const SILENCE_REPORT_PERIOD: Duration = Duration::from_secs(5);
 /// The behavior `land` repeats [`PlatformRequest::LandOnSetpoints`] every tick: a landing not
 /// heard of for this long has ended (stopped, or another behavior flies).
@@ -398,201 +396,6 @@ impl Session {
         }
     }
 
-    fn request(&mut self, now: Duration, request: PlatformRequest) {
-        if request == PlatformRequest::LandOnSetpoints {
-            self.landing_on_setpoints_at = Some(now);
-            return;
-        }
-        if let Some(mode) = actions::mode_of(request, &self.profile) {
-            self.watch.commanded(mode);
-        }
-        match request {
-            PlatformRequest::Arm => self.watch.arming_requested(true),
-            PlatformRequest::Disarm => self.watch.arming_requested(false),
-            _ => {}
-        }
-        let done = match request {
-            PlatformRequest::Arm => self.model.armed(),
-            PlatformRequest::Disarm => !self.model.armed(),
-            PlatformRequest::StartOffboard => self.model.offboard(),
-            _ => false,
-        };
-        let same = |a: &Action| {
-            a.request()
-                .is_some_and(|r| discriminant(&r) == discriminant(&request))
-        };
-        if self.actions.iter().any(same) {
-            if !matches!(request, PlatformRequest::PointGimbal { .. }) {
-                return; // already in progress (behaviors repeat their requests)
-            }
-            self.cancel(same, "replaced by a newer gimbal request");
-        }
-        if done {
-            self.results.push(RequestResult {
-                request,
-                outcome: Ok(()),
-            });
-            return;
-        }
-        match request {
-            PlatformRequest::Land | PlatformRequest::Disarm => self.cancel(
-                |a| {
-                    matches!(
-                        a.request(),
-                        Some(
-                            PlatformRequest::Arm
-                                | PlatformRequest::StartOffboard
-                                | PlatformRequest::Takeoff { .. }
-                        )
-                    )
-                },
-                "superseded by a landing or disarm request",
-            ),
-            PlatformRequest::Arm => self.cancel(
-                |a| a.request() == Some(PlatformRequest::Disarm),
-                "superseded by an arm request",
-            ),
-            _ => {}
-        }
-        if self.model.link(now) != LinkHealth::Ok {
-            self.finish(
-                Origin::Request(request),
-                Err("no link to the autopilot".into()),
-            );
-            return;
-        }
-        match Action::plan(
-            Origin::Request(request),
-            request,
-            &self.profile,
-            &self.model,
-        ) {
-            Ok(a) => self.actions.push(a),
-            Err(e) => self.finish(Origin::Request(request), Err(e)),
-        }
-    }
-
-    fn cancel(&mut self, which: impl Fn(&Action) -> bool, why: &str) {
-        let (cancelled, kept): (Vec<_>, Vec<_>) = self.actions.drain(..).partition(|a| which(a));
-        self.actions = kept;
-        for a in cancelled {
-            a.abandon(&mut self.tracker);
-            self.finish(a.origin, Err(why.to_string()));
-        }
-    }
-
-    fn fail_all(&mut self, why: &str) {
-        self.tracker.fail_all();
-        self.cancel(|_| true, why);
-        self.stream_setup.clear();
-    }
-
-    fn finish(&mut self, origin: Origin, outcome: Result<(), String>) {
-        if let Err(e) = &outcome {
-            tracing::debug!(target: "mavlink", "{origin:?}: {e}");
-            self.model.set_error(e.clone());
-        }
-        let Origin::Request(request) = origin;
-        self.results.push(RequestResult { request, outcome });
-    }
-
-    fn run_actions(&mut self, now: Duration) {
-        let mut finished = Vec::new();
-        let mut ctx = Ctx {
-            now,
-            profile: &self.profile,
-            model: &self.model,
-            tracker: &mut self.tracker,
-            streamer: &self.streamer,
-        };
-        self.actions.retain_mut(|a| match a.tick(&mut ctx) {
-            Some(outcome) => {
-                finished.push((a.origin, outcome));
-                false
-            }
-            None => true,
-        });
-        for (origin, outcome) in finished {
-            self.finish(origin, outcome);
-        }
-    }
-
-    /// Asks for the profile's message rates and sends the EKF origin: on first contact, after a
-    /// reboot and after a link loss (ArduPilot's rates are per link and not saved).
-    fn configure(&mut self, now: Duration) {
-        self.stream_setup.clear();
-        self.stream_fallback_needed = false;
-        let intervals = self.profile.message_intervals.clone();
-        for (id, hz) in intervals {
-            let spec = CommandSpec {
-                command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-                params: [id as f32, (1e6 / hz) as f32, 0.0, 0.0, 0.0, 0.0, 0.0],
-                target_component: 1,
-            };
-            self.stream_setup.push(self.tracker.submit(spec));
-        }
-        if self.config.ekf_origin.is_some() {
-            self.origin_attempts = 0;
-            self.next_origin_at = Some(now);
-        }
-    }
-
-    fn check_stream_setup(&mut self) {
-        let mut remaining = Vec::new();
-        for id in std::mem::take(&mut self.stream_setup) {
-            match self.tracker.take_outcome(id) {
-                None => remaining.push(id),
-                Some(CommandOutcome::Accepted) => {}
-                Some(CommandOutcome::Rejected {
-                    result: MavResult::MAV_RESULT_UNSUPPORTED,
-                    ..
-                })
-                | Some(CommandOutcome::TimedOut { .. }) => self.stream_fallback_needed = true,
-                Some(other) => {
-                    tracing::warn!(target: "mavlink", "message interval: {:?}", other);
-                }
-            }
-        }
-        self.stream_setup = remaining;
-        let fallback =
-            self.profile.message_interval_fallback == IntervalFallback::RequestDataStream;
-        if self.stream_setup.is_empty()
-            && std::mem::take(&mut self.stream_fallback_needed)
-            && fallback
-        {
-            let rate = self
-                .profile
-                .message_intervals
-                .iter()
-                .map(|(_, hz)| *hz)
-                .fold(1.0_f64, f64::max);
-            if let Some((system, component)) = self.model.autopilot() {
-                tracing::info!(target: "mavlink", "SET_MESSAGE_INTERVAL refused: REQUEST_DATA_STREAM at {rate} Hz");
-                let rate_hz = rate.round().clamp(1.0, f64::from(u16::MAX)) as u16;
-                self.push(legacy::request_all_streams(system, component, rate_hz));
-            }
-        }
-    }
-
-    fn send_origin(&mut self, now: Duration) {
-        let (Some(origin), Some(at)) = (self.config.ekf_origin, self.next_origin_at) else {
-            return;
-        };
-        if self.model.origin_seen() || self.origin_attempts >= ORIGIN_ATTEMPTS {
-            self.next_origin_at = None;
-            return;
-        }
-        if now < at {
-            return;
-        }
-        let Some((system, _)) = self.model.autopilot() else {
-            return;
-        };
-        self.origin_attempts += 1;
-        self.next_origin_at = Some(now + ORIGIN_PERIOD);
-        self.push(legacy::set_gps_global_origin(system, &origin));
-    }
-
     /// The link is back: the platform does nothing by itself. The mission executor decides
     /// (`[mission] on_link_regained`), and a behavior it starts asks for offboard again.
     fn link_regained(&mut self) {
@@ -620,6 +423,7 @@ mod tests {
     use crate::types::Vec3;
     use crate::types::YawTarget;
     use mavlink::dialects::ardupilotmega::COMMAND_ACK_DATA;
+    use mavlink::dialects::ardupilotmega::{MavCmd, MavResult};
     use mavlink::Message;
 
     const MS: fn(u64) -> Duration = Duration::from_millis;
