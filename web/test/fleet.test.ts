@@ -59,6 +59,15 @@ describe('status reduction', () => {
     expect(s.serverT).toBe(1.4);
   });
 
+  it('telemetry without a position leaves no trail point until one comes', () => {
+    const s = newInstanceState();
+    const none = { has_position: false, position_enu_m: null, yaw_rad: null, velocity_enu_mps: null };
+    applyMessage(s, { type: 'telemetry', t: 1, drones: [drone('drone_0', { link: 'connecting', ...none })] }, 1000);
+    expect(s.drones.get('drone_0')!.trail).toEqual([]);
+    applyMessage(s, { type: 'telemetry', t: 2, drones: [drone('drone_0', { has_position: true, position_enu_m: [3, 4, 0] })] }, 2000);
+    expect(s.drones.get('drone_0')!.trail.map((p) => [p.x, p.y])).toEqual([[3, 4]]);
+  });
+
   it('mission_status is kept apart from telemetry, which has no mission', () => {
     const s = newInstanceState();
     applyMessage(s, { type: 'mission_status', drone: 'drone_1', status: status() }, 0);
