@@ -8,6 +8,7 @@ import {
   motionBehavior,
   newInstanceState,
   pilotTakeover,
+  fleetPeerLost,
   STALE_AFTER_MS,
 } from '../src/lib/fleet';
 import type { DroneStatus, MissionStatus } from '../src/lib/types';
@@ -146,6 +147,15 @@ describe('pilot takeover', () => {
       'pilot took over (mode AUTO.LOITER): mission paused — RESUME takes it back, STOP leaves it with the pilot',
     );
     expect(pilotTakeover({ ...taken, state: 0 })).toBe('pilot took over (mode AUTO.LOITER)');
+  });
+
+  it('says a lost fleet peer holds the drone, and what ends it', () => {
+    const words = 'fleet peer lost: drone_1 fell silent while flying; holding until the peer is back or an operator lands it';
+    const held = status({ state: 2, last_error: words, last_error_code: 'fleet_peer_lost' });
+    expect(fleetPeerLost(held)).toBe(`${words} — mission paused, resumes by itself when the peer is back; LAND lands it now`);
+    expect(fleetPeerLost({ ...held, state: 0 })).toBe(words);
+    expect(pilotTakeover(held)).toBeNull();
+    expect(fleetPeerLost(status({ state: 0, last_error: 'no progress', last_error_code: 'no_progress' }))).toBeNull();
   });
 
   it('stays quiet for other failures and older servers', () => {

@@ -139,6 +139,16 @@ export function pilotTakeover(ms: MissionStatus | null): string | null {
   return ms.last_error;
 }
 
+/**
+ * A mission paused because a fleet-bus peer's drone fell silent while flying (`fleet_peer_lost`):
+ * the drone holds until the peer is back (the mission then resumes by itself) or it is landed.
+ */
+export function fleetPeerLost(ms: MissionStatus | null): string | null {
+  if (!ms || ms.last_error_code !== 'fleet_peer_lost' || !ms.last_error) return null;
+  if (ms.state === 2) return `${ms.last_error} — mission paused, resumes by itself when the peer is back; LAND lands it now`;
+  return ms.last_error;
+}
+
 export interface Progress {
   done: number;
   total: number;
