@@ -73,7 +73,7 @@ fn the_readme_two_node_example_forms_a_fleet_on_loopback() {
     std::fs::write(&creds, &credentials).unwrap();
     let creds = creds.to_str().unwrap();
 
-    let (_fake, connections) = Fake::start_px4_fleet(2, &[]);
+    let (fake, connections) = Fake::start_px4_fleet(2, &[]);
     let (bus_a, bus_b) = (free_tcp_port(), free_tcp_port());
     let paste = |text: &str, autopilot: &str, bus: u16| {
         let text = must_replace(text, "udpin:0.0.0.0:14540", autopilot);
@@ -115,9 +115,21 @@ fn the_readme_two_node_example_forms_a_fleet_on_loopback() {
     let a_status = api_a.get("/api/status");
     assert_eq!(a_status["fleet_bus"]["fleet"], "farm-7", "{a_status}");
     assert_eq!(a_status["fleet_bus"]["node"], "kestrel-a", "{a_status}");
+    // B's Kestrel puts its autopilot's local frame at the README's `origin_enu_m = [4.0, 0.0,
+    // 0.0]`: its position is the fake's local one (east, north) shifted 4 m east.
+    let own_b = api_b.get("/api/status")["drones"][0]["position_enu_m"].clone();
+    let local_ned = fake.state_of(1)["local_ned_m"].clone();
+    let local_en = [
+        local_ned[1].as_f64().unwrap(),
+        local_ned[0].as_f64().unwrap(),
+    ];
+    let shared = [own_b[0].as_f64().unwrap(), own_b[1].as_f64().unwrap()];
+    assert!(
+        (shared[0] - local_en[0] - 4.0).abs() < 0.3 && (shared[1] - local_en[1]).abs() < 0.3,
+        "drone_b at {own_b} in the shared frame, its autopilot's local NED {local_ned}"
+    );
     // Both agree where drone_b is: its own Kestrel's position (its autopilot's, shifted by its
     // origin_enu_m) is what A hears, within the drift of one state period on the ground.
-    let own_b = api_b.get("/api/status")["drones"][0]["position_enu_m"].clone();
     for k in 0..2 {
         let (mine, theirs) = (
             own_b[k].as_f64().unwrap(),
