@@ -75,9 +75,10 @@ impl Flights {
     }
 }
 
-/// Whether a drone can be given a flight: the link is up and the autopilot is ready.
+/// Whether a drone can be given a flight: the link is up, the autopilot is ready and has given
+/// a position (the demo starts from it).
 fn ready(d: &DroneStatus) -> bool {
-    d.link == LinkHealth::Ok && d.ready_to_fly
+    d.link == LinkHealth::Ok && d.ready_to_fly && d.has_position
 }
 
 /// Waits for drone 0 to be ready, then starts the demo from where it stands; gives up after
@@ -107,8 +108,11 @@ pub async fn start_demo_when_ready(
         flights.demo_failed(format!("the autopilot never became ready: {why}"));
         return;
     }
-    let [x, y, z] = drone.position_enu_m;
-    let mission = as_mission(&drone.drone, demo_plan(Vec3::new(x, y, z), drone.yaw_rad));
+    let (Some([x, y, z]), Some(yaw_rad)) = (drone.position_enu_m, drone.yaw_rad) else {
+        flights.demo_failed("the autopilot is ready but has given no position".into());
+        return;
+    };
+    let mission = as_mission(&drone.drone, demo_plan(Vec3::new(x, y, z), yaw_rad));
     let update = MissionUpdate {
         drone_id: Some(drone.drone.clone()),
         mission_id: None,

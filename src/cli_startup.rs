@@ -4,10 +4,11 @@
 //! In: the config file (or the defaults), the command line's overrides and the environment
 //! (`KESTREL_API_TOKEN`, `STATE_DIRECTORY`, `KESTREL_DATA_DIR`). Out: a [`Startup`] (the
 //! validated config, each vehicle's platform resolved and loaded with its link, the API's address
-//! and token, the log and state directories), or the first reason to refuse, naming the file and
-//! the key. One vehicle (`[drone] id` over `[mavlink]`) unless the config has a `[[vehicle]]`
-//! list; `--connection` is refused with a list (each vehicle names its own), `--platform` then
-//! replaces `mavlink.platform`, the profile of the vehicles that name none.
+//! and token, the fleet bus's credentials, the log and state directories, writable or creatable,
+//! and warnings), or the first reason to refuse, naming the file and the key. One vehicle
+//! (`[drone] id` over `[mavlink]`) unless the config has a `[[vehicle]]` list; `--connection` is
+//! refused with a list (each vehicle names its own), `--platform` then replaces
+//! `mavlink.platform`, the profile of the vehicles that name none.
 //!
 //! `--virtual-world FILE` (`run` and `check-config`) is loaded here too, bounded and checked by
 //! the world loader (`sim::world`); it is refused with the built-in simulator, which has a world
@@ -103,6 +104,8 @@ pub struct Startup {
     /// `None` with `--no-api`.
     pub listen: Option<SocketAddr>,
     pub token: Option<String>,
+    /// What starts but deserves a word: `run` logs each, `check-config` prints each.
+    pub warnings: Vec<String>,
     pub log_dir: PathBuf,
     pub state_dir: PathBuf,
     /// `--virtual-world`: the vehicles' range sensors are cast against its obstacles.
@@ -158,6 +161,8 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         .config(virtual_world.as_ref().map(|v| v.world.bounds_m.corners()))
         .with_context(|| format!("{file}: [map]"))?;
     let (listen, token) = api(&config, overrides, &file)?;
+    let mut warnings = token_warnings(&config);
+    fleet(&config, &file, &mut warnings)?;
     let log_dir = config.drone.log_dir.clone().unwrap_or_default();
     directory(&log_dir, &format!("{file}: drone.log_dir"))?;
     let state_dir = kestrel::host::vehicle::state_dir(overrides.state_dir.clone(), &config);
@@ -168,6 +173,7 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         map,
         listen,
         token,
+        warnings,
         log_dir,
         state_dir,
         virtual_world,
@@ -267,12 +273,100 @@ fn api(
     Ok((Some(listen), token))
 }
 
-/// A directory `run` creates if missing; something else at that path is refused.
-fn directory(dir: &Path, what: &str) -> Result<()> {
-    if dir.exists() && !dir.is_dir() {
-        bail!("{what}: {} exists and is not a directory", dir.display());
+/// `KESTREL_API_TOKEN` wins over `[api] token_file`: a file that could not be read would go
+/// unnoticed until the variable is gone (a service started without it), so it is said now.
+fn token_warnings(config: &Config) -> Vec<String> {
+    let Some(path) = config.api.token_file.as_ref() else {
+        return Vec::new();
+    };
+    if std::env::var_os("KESTREL_API_TOKEN").is_none() {
+        return Vec::new();
+    }
+    match std::fs::read_to_string(path) {
+        Ok(text) if !text.trim().is_empty() => Vec::new(),
+        Ok(_) => vec![format!(
+            "api.token_file {} is empty; KESTREL_API_TOKEN is used instead, and without it \
+             `run` refuses to start",
+            path.display()
+        )],
+        Err(e) => vec![format!(
+            "api.token_file {}: {e}; KESTREL_API_TOKEN is used instead, and without it `run` \
+             refuses to start",
+            path.display()
+        )],
+    }
+}
+
+/// `[fleet]`: the bus must be built in, and its credentials file readable and well formed (the
+/// bus would refuse it at start); without one, anyone can join, which is said.
+fn fleet(config: &Config, file: &str, warnings: &mut Vec<String>) -> Result<()> {
+    let fleet = &config.fleet;
+    if !fleet.enabled {
+        return Ok(());
+    }
+    if cfg!(not(feature = "fleet-bus")) {
+        bail!(
+            "{file}: fleet.enabled: this kestrel was built without the fleet bus (cargo \
+             feature `fleet-bus`)"
+        );
+    }
+    match &fleet.credentials_file {
+        Some(path) => {
+            kestrel::fleet_bus::credentials::read_credentials(path)
+                .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+        }
+        None => warnings.push(format!(
+            "fleet bus without `credentials_file`: anyone on the network can join fleet `{}`",
+            fleet.name
+        )),
     }
     Ok(())
+}
+
+/// A directory `run` writes in, created if missing: it must be a directory, or be creatable,
+/// and writable. Checked without leaving anything behind: a probe file is made and removed in
+/// it, or in the nearest directory that exists above it.
+fn directory(dir: &Path, what: &str) -> Result<()> {
+    let shown = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let mut existing = shown;
+    while !existing.exists() {
+        match existing.parent() {
+            Some(p) if !p.as_os_str().is_empty() => existing = p,
+            _ => {
+                existing = Path::new(".");
+                break;
+            }
+        }
+    }
+    if !existing.is_dir() {
+        if existing == shown {
+            bail!("{what}: {} exists and is not a directory", shown.display());
+        }
+        bail!(
+            "{what}: {} cannot be created: {} is not a directory",
+            shown.display(),
+            existing.display()
+        );
+    }
+    let probe = existing.join(format!(".kestrel-check-{}", std::process::id()));
+    let written = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe);
+    match written {
+        Ok(_) => std::fs::remove_file(&probe)
+            .with_context(|| format!("{what}: removing the probe {}", probe.display())),
+        Err(e) if existing == shown => bail!("{what}: {} is not writable: {e}", shown.display()),
+        Err(e) => bail!(
+            "{what}: {} cannot be created in {}: {e}",
+            shown.display(),
+            existing.display()
+        ),
+    }
 }
 
 /// Where a platform name leads: a file, or a built-in name.
@@ -414,6 +508,9 @@ pub fn check(config_path: &Path, virtual_world: Option<PathBuf>) -> Result<()> {
     );
     println!("  log dir    {}", shown(&s.log_dir));
     println!("  state dir  {}", shown(&s.state_dir));
+    for w in &s.warnings {
+        println!("  warning    {w}");
+    }
     if let Some(v) = &s.virtual_world {
         println!(
             "  virtual world  {} ({} obstacles)",

@@ -172,6 +172,11 @@ impl DroneCore {
         &self.state
     }
 
+    /// The fleet as the host last showed it.
+    pub fn fleet_view(&self) -> &FleetView {
+        &self.fleet
+    }
+
     /// This drone as the fleet view shows it.
     pub fn fleet_entry(&self, stamp: Duration) -> DroneView {
         let motion = self.server.motion();

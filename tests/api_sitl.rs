@@ -198,12 +198,13 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     let base = format!("http://127.0.0.1:{api_port}");
     let http = reqwest::Client::new();
     wait_healthy(&base).await;
-    // Nothing connected: no made-up vehicle.
+    // Nothing connected: no made-up vehicle, over REST and over the WebSocket.
     let before = status(&http, &base).await;
     let d = &before["drones"][0];
     assert_eq!(d["link"], "connecting", "{d}");
     assert_eq!(d["has_position"], false, "{d}");
-    assert!(d["age_s"].is_null(), "{d}");
+    assert_no_position(d);
+    assert_no_position(&first_telemetry(api_port).await["drones"][0]);
     let id = upload_and_start(&http, &base).await;
     // The autopilot starts only now: the takeoff has to wait for it to become ready.
     let fake = fake_px4(kestrel_port);
@@ -225,6 +226,17 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
     assert_eq!(d["armed"], false, "{d}");
     assert_eq!(d["has_position"], true, "{d}");
     assert_eq!(d["stale"], false, "{d}");
+    for key in ["position_enu_m", "velocity_enu_mps"] {
+        assert!(
+            d[key].as_array().is_some_and(
+                |a| a.len() == 3 && a.iter().all(|v| v.as_f64().is_some_and(f64::is_finite))
+            ),
+            "{key}: {d}"
+        );
+    }
+    assert!(d["yaw_rad"].as_f64().is_some_and(f64::is_finite), "{d}");
+    assert!(d["geo"]["lat_deg"].as_f64().is_some(), "{d}");
+    assert!(first_telemetry(api_port).await["drones"][0]["position_enu_m"].is_array());
     // The autopilot falls silent: what is shown is the last known, and says so.
     drop(fake);
     let deadline = Instant::now() + Duration::from_secs(30);
@@ -246,6 +258,40 @@ async fn kestrel_run_process_serves_the_api_and_flies_the_mission() {
         .map(|r| r["behavior"].as_str().unwrap_or_default().to_string())
         .collect();
     assert_eq!(started, ["takeoff", "go_to", "land"]);
+}
+
+/// Before the autopilot's first position, every positional field is `null`, not a placeholder.
+fn assert_no_position(d: &Value) {
+    for key in [
+        "position_enu_m",
+        "yaw_rad",
+        "velocity_enu_mps",
+        "geo",
+        "age_s",
+    ] {
+        assert!(d[key].is_null(), "{key} is not null: {d}");
+        assert!(
+            d.get(key).is_some(),
+            "{key} is missing instead of null: {d}"
+        );
+    }
+}
+
+/// The first `telemetry` frame of a new WebSocket client.
+async fn first_telemetry(api_port: u16) -> Value {
+    let url = format!("ws://127.0.0.1:{api_port}/api/ws?token={TOKEN}");
+    let (mut socket, _) = tokio_tungstenite::connect_async(url).await.unwrap();
+    loop {
+        let Ok(Some(Ok(Message::Text(t)))) =
+            tokio::time::timeout(Duration::from_secs(10), socket.next()).await
+        else {
+            panic!("no telemetry on the websocket");
+        };
+        let m: Value = serde_json::from_str(t.as_str()).unwrap();
+        if m["type"] == "telemetry" {
+            return m;
+        }
+    }
 }
 
 /// Uploads the thesis's takeoff-go-land and STARTs it; returns its mission id.

@@ -30,11 +30,16 @@ impl Site {
 
     /// Writes `kestrel.toml`: the given sections plus log and state directories in the site.
     fn config(&self, sections: &str) -> PathBuf {
+        self.config_with_dirs(sections, &self.path("log"), &self.path("state"))
+    }
+
+    /// Writes `kestrel.toml`: the given sections plus these log and state directories.
+    fn config_with_dirs(&self, sections: &str, log: &Path, state: &Path) -> PathBuf {
         let path = self.path("kestrel.toml");
         let text = format!(
             "{sections}\n[drone]\nid = \"drone_0\"\nlog_dir = \"{}\"\n\n[mission]\nstate_dir = \"{}\"\n",
-            self.path("log").display(),
-            self.path("state").display()
+            log.display(),
+            state.display()
         );
         std::fs::write(&path, text).unwrap();
         path
@@ -200,6 +205,120 @@ fn a_log_dir_that_is_a_file_is_refused() {
             &format!("{}: drone.log_dir", config.display()),
             "exists and is not a directory",
         ],
+    );
+}
+
+#[test]
+fn a_log_dir_that_cannot_be_created_is_refused() {
+    let site = Site::new();
+    std::fs::write(site.path("blocker"), "a file where a directory is needed").unwrap();
+    let config = site.config_with_dirs("", &site.path("blocker/logs"), &site.path("state"));
+    both_refuse(
+        &site,
+        &config,
+        &[
+            &format!("{}: drone.log_dir", config.display()),
+            &format!("{} cannot be created", site.path("blocker/logs").display()),
+            "is not a directory",
+        ],
+    );
+}
+
+#[test]
+fn a_state_dir_that_cannot_be_created_is_refused() {
+    let site = Site::new();
+    // Nothing can be created in /proc, not even by root (CI runs as root).
+    let config = site.config_with_dirs(
+        "",
+        &site.path("log"),
+        Path::new("/proc/kestrel-check/state"),
+    );
+    both_refuse(
+        &site,
+        &config,
+        &[
+            "the state directory",
+            "/proc/kestrel-check/state cannot be created in /proc",
+        ],
+    );
+}
+
+/// A `[fleet]` section that `run` would open, with this credentials file.
+fn fleet_with_credentials(site: &Site, credentials: &Path) -> PathBuf {
+    site.config(&format!(
+        "[fleet]\nenabled = true\nname = \"farm\"\nlisten = [\"tcp/127.0.0.1:0\"]\ncredentials_file = \"{}\"\n",
+        credentials.display()
+    ))
+}
+
+#[test]
+fn a_missing_fleet_credentials_file_is_refused() {
+    let site = Site::new();
+    let missing = site.path("fleet-credentials");
+    let config = fleet_with_credentials(&site, &missing);
+    both_refuse(
+        &site,
+        &config,
+        &[&format!(
+            "{}: fleet.credentials_file {}: No such file",
+            config.display(),
+            missing.display()
+        )],
+    );
+}
+
+#[test]
+fn a_malformed_fleet_credentials_file_is_refused_naming_the_line() {
+    let site = Site::new();
+    let credentials = site.path("fleet-credentials");
+    std::fs::write(&credentials, "kestrel-a:s3cret\n\nkestrel-b s3cret\n").unwrap();
+    let config = fleet_with_credentials(&site, &credentials);
+    both_refuse(
+        &site,
+        &config,
+        &[&format!(
+            "fleet.credentials_file {}: line 3: not `user:password`",
+            credentials.display()
+        )],
+    );
+}
+
+/// `KESTREL_API_TOKEN` is used before `[api] token_file`, so a missing file starts; the day the
+/// service runs without the variable it would not: check-config says so now.
+#[test]
+fn a_token_file_hidden_by_the_environment_is_warned_about() {
+    let site = Site::new();
+    let missing = site.path("api-token");
+    let config = site.config(&format!(
+        "[api]\nlisten = \"127.0.0.1:0\"\ntoken_file = \"{}\"\n",
+        missing.display()
+    ));
+    let out = site
+        .command(&["check-config", "--config", config.to_str().unwrap()])
+        .env("KESTREL_API_TOKEN", "from-the-environment")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("  token      yes\n"), "{stdout}");
+    assert!(
+        stdout.contains(&format!(
+            "  warning    api.token_file {}: ",
+            missing.display()
+        )) && stdout.contains("KESTREL_API_TOKEN is used instead"),
+        "{stdout}"
+    );
+    // With the file there, nothing to warn about.
+    std::fs::write(&missing, "secret\n").unwrap();
+    let out = site
+        .command(&["check-config", "--config", config.to_str().unwrap()])
+        .env("KESTREL_API_TOKEN", "from-the-environment")
+        .output()
+        .unwrap();
+    assert!(
+        !String::from_utf8_lossy(&out.stdout).contains("warning"),
+        "{}",
+        text(&out)
     );
 }
 

@@ -1,4 +1,4 @@
-//! A fleet of Kestrels over Zenoh: three real `kestrel run` processes, each flying its own fake
+//! A fleet of Kestrels over Zenoh: three (or two) real `kestrel run` processes, each flying its own fake
 //! PX4 (`sitl/`, one world with range beams), joined by the fleet bus on localhost, explore three
 //! bays together until no frontier is left, as operators would start it (one
 //! `POST /api/exploration/start` per Kestrel, for its own drone).
@@ -284,6 +284,91 @@ fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kes
         "closest two drones {:.2} m, clearance {:.2} m",
         tracks.closest_pair.0, tracks.clearance.m
     );
+}
+
+/// Two Kestrels: one of two is no majority, so when node_1 dies with its drone in the air,
+/// node_0 holds its own drone until the peer is back. Once the hold has lasted the no-progress
+/// time (20 s), its go_to ends with `fleet_peer_lost`, not `no_progress`: the mission pauses,
+/// saying why and what ends it; the drone is still held in the air, and an operator lands it.
+#[test]
+fn a_lost_peer_of_two_pauses_the_other_with_fleet_peer_lost_until_an_operator_lands_it() {
+    let _beside = alongside();
+    let world_path = repo().join(BAYS.world);
+    let (fake, connections) = Fake::start_px4_fleet(2, &["--world", world_path.to_str().unwrap()]);
+    let mut fleet = Fleet::start(&BAYS, &connections);
+    fleet.wait_joined(&[0, 1]);
+    // Each drone across its own bay, slowly enough (0.1 m/s, 25 s and 18 s) to be on the way
+    // when node_1 dies.
+    for (i, [x, y]) in [(0, [-4.5, 1.0]), (1, [1.5, 2.0])] {
+        let drone = format!("drone_{i}");
+        let plan = json!([
+            {"behavior": "takeoff", "args": {"height": 1.0, "speed": 0.5}},
+            {"behavior": "go_to", "args": {"x": x, "y": y, "z": 1.0, "speed": 0.1}}
+        ]);
+        let update = json!({"drone_id": drone, "action": 0,
+            "mission": {"target": drone, "plan": plan}});
+        let (code, answer) = fleet.apis[i].post("/api/mission_update", &update);
+        assert_eq!(code, 200, "node_{i}: {answer}");
+    }
+    let on_the_way = |i: usize| {
+        let d = fleet.apis[i].get("/api/status")["drones"][0].clone();
+        d["flight"] == "flying" && d["mission"]["current_item"]["behavior"] == "go_to"
+    };
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !(on_the_way(0) && on_the_way(1)) {
+        assert!(
+            Instant::now() < deadline,
+            "not both on the way\n{}",
+            fleet.output()
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    }
+    drop(fleet.nodes[1].take());
+    // The no-progress time after the hold began, with room for a loaded machine.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mission = loop {
+        let m = fleet.apis[0].get("/api/status")["drones"][0]["mission"].clone();
+        assert!(
+            m["last_error"].is_null() || m["last_error_code"] == "fleet_peer_lost",
+            "{m}"
+        );
+        if m["last_error_code"] == "fleet_peer_lost" {
+            break m;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "never paused: {m}\n{}",
+            fleet.output()
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    };
+    assert_eq!(mission["state"], 2, "paused: {mission}");
+    assert_eq!(mission["current_item"]["behavior"], "go_to", "{mission}");
+    let words = mission["last_error"].as_str().unwrap();
+    assert!(
+        words.contains("drone_1 fell silent while flying")
+            && words.contains("holding until the peer is back or an operator lands it"),
+        "{words}"
+    );
+    let held = fake.state_of(0);
+    assert_eq!(held["on_ground"], false, "still held in the air: {held}");
+    // What the ground station's LAND button sends.
+    let land = json!({
+        "drone_id": "drone_0", "mission_id": null, "item_id": null, "action": 0,
+        "mission": {"target": "drone_0", "plan": [{"behavior": "land", "args": {"speed": 0.5}}]}
+    });
+    let (code, answer) = fleet.apis[0].post("/api/mission_update", &land);
+    assert_eq!(code, 200, "{answer}");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while fake.state_of(0)["on_ground"] != true {
+        assert!(
+            Instant::now() < deadline,
+            "not landed: {}\n{}",
+            fake.state_of(0),
+            fleet.output()
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    }
 }
 
 #[test]

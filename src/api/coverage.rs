@@ -96,10 +96,13 @@ pub async fn plan(
             ));
         }
         match snapshot.drones.iter().find(|s| &s.drone == d) {
-            Some(status) => {
-                let [x, y, _] = status.position_enu_m;
-                starts.push(Vector2::new(x, y));
-            }
+            Some(status) => match status.position_enu_m {
+                Some([x, y, _]) => starts.push(Vector2::new(x, y)),
+                None => errors.push(error(
+                    &format!("/drones/{i}"),
+                    format!("{d} has no position yet: its autopilot has not given one"),
+                )),
+            },
             None => errors.push(error(
                 &format!("/drones/{i}"),
                 format!(

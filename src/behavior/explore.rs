@@ -613,6 +613,8 @@ impl Explore {
                 self.child = None;
                 Ok(Some(self.hover(ctx)))
             }
+            // Held for a silent peer: another frontier would be held the same way.
+            Step::Failed(reason) if reason.code == FailureCode::FleetPeerLost => Err(reason),
             Step::Failed(reason) => {
                 trace(ctx, "pathfail", String::new);
                 tracing::debug!("{}: frontier path failed: {reason}", ctx.drone_id);

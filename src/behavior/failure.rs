@@ -36,6 +36,11 @@ pub enum FailureCode {
     NoGraph,
     /// The vehicle got no closer to its goal for the configured time.
     NoProgress,
+    /// The vehicle got no closer to its goal for the configured time because the safety stage
+    /// holds it for a fleet-bus peer's drone that fell silent while flying (no majority of the
+    /// fleet heard, as with two Kestrels): the mission pauses, holding, until the peer is heard
+    /// again or an operator lands the vehicle.
+    FleetPeerLost,
     /// The autopilot refused a command (arming, mode, gimbal, camera).
     AutopilotRefused,
     /// The autopilot did not answer a command in time.
@@ -61,7 +66,7 @@ pub enum FailureCode {
 }
 
 impl FailureCode {
-    pub const ALL: [FailureCode; 24] = [
+    pub const ALL: [FailureCode; 25] = [
         FailureCode::InvalidGoal,
         FailureCode::NotFlying,
         FailureCode::NotReady,
@@ -76,6 +81,7 @@ impl FailureCode {
         FailureCode::PlannerUnavailable,
         FailureCode::NoGraph,
         FailureCode::NoProgress,
+        FailureCode::FleetPeerLost,
         FailureCode::AutopilotRefused,
         FailureCode::AutopilotSilent,
         FailureCode::LinkLost,
@@ -105,6 +111,7 @@ impl FailureCode {
             FailureCode::PlannerUnavailable => "planner_unavailable",
             FailureCode::NoGraph => "no_graph",
             FailureCode::NoProgress => "no_progress",
+            FailureCode::FleetPeerLost => "fleet_peer_lost",
             FailureCode::AutopilotRefused => "autopilot_refused",
             FailureCode::AutopilotSilent => "autopilot_silent",
             FailureCode::LinkLost => "link_lost",

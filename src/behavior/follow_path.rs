@@ -177,8 +177,8 @@ impl InFlight for FollowPath {
             .progress
             .update(left_m, ctx.config.goal_threshold_m, ctx.now);
         if stuck_s > ctx.config.no_progress_timeout_s {
-            return Step::Failed(Failure::new(
-                FailureCode::NoProgress,
+            return Step::Failed(super::progress::stuck(
+                ctx,
                 format!(
                     "no progress for {:.0} s, {remaining_m:.2} m of path left, {distance_to_end:.2} m from its end",
                     ctx.config.no_progress_timeout_s

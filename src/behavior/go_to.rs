@@ -211,8 +211,8 @@ impl InFlight for GoTo {
             .progress
             .update(distance, ctx.config.goal_threshold_m, ctx.now);
         if stuck_s > ctx.config.no_progress_timeout_s {
-            return Step::Failed(Failure::new(
-                FailureCode::NoProgress,
+            return Step::Failed(super::progress::stuck(
+                ctx,
                 format!(
                     "no progress for {:.0} s, {distance:.2} m from the goal",
                     ctx.config.no_progress_timeout_s

@@ -1,4 +1,5 @@
-//! Progress toward a goal, for the behaviors that fail with `no_progress` when stuck.
+//! Progress toward a goal, for the behaviors that fail with `no_progress` when stuck (or
+//! `fleet_peer_lost` when held for a silent peer).
 //!
 //! In: a distance still to go (m) each tick, the goal's threshold, the time. Out: how long it
 //! has not shrunk. Far out, a step of 10 cm counts; near the goal, where an autopilot's own
@@ -6,7 +7,32 @@
 //! so a vehicle that keeps closing in on its goal is never called stuck.
 
 use super::server::seconds_since;
+use super::{BehaviorContext, Failure, FailureCode};
+use crate::types::DroneView;
 use std::time::Duration;
+
+/// A peer's drone that fell silent while flying and is not accounted for: the safety stage holds
+/// this vehicle while there is one.
+pub(crate) fn lost_peer<'a>(ctx: &BehaviorContext<'a>) -> Option<&'a DroneView> {
+    ctx.fleet.others(ctx.drone_id).find(|d| d.unaccounted)
+}
+
+/// Why a vehicle made no progress for `no_progress_timeout_s`: held by the safety stage for a
+/// peer's drone that fell silent while flying (`fleet_peer_lost`: every drone holds until it is
+/// heard again or accounted for, which two Kestrels never are), else `no_progress` in `words`.
+pub(crate) fn stuck(ctx: &BehaviorContext, words: String) -> Failure {
+    match lost_peer(ctx) {
+        Some(peer) => Failure::new(
+            FailureCode::FleetPeerLost,
+            format!(
+                "fleet peer lost: {} fell silent while flying; holding until the peer is back \
+                 or an operator lands it",
+                peer.id
+            ),
+        ),
+        None => Failure::new(FailureCode::NoProgress, words),
+    }
+}
 
 /// The step that counts as progress far from the goal (m).
 const STEP_M: f64 = 0.1;

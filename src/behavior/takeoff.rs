@@ -259,9 +259,11 @@ impl Takeoff {
             .get_or_insert_with(|| Progress::new(ctx.now))
             .update(error.abs(), ctx.config.takeoff_threshold_m, ctx.now);
         let far_below = error > ctx.config.takeoff_threshold_m * 4.0;
-        if stuck_s > ctx.config.no_progress_timeout_s && far_below {
-            return Step::Failed(Failure::new(
-                FailureCode::NoProgress,
+        // Held for a lost peer, even near the height: say so rather than wait unexplained.
+        let held = super::progress::lost_peer(ctx).is_some();
+        if stuck_s > ctx.config.no_progress_timeout_s && (far_below || held) {
+            return Step::Failed(super::progress::stuck(
+                ctx,
                 format!(
                     "no progress for {:.0} s, {error:.2} m below the takeoff height",
                     ctx.config.no_progress_timeout_s

@@ -111,45 +111,13 @@ fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
         "transport": { "link": { "tx": { "lease": LEASE_MS } } },
     });
     if let Some(path) = &section.credentials_file {
-        let (user, password) = own_credentials(path)?;
+        let own = super::credentials::read_credentials(path)?;
         json["transport"]["auth"] = serde_json::json!({
-            "usrpwd": { "user": user, "password": password, "dictionary_file": path },
+            "usrpwd": { "user": own.user, "password": own.password, "dictionary_file": path },
         });
     }
     zenoh::Config::from_json5(&json.to_string())
         .map_err(|e| anyhow::anyhow!("fleet bus configuration: {e}"))
-}
-
-/// This node's `user:password`: the file's first line.
-fn own_credentials(path: &std::path::Path) -> anyhow::Result<(String, String)> {
-    let meta = std::fs::metadata(path)
-        .map_err(|e| anyhow::anyhow!("fleet.credentials_file {}: {e}", path.display()))?;
-    if meta.len() > 64 * 1024 {
-        anyhow::bail!(
-            "fleet.credentials_file {}: larger than 64 KiB",
-            path.display()
-        );
-    }
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| anyhow::anyhow!("fleet.credentials_file {}: {e}", path.display()))?;
-    let line = text
-        .lines()
-        .map(str::trim)
-        .find(|l| !l.is_empty())
-        .ok_or_else(|| anyhow::anyhow!("fleet.credentials_file {}: empty", path.display()))?;
-    let (user, password) = line.split_once(':').ok_or_else(|| {
-        anyhow::anyhow!(
-            "fleet.credentials_file {}: the first line is not `user:password`",
-            path.display()
-        )
-    })?;
-    if user.trim().is_empty() || password.trim().is_empty() {
-        anyhow::bail!(
-            "fleet.credentials_file {}: empty user or password on the first line",
-            path.display()
-        );
-    }
-    Ok((user.trim().to_string(), password.trim().to_string()))
 }
 
 /// The peer node a key comes from, if the key is `kestrel/<fleet>/<node>/<kind>`.
@@ -291,18 +259,5 @@ mod tests {
         );
         assert_eq!(key_parts("kestrel/other/pi-2/state", "farm"), None);
         assert_eq!(key_parts("kestrel/farmx/pi-2/state", "farm"), None);
-    }
-
-    #[test]
-    fn credentials_are_read_from_the_first_line() {
-        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-        let path = dir.path().join("creds");
-        std::fs::write(&path, "\n kestrel-a : s3cret \nb:c\n").unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(
-            own_credentials(&path).ok(),
-            Some(("kestrel-a".to_string(), "s3cret".to_string()))
-        );
-        std::fs::write(&path, "nocolon\n").unwrap_or_else(|e| panic!("{e}"));
-        assert!(own_credentials(&path).is_err());
     }
 }

@@ -43,16 +43,16 @@ pub struct DroneStatus {
     pub battery: Option<BatteryStatus>,
     pub last_error: Option<String>,
     /// Whether the autopilot (or simulator) has given a position: until it has, position,
-    /// yaw, velocity and geo are placeholders and no position is to be shown.
+    /// yaw, velocity and geo are `null`.
     pub has_position: bool,
     /// The link is lost: everything below is the last known, `age_s` old.
     pub stale: bool,
     /// Seconds since the last valid position; absent before the first.
     pub age_s: Option<f64>,
-    pub position_enu_m: [f64; 3],
-    pub yaw_rad: f64,
-    pub velocity_enu_mps: [f64; 3],
-    pub geo: GeoStatus,
+    pub position_enu_m: Option<[f64; 3]>,
+    pub yaw_rad: Option<f64>,
+    pub velocity_enu_mps: Option<[f64; 3]>,
+    pub geo: Option<GeoStatus>,
     #[schema(value_type = Vec<Object>)]
     pub active_behaviors: Vec<ActiveInfo>,
     /// Absent in telemetry frames (mission status has its own message).
@@ -63,9 +63,11 @@ pub struct DroneStatus {
 impl DroneStatus {
     pub fn of(core: &DroneCore, executor: &MissionExecutor) -> Self {
         let s = core.vehicle_state();
-        let p = s.estimate.pose.position_m;
-        let v = s.estimate.velocity_enu_mps;
-        let geo = core.geo_origin().to_geo(&p);
+        let age = core.position_age();
+        // Nothing is made up before the first position: a client plotting these without
+        // reading `has_position` would draw a drone that is not there.
+        let known = age.is_some().then_some(&s.estimate);
+        let p = known.map(|e| e.pose.position_m);
         Self {
             drone: s.drone,
             link: s.platform.link,
@@ -80,17 +82,23 @@ impl DroneStatus {
                 remaining_fraction: b.remaining_fraction,
             }),
             last_error: s.platform.last_error,
-            has_position: core.position_age().is_some(),
+            has_position: age.is_some(),
             stale: s.platform.link == LinkHealth::Lost,
-            age_s: core.position_age().map(|a| a.as_secs_f64()),
-            position_enu_m: [p.x, p.y, p.z],
-            yaw_rad: s.estimate.pose.yaw_rad(),
-            velocity_enu_mps: [v.x, v.y, v.z],
-            geo: GeoStatus {
-                lat_deg: geo.lat_deg,
-                lon_deg: geo.lon_deg,
-                alt_m: geo.alt_m,
-            },
+            age_s: age.map(|a| a.as_secs_f64()),
+            position_enu_m: p.map(|p| [p.x, p.y, p.z]),
+            yaw_rad: known.map(|e| e.pose.yaw_rad()),
+            velocity_enu_mps: known.map(|e| {
+                let v = e.velocity_enu_mps;
+                [v.x, v.y, v.z]
+            }),
+            geo: p.map(|p| {
+                let geo = core.geo_origin().to_geo(&p);
+                GeoStatus {
+                    lat_deg: geo.lat_deg,
+                    lon_deg: geo.lon_deg,
+                    alt_m: geo.alt_m,
+                }
+            }),
             active_behaviors: core.server().active(),
             mission: Some(executor.status(core)),
         }

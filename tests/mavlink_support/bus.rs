@@ -1,4 +1,4 @@
-//! Three `kestrel run` processes on one fleet bus (tests/fleet_bus_e2e.rs, benches/fleet_bus.rs):
+//! `kestrel run` processes on one fleet bus (tests/fleet_bus_e2e.rs, benches/fleet_bus.rs):
 //! the arenas (worlds of three bays), each node's config, TCP proxies in front of the bus ports
 //! that a test can cut like a Wi-Fi drop, and waiting for the fleet to join and to finish an
 //! exploration.
@@ -137,8 +137,8 @@ pub fn credentials(dir: &std::path::Path, name: &str, line: &str) -> String {
     path.to_str().unwrap().to_string()
 }
 
-/// Three Kestrels on one bus, each listening on its own port and reaching the others through
-/// proxies: node 1 connects to node 0, node 2 to nodes 0 and 1.
+/// Kestrels on one bus, one per connection, each listening on its own port and reaching the
+/// earlier ones through proxies: node 1 connects to node 0, node 2 to nodes 0 and 1.
 pub struct Fleet {
     pub arena: Arena,
     pub nodes: Vec<Option<Kestrel>>,
@@ -152,11 +152,15 @@ impl Fleet {
         let creds = tempfile::tempdir().unwrap();
         let file = credentials(creds.path(), "fleet-credentials", "bays:s3cret-shared");
         let name = format!("bays-{}", std::process::id());
-        let bus_ports: Vec<u16> = (0..3).map(|_| free_tcp_port()).collect();
-        let proxies: Vec<BusProxy> = bus_ports[..2].iter().map(|&p| BusProxy::start(p)).collect();
+        let n = connections.len();
+        let bus_ports: Vec<u16> = (0..n).map(|_| free_tcp_port()).collect();
+        let proxies: Vec<BusProxy> = bus_ports[..n - 1]
+            .iter()
+            .map(|&p| BusProxy::start(p))
+            .collect();
         let mut nodes = Vec::new();
         let mut apis = Vec::new();
-        for id in 0..3 {
+        for id in 0..n {
             let connect: Vec<String> = proxies[..id].iter().map(|p| p.endpoint()).collect();
             let fleet = format!(
                 "\n[fleet]\nenabled = true\nname = \"{name}\"\nnode = \"node_{id}\"\n\

@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import { attachmentName } from '../src/lib/api';
-import { defaultChoice, duration, exploringDrones, progressText, stopNeedsConfirm } from '../src/lib/exploration';
+import { defaultChoice, duration, exploringDrones, progressText, runningText, stopNeedsConfirm } from '../src/lib/exploration';
 import type { ExplorationProgress } from '../src/lib/types';
 
 const progress = (over: Partial<ExplorationProgress> = {}): ExplorationProgress => ({
@@ -21,6 +21,12 @@ describe('exploration panel', () => {
     expect([...defaultChoice('drone_1', ['drone_0', 'drone_1'])]).toEqual(['drone_1']);
     expect(defaultChoice(null, ['drone_0', 'drone_1']).size).toBe(0);
     expect(defaultChoice('gone', ['drone_0']).size).toBe(0);
+  });
+
+  it('names the drones the server has exploring', () => {
+    expect(runningText([])).toBe('no drone is exploring');
+    expect(runningText(['drone_2'])).toBe('1 drone exploring: drone_2');
+    expect(runningText(['drone_0', 'drone_1', 'drone_2'])).toBe('3 drones exploring: drone_0, drone_1, drone_2');
   });
 
   it('asks before stopping several drones, not one', () => {

@@ -8,6 +8,7 @@ import {
   motionBehavior,
   newInstanceState,
   pilotTakeover,
+  fleetPeerLost,
   STALE_AFTER_MS,
 } from '../src/lib/fleet';
 import type { DroneStatus, MissionStatus } from '../src/lib/types';
@@ -57,6 +58,15 @@ describe('status reduction', () => {
     expect(v.trail[1].behavior).toBe('takeoff');
     expect(v.lastSeenMs).toBe(1400);
     expect(s.serverT).toBe(1.4);
+  });
+
+  it('telemetry without a position leaves no trail point until one comes', () => {
+    const s = newInstanceState();
+    const none = { has_position: false, position_enu_m: null, yaw_rad: null, velocity_enu_mps: null };
+    applyMessage(s, { type: 'telemetry', t: 1, drones: [drone('drone_0', { link: 'connecting', ...none })] }, 1000);
+    expect(s.drones.get('drone_0')!.trail).toEqual([]);
+    applyMessage(s, { type: 'telemetry', t: 2, drones: [drone('drone_0', { has_position: true, position_enu_m: [3, 4, 0] })] }, 2000);
+    expect(s.drones.get('drone_0')!.trail.map((p) => [p.x, p.y])).toEqual([[3, 4]]);
   });
 
   it('mission_status is kept apart from telemetry, which has no mission', () => {
@@ -137,6 +147,15 @@ describe('pilot takeover', () => {
       'pilot took over (mode AUTO.LOITER): mission paused — RESUME takes it back, STOP leaves it with the pilot',
     );
     expect(pilotTakeover({ ...taken, state: 0 })).toBe('pilot took over (mode AUTO.LOITER)');
+  });
+
+  it('says a lost fleet peer holds the drone, and what ends it', () => {
+    const words = 'fleet peer lost: drone_1 fell silent while flying; holding until the peer is back or an operator lands it';
+    const held = status({ state: 2, last_error: words, last_error_code: 'fleet_peer_lost' });
+    expect(fleetPeerLost(held)).toBe(`${words} — mission paused, resumes by itself when the peer is back; LAND lands it now`);
+    expect(fleetPeerLost({ ...held, state: 0 })).toBe(words);
+    expect(pilotTakeover(held)).toBeNull();
+    expect(fleetPeerLost(status({ state: 0, last_error: 'no progress', last_error_code: 'no_progress' }))).toBeNull();
   });
 
   it('stays quiet for other failures and older servers', () => {

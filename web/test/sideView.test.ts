@@ -33,6 +33,8 @@ describe('no made-up position, stale shown as stale', () => {
     expect(hasPosition(status({ link: 'ok', has_position: false }))).toBe(false);
     expect(hasPosition(status({ link: 'lost', has_position: true }))).toBe(true);
     expect(hasPosition(status({ link: 'ok' }))).toBe(true);
+    // A null position is no position, whatever else the status says.
+    expect(hasPosition(status({ link: 'ok', has_position: true, position_enu_m: null }))).toBe(false);
   });
 
   it('a status the server marks stale is lost, whatever its link word', () => {

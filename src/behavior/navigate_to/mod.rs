@@ -178,8 +178,8 @@ impl NavigateTo {
             self.guard.stalls += 1;
             if self.guard.stalls > MAX_STALLS {
                 let p = path.point_ahead(&here, clear.clear_m);
-                return Err(Failure::new(
-                    FailureCode::NoProgress,
+                return Err(super::progress::stuck(
+                    ctx,
                     format!(
                         "cannot see the way ahead: space near ({:.1}, {:.1}) m stays unobserved \
                          from where the vehicle can safely go",

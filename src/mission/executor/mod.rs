@@ -12,6 +12,7 @@ mod actions;
 mod in_flight;
 mod link;
 mod loaded;
+mod peer_lost;
 mod takeover;
 
 pub use actions::{ActionError, Request};
@@ -300,6 +301,7 @@ impl MissionExecutor {
             }
         }
         self.follow_link(core, now);
+        self.follow_fleet(core);
         self.end_timed_item(core, now);
         self.advance(core, now);
         if let Some(failed) = self.failed_in_flight.take() {
@@ -339,6 +341,12 @@ impl MissionExecutor {
                 self.record(id, index, item_result, reason, code);
                 return;
             }
+            if code == Some(FailureCode::FleetPeerLost) {
+                // Paused, holding, until the peer is back (`peer_lost.rs`).
+                self.record(id, index, item_result, reason.clone(), code);
+                self.peer_lost(core, reason.as_deref().unwrap_or("fleet peer lost"));
+                return;
+            }
             let on_failure = self
                 .missions
                 .get(&id)
@@ -374,7 +382,7 @@ impl MissionExecutor {
         self.touch();
         let interrupted = matches!(
             code,
-            Some(FailureCode::LinkLost | FailureCode::PilotTakeover)
+            Some(FailureCode::LinkLost | FailureCode::PilotTakeover | FailureCode::FleetPeerLost)
         );
         if item_result == ItemResult::Failed && p.on_failure == OnFailure::Abort && !interrupted {
             let reason = reason.as_deref().unwrap_or("failed");

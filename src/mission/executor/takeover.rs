@@ -31,9 +31,13 @@ impl MissionExecutor {
         self.touch();
     }
 
-    /// RESUME after a takeover: the mission is Kestrel's again, its error no longer current.
+    /// RESUME after a takeover (or a pause for a lost fleet peer): the mission is Kestrel's
+    /// again, its error no longer current.
     pub(super) fn clear_takeover(&mut self) {
-        if self.last_error_code == Some(FailureCode::PilotTakeover) {
+        if matches!(
+            self.last_error_code,
+            Some(FailureCode::PilotTakeover | FailureCode::FleetPeerLost)
+        ) {
             self.last_error = None;
             self.last_error_code = None;
         }

@@ -39,3 +39,9 @@ export function exploringDrones(p: ExplorationProgress | null): string[] {
   const ended = new Set(['succeeded', 'failed', 'aborted', 'stopped']);
   return (p?.drones ?? []).filter((d) => !ended.has(d.phase)).map((d) => d.drone);
 }
+
+/** The line naming the drones the server says are exploring (after any reload, from its state). */
+export function runningText(names: string[]): string {
+  if (names.length === 0) return 'no drone is exploring';
+  return `${names.length === 1 ? '1 drone' : `${names.length} drones`} exploring: ${names.join(', ')}`;
+}

@@ -1,7 +1,7 @@
 // Status reduction: WebSocket messages of one Kestrel instance folded into per-drone views, the
 // link judged with a staleness timeout, and mission progress read from MissionStatus.
 
-import type { DroneStatus, MissionItem, MissionStatus, ServerMessage } from './types';
+import type { DroneStatus, MissionItem, MissionStatus, PlacedStatus, ServerMessage } from './types';
 
 export interface TrailPoint {
   x: number;
@@ -57,6 +57,7 @@ export function motionBehavior(status: DroneStatus | null): string | null {
 }
 
 function extendTrail(v: DroneView, s: DroneStatus, t: number): void {
+  if (!hasPosition(s)) return;
   const [x, y, z] = s.position_enu_m;
   const behavior = motionBehavior(s);
   const last = v.trail[v.trail.length - 1];
@@ -138,6 +139,16 @@ export function pilotTakeover(ms: MissionStatus | null): string | null {
   return ms.last_error;
 }
 
+/**
+ * A mission paused because a fleet-bus peer's drone fell silent while flying (`fleet_peer_lost`):
+ * the drone holds until the peer is back (the mission then resumes by itself) or it is landed.
+ */
+export function fleetPeerLost(ms: MissionStatus | null): string | null {
+  if (!ms || ms.last_error_code !== 'fleet_peer_lost' || !ms.last_error) return null;
+  if (ms.state === 2) return `${ms.last_error} — mission paused, resumes by itself when the peer is back; LAND lands it now`;
+  return ms.last_error;
+}
+
 export interface Progress {
   done: number;
   total: number;
@@ -201,7 +212,7 @@ export function feedbackPaths(status: DroneStatus | null): { behavior: string; p
 }
 
 /** Whether the status carries a position the autopilot gave (never one made up before it spoke). */
-export function hasPosition(s: DroneStatus | null): s is DroneStatus {
-  if (!s) return false;
+export function hasPosition(s: DroneStatus | null | undefined): s is PlacedStatus {
+  if (!s || s.position_enu_m === null || s.yaw_rad === null) return false;
   return s.has_position ?? s.link !== 'connecting';
 }

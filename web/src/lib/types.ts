@@ -62,19 +62,23 @@ export interface DroneStatus {
   ready_to_fly: boolean;
   battery: { voltage_v: number; remaining_fraction: number } | null;
   last_error: string | null;
-  position_enu_m: Vec3;
+  /** `null` until the autopilot has given a position, as are yaw, velocity and geo. */
+  position_enu_m: Vec3 | null;
   /** False until the autopilot has reported a position (older servers omit it). */
   has_position?: boolean;
   /** Seconds since the autopilot last reported (older servers omit it). */
   age_s?: number | null;
   /** True when the data is older than the link timeout (older servers omit it). */
   stale?: boolean;
-  yaw_rad: number;
-  velocity_enu_mps: Vec3;
+  yaw_rad: number | null;
+  velocity_enu_mps: Vec3 | null;
   geo: { lat_deg: number; lon_deg: number; alt_m: number } | null;
   active_behaviors: ActiveBehavior[];
   mission?: MissionStatus | null;
 }
+
+/** A status with a position the autopilot gave (see `hasPosition`). */
+export type PlacedStatus = DroneStatus & { position_enu_m: Vec3; yaw_rad: number };
 
 export interface BehaviorInfo {
   name: string;

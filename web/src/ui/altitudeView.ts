@@ -27,8 +27,11 @@ export class AltitudeView {
     const width = this.el.clientWidth || 300;
     const height = this.el.clientHeight || 200;
     this.root.setAttribute('viewBox', `0 0 ${width} ${height}`);
-    const placed = drones.filter((d) => hasPosition(d.view.status));
-    const points = placed.flatMap((d) => [...d.view.trail.map((p) => ({ x: p.x, z: p.z })), { x: d.view.status!.position_enu_m[0], z: d.view.status!.position_enu_m[2] }]);
+    const placed = drones.flatMap((d) => {
+      const s = d.view.status;
+      return hasPosition(s) ? [{ d, p: s.position_enu_m }] : [];
+    });
+    const points = placed.flatMap(({ d, p }) => [...d.view.trail.map((t) => ({ x: t.x, z: t.z })), { x: p[0], z: p[2] }]);
     const e = sideExtent(points);
     const at = (x: number, z: number) => sidePixel(e, width, height, MARGIN, x, z);
     const children: SVGElement[] = [];
@@ -41,17 +44,16 @@ export class AltitudeView {
     }
     children.push(svg('text', { x: width - MARGIN, y: height - 6, class: 'alt-label', 'text-anchor': 'end' }, `east ${e.xMin.toFixed(0)}…${e.xMax.toFixed(0)} m`));
     children.push(svg('text', { x: 2, y: 12, class: 'alt-label' }, 'up m'));
-    for (const d of placed) {
-      const s = d.view.status!;
+    for (const { d, p } of placed) {
       if (d.view.trail.length > 1) {
         const pts = d.view.trail.map((p) => at(p.x, p.z).map((v) => v.toFixed(1)).join(',')).join(' ');
         children.push(svg('polyline', { points: pts, class: 'alt-trail', stroke: d.color }));
       }
-      const [x, y] = at(s.position_enu_m[0], s.position_enu_m[2]);
+      const [x, y] = at(p[0], p[2]);
       const stale = d.link.state !== 'ok';
       children.push(
-        svg('circle', { cx: x, cy: y, r: 6, fill: stale ? '#888' : d.color, class: `alt-drone${stale ? ' stale' : ''}`, 'data-drone': d.name, 'data-z': s.position_enu_m[2].toFixed(2) }),
-        svg('text', { x: x + 8, y: y - 6, class: 'alt-label' }, `${d.name} ${s.position_enu_m[2].toFixed(1)} m${stale ? ' (stale)' : ''}`),
+        svg('circle', { cx: x, cy: y, r: 6, fill: stale ? '#888' : d.color, class: `alt-drone${stale ? ' stale' : ''}`, 'data-drone': d.name, 'data-z': p[2].toFixed(2) }),
+        svg('text', { x: x + 8, y: y - 6, class: 'alt-label' }, `${d.name} ${p[2].toFixed(1)} m${stale ? ' (stale)' : ''}`),
       );
     }
     this.root.replaceChildren(...children);

@@ -1,9 +1,10 @@
 // Exploration panel: the drones to explore with (ticked: the selected drone, never silently all),
-// start and stop (several drones: asked first), the live progress (known area, elapsed, estimated
-// time left, each drone's phase and goal) and the report download. It polls GET /api/exploration
-// and hands each view to the map overlay (frontiers, goals).
+// start and stop (several drones: asked first), the drones exploring and a stop of the whole run
+// (both from the server's state, so right after a page reload), the live progress (known area,
+// elapsed, estimated time left, each drone's phase and goal) and the report download. It polls
+// GET /api/exploration and hands each view to the map overlay (frontiers, goals).
 
-import { defaultChoice, exploringDrones, progressText, stopNeedsConfirm } from '../lib/exploration';
+import { defaultChoice, exploringDrones, progressText, runningText, stopNeedsConfirm } from '../lib/exploration';
 import type { ExplorationView as View } from '../lib/types';
 import type { App, DroneRef } from './app';
 import { byId, fmt, h } from './dom';
@@ -26,6 +27,8 @@ export class ExplorationPanel {
   private readonly height = h('input', { id: 'exp-height', type: 'number', step: '0.1', placeholder: '1.0', 'aria-label': 'exploration height (m)' });
   private readonly speed = h('input', { id: 'exp-speed', type: 'number', step: '0.05', placeholder: '0.75', 'aria-label': 'exploration speed (m/s)' });
   private readonly answer = h('p', { id: 'exp-answer', className: 'answer' });
+  private readonly running = h('p', { id: 'exp-running', className: 'exp-running' }, runningText([]));
+  private readonly stopAll = h('button', { id: 'btn-exp-stop-all', className: 'hold', disabled: true }, 'Stop the whole run');
   private readonly known = h('strong', { id: 'exp-known' }, '—');
   private readonly elapsed = h('span', { id: 'exp-elapsed' }, '—');
   private readonly remaining = h('span', { id: 'exp-remaining' }, '—');
@@ -40,13 +43,15 @@ export class ExplorationPanel {
     const report = h('button', { id: 'btn-exp-report' }, 'Download report');
     start.addEventListener('click', () => act(start, 'start exploration', this.answer, () => this.start()));
     stop.addEventListener('click', () => act(stop, 'stop exploration', this.answer, () => this.stop()));
+    this.stopAll.addEventListener('click', () => act(this.stopAll, 'stop the whole exploration', this.answer, () => this.stopRun()));
     report.addEventListener('click', () => act(report, 'exploration report', this.answer, () => this.download()));
     byId('panel-explore').append(
       h('h2', {}, 'Exploration'),
       h('p', { className: 'hint' }, 'The ticked drones explore the unknown area together (the explore behavior, one mission each): they take off, fly to frontiers, and land when none is left. Stop holds them where they are.'),
+      this.running,
       this.checks,
       h('div', { className: 'row' }, h('label', {}, 'Height m ', this.height), h('label', {}, 'Speed m/s ', this.speed)),
-      h('div', { className: 'buttons' }, start, stop, report),
+      h('div', { className: 'buttons' }, start, stop, this.stopAll, report),
       this.answer,
       h('h3', {}, 'Progress'),
       h(
@@ -156,6 +161,32 @@ export class ExplorationPanel {
     return { ok: true, text: `stopped: ${names.join(', ')}` };
   }
 
+  /** The drones exploring by the last views, whichever are ticked: this page's own drones only
+   *  (another Kestrel's drones are stopped from there). */
+  private runDrones(): DroneRef[] {
+    return this.app.drones().filter((r) => this.exploring(r));
+  }
+
+  /** Stops every drone of the run, as the server has it now (asked first when several). */
+  private async stopRun(): Promise<Outcome> {
+    await this.poll(true);
+    const refs = this.runDrones();
+    if (refs.length === 0) return { ok: false, text: 'no drone is exploring' };
+    const names = refs.map((r) => r.name);
+    if (stopNeedsConfirm(names) && !window.confirm(`Stop the whole exploration: ${names.join(', ')}? They hold where they are.`)) {
+      return { ok: false, text: 'not stopped (cancelled)' };
+    }
+    for (const [inst, group] of this.byInstance(refs)) {
+      try {
+        await inst.client.stopExploration(group.map((g) => g.drone));
+      } catch (e) {
+        return { ok: false, text: describeError(e) };
+      }
+    }
+    await this.poll(true);
+    return { ok: true, text: `stopped: ${names.join(', ')}` };
+  }
+
   private async download(): Promise<Outcome> {
     const inst = this.picked()[0]?.inst ?? this.app.instances[0];
     if (!inst) return { ok: false, text: 'not connected' };
@@ -206,6 +237,11 @@ export class ExplorationPanel {
     this.state.textContent = t.state;
     this.frontiers.textContent = v ? String(v.frontiers.length) : '—';
     const exploring = new Set(exploringDrones(p));
+    const run = this.runDrones().map((r) => r.name);
+    this.running.textContent = runningText(run);
+    this.running.dataset.drones = run.join(',');
+    this.stopAll.disabled = run.length === 0;
+    this.stopAll.textContent = run.length > 1 ? `Stop the whole run (${run.length})` : 'Stop the whole run';
     this.table.replaceChildren(
       ...(p?.drones ?? []).map((d) =>
         h(

@@ -2,7 +2,7 @@
 // progress, hold/land), the fleet bus and the drones other Kestrels fly (remoteCards.ts), and the
 // list of Kestrel instances with a form to add one.
 
-import { hasPosition, missionProgress, missionStateName, motionBehavior, pilotTakeover } from '../lib/fleet';
+import { fleetPeerLost, hasPosition, missionProgress, missionStateName, motionBehavior, pilotTakeover } from '../lib/fleet';
 import { behaviorColor } from '../lib/colors';
 import type { App, DroneRef } from './app';
 import { byId, fmt, h } from './dom';
@@ -144,9 +144,11 @@ export class FleetView {
       const ms = v.mission;
       fields.mission.textContent = ms ? `${missionStateName(ms)} ${missionProgress(ms).label}${ms.mission_id != null ? ` (#${ms.mission_id})` : ''}` : 'no mission';
       const takeover = pilotTakeover(ms);
-      fields.takeover.textContent = takeover ?? '';
-      fields.takeover.hidden = takeover === null;
+      const peerLost = fleetPeerLost(ms);
+      fields.takeover.textContent = takeover ?? peerLost ?? '';
+      fields.takeover.hidden = takeover === null && peerLost === null;
       root.classList.toggle('taken-over', takeover !== null);
+      root.classList.toggle('peer-lost', peerLost !== null);
     }
     for (const [key, c] of this.cards) {
       if (!refs.some((r) => r.key === key)) {
