@@ -58,7 +58,11 @@ async fn serve(socket: WebSocket, s: ApiState) {
     let mut telemetry = ticker(period(DEFAULT_RATE_HZ));
     let mut status_tick = ticker(Duration::from_secs(1));
     loop {
+        // In this order: a periodic status read off the latest state after an older status
+        // event still queued would show a client the mission going back (loaded, idle) between
+        // two running statuses; the queued events go first.
         let out: Vec<Value> = tokio::select! {
+            biased;
             message = stream.next() => match message {
                 Some(Ok(Message::Text(text))) => {
                     let (reply, rate) = client_message(&s, text.as_str()).await;
@@ -70,14 +74,6 @@ async fn serve(socket: WebSocket, s: ApiState) {
                 Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
                 Some(Ok(_)) => continue,
             },
-            _ = telemetry.tick() => vec![telemetry_frame(&state.borrow().clone())],
-            _ = status_tick.tick() => {
-                let snap = state.borrow().clone();
-                snap.drones
-                    .iter()
-                    .map(|d| json!({"type": "mission_status", "drone": d.drone, "status": d.mission}))
-                    .collect()
-            }
             event = events.recv() => match event {
                 Ok(e) => vec![event_frame(&e)],
                 Err(RecvError::Lagged(missed)) => vec![json!({
@@ -86,6 +82,14 @@ async fn serve(socket: WebSocket, s: ApiState) {
                 })],
                 Err(RecvError::Closed) => break,
             },
+            _ = telemetry.tick() => vec![telemetry_frame(&state.borrow().clone())],
+            _ = status_tick.tick() => {
+                let snap = state.borrow().clone();
+                snap.drones
+                    .iter()
+                    .map(|d| json!({"type": "mission_status", "drone": d.drone, "status": d.mission}))
+                    .collect()
+            }
         };
         for v in out {
             let text = Utf8Bytes::from(v.to_string());

@@ -331,8 +331,13 @@ impl Explore {
             _ => return,
         };
         let before = self.tracking.extra_m();
-        self.tracking
-            .observe(point, velocity, ctx.position(), ctx.dt_s);
+        self.tracking.observe(
+            point,
+            velocity,
+            ctx.position(),
+            ctx.state.velocity_enu_mps,
+            ctx.dt_s,
+        );
         let after = self.tracking.extra_m();
         if after > before {
             tracing::warn!(
