@@ -89,8 +89,8 @@ impl FollowPath {
             trajectory: None,
             yaw: ResolvedYaw::Fixed(0.0),
             heading: PathHeading::default(),
-            progress: Progress::new(Duration::ZERO),
-            arrival: Arrival::default(),
+            progress: Progress::toward_point(Duration::ZERO),
+            arrival: Arrival::at_goal(),
         }
     }
 
@@ -108,7 +108,7 @@ impl FollowPath {
             remaining,
             limits,
         );
-        self.progress = Progress::new(ctx.now);
+        self.progress = Progress::toward_point(ctx.now);
         self.trajectory = Some(trajectory);
     }
 }
@@ -180,7 +180,7 @@ impl InFlight for FollowPath {
             return Step::Failed(super::progress::stuck(
                 ctx,
                 format!(
-                    "no progress for {:.0} s, {remaining_m:.2} m of path left, {distance_to_end:.2} m from its end",
+                    "no progress for {:.0} s (within 0.5 m of the goal, 3 s count as 1), {remaining_m:.2} m of path left, {distance_to_end:.2} m from its end",
                     ctx.config.no_progress_timeout_s
                 ),
             ));

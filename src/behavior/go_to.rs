@@ -132,8 +132,8 @@ impl GoTo {
             yaw: ResolvedYaw::Fixed(0.0),
             last_target: MovingTarget::default(),
             heading: PathHeading::default(),
-            progress: Progress::new(Duration::ZERO),
-            arrival: Arrival::default(),
+            progress: Progress::toward_point(Duration::ZERO),
+            arrival: Arrival::at_goal(),
         }
     }
 
@@ -179,7 +179,7 @@ impl InFlight for GoTo {
         };
         self.yaw = self.goal.yaw.resolve(ctx, &yaw_frame)?;
         let target = self.target(ctx)?;
-        self.progress = Progress::new(ctx.now);
+        self.progress = Progress::toward_point(ctx.now);
         self.progress.update(
             (target - ctx.position()).norm(),
             ctx.config.goal_threshold_m,
@@ -214,7 +214,7 @@ impl InFlight for GoTo {
             return Step::Failed(super::progress::stuck(
                 ctx,
                 format!(
-                    "no progress for {:.0} s, {distance:.2} m from the goal",
+                    "no progress for {:.0} s (within 0.5 m of the goal, 3 s count as 1), {distance:.2} m from the goal",
                     ctx.config.no_progress_timeout_s
                 ),
             ));

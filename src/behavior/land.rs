@@ -1,11 +1,15 @@
 //! `land`: descend at `speed` until touchdown, then disarm.
 //!
-//! With `native_land` the autopilot lands (its land mode) and disarms. Otherwise Kestrel flies
+//! With `native_land` the autopilot lands (its land mode) and disarms, once the vehicle has
+//! stopped over the landing point (at most [`SETTLE_BUDGET_S`]): a land mode lands where the
+//! vehicle is when told, and one told while it still moves lands off the point by its velocity
+//! times the autopilot's lag. Otherwise Kestrel flies
 //! the descent, holding the point where the landing began against the autopilot's own drift,
 //! tells the platform every tick ([`PlatformRequest::LandOnSetpoints`]), and keeps pushing down
 //! until disarmed. Touchdown is the platform's landed state, or (for platforms without a land
 //! detector) no descent for one second after at least 0.2 m of descent.
 
+use super::arrival::Arrival;
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
@@ -55,6 +59,9 @@ pub struct Land {
     still_since: Option<Duration>,
     touchdown_at: Option<Duration>,
     requested_native: bool,
+    /// Whether the vehicle has stopped over the point, before an autopilot's land mode.
+    settled: Arrival,
+    activated_at: Duration,
     /// Time the descent has waited over its point so far (s).
     gated_s: f64,
     /// The last descent was slowed to wait for the vehicle: stillness is not touchdown.
@@ -74,6 +81,10 @@ const GATE_STOP_M: f64 = 0.12;
 /// The descent waits at most this long in all (s): a vehicle that cannot hold its point still
 /// lands (the battery does not wait).
 const GATE_BUDGET_S: f64 = 20.0;
+/// Before an autopilot's land mode: the vehicle stops within this of the point (m) ...
+const SETTLE_REACH_M: f64 = 0.1;
+/// ... for at most this long (s), then lands where it is.
+const SETTLE_BUDGET_S: f64 = 5.0;
 /// How far the descent's height may run ahead of (or behind) the vehicle (m).
 const DESCENT_LEAD_M: f64 = 0.25;
 
@@ -87,6 +98,8 @@ impl Land {
             still_since: None,
             touchdown_at: None,
             requested_native: false,
+            settled: Arrival::before_landing(),
+            activated_at: Duration::ZERO,
             gated_s: 0.0,
             waiting_over_point: false,
             descent_z: None,
@@ -105,11 +118,14 @@ impl Behavior for Land {
         self.hold_xy = landing_point(ctx);
         self.yaw_rad = ctx.yaw();
         self.start_z = ctx.position().z;
+        self.activated_at = ctx.now;
         Ok(())
     }
 
     fn resume(&mut self, ctx: &BehaviorContext) {
         self.hold_xy = ctx.position();
+        self.activated_at = ctx.now;
+        self.settled.reset();
         self.still_since = None;
         self.descent_z = None;
     }
@@ -149,6 +165,16 @@ impl Behavior for Land {
         }
         if ctx.capabilities.native_land {
             if !self.requested_native {
+                if !self.settled_over_point(ctx) {
+                    return Step::Running {
+                        reference: Some(MotionReference::hold(
+                            Vec3::new(self.hold_xy.x, self.hold_xy.y, self.start_z),
+                            self.yaw_rad,
+                            ctx.config.hold_speed_mps,
+                        )),
+                        feedback,
+                    };
+                }
                 requests.push(PlatformRequest::Land);
                 self.requested_native = true;
             }
@@ -217,6 +243,13 @@ impl Land {
             yaw: YawTarget::Angle(self.yaw_rad),
             max_speed_mps: self.goal.speed,
         }
+    }
+
+    /// Before an autopilot's land mode: stopped over the point, or out of time for it.
+    fn settled_over_point(&mut self, ctx: &BehaviorContext) -> bool {
+        let off_m = (ctx.position().xy() - self.hold_xy.xy()).norm();
+        self.settled.update(off_m <= SETTLE_REACH_M, ctx)
+            || seconds_since(ctx.now, self.activated_at) >= SETTLE_BUDGET_S
     }
 
     fn touched_down(&mut self, ctx: &BehaviorContext) -> bool {
@@ -446,5 +479,46 @@ mod tests {
             run(&mut land, &scene, Duration::from_secs(3)).0,
             Step::Succeeded
         );
+    }
+
+    #[test]
+    fn native_land_waits_for_a_moving_vehicle_to_stop_over_the_point() {
+        let mut scene = Scene::flying();
+        scene.capabilities.native_land = true;
+        scene.set_position(Vec3::new(0.0, 0.0, 3.0), Vec3::new(0.6, 0.0, 0.0));
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        let ms = Duration::from_millis;
+        // Carried on 0.3 m by its speed: held over the point at its height, no land yet.
+        scene.set_position(Vec3::new(0.3, 0.0, 3.0), Vec3::new(0.3, 0.0, 0.0));
+        let (step, requests) = run(&mut land, &scene, ms(500));
+        assert!(requests.is_empty());
+        match step {
+            Step::Running {
+                reference: Some(MotionReference::Position { position_enu_m, .. }),
+                ..
+            } => assert_eq!(position_enu_m, Vec3::new(0.0, 0.0, 3.0)),
+            other => panic!("{other:?}"),
+        }
+        // Back over it and slow: the autopilot lands.
+        scene.set_position(Vec3::new(0.05, 0.0, 3.0), Vec3::new(-0.1, 0.0, 0.0));
+        assert_eq!(run(&mut land, &scene, ms(2000)).1, [PlatformRequest::Land]);
+    }
+
+    #[test]
+    fn native_land_lands_where_it_is_when_the_vehicle_cannot_stop_over_the_point() {
+        let mut scene = Scene::flying();
+        scene.capabilities.native_land = true;
+        scene.set_position(Vec3::new(0.0, 0.0, 3.0), Vec3::zeros());
+        let mut land = Land::new(LandGoal { speed: 0.5 });
+        land.activate(&scene.ctx(0)).unwrap();
+        scene.set_position(Vec3::new(0.4, 0.0, 3.0), Vec3::new(0.5, 0.0, 0.0));
+        for t in (100..5000).step_by(100) {
+            assert!(run(&mut land, &scene, Duration::from_millis(t))
+                .1
+                .is_empty());
+        }
+        let (_, requests) = run(&mut land, &scene, Duration::from_millis(5000));
+        assert_eq!(requests, [PlatformRequest::Land]);
     }
 }

@@ -59,7 +59,9 @@ pub struct BehaviorConfig {
     pub takeoff_threshold_m: f64,
     /// Acceleration used to plan trajectories (m/s^2).
     pub max_acceleration_mps2: f64,
-    /// A behavior that gets no closer to its goal for this long fails (s).
+    /// A behavior that gets no closer to its goal for this long fails (s); within 0.5 m of the
+    /// point a go_to or a path flies to, where an autopilot's own hold wanders, a second counts
+    /// a third.
     pub no_progress_timeout_s: f64,
     /// Arming and entering offboard must complete within this time (s).
     pub arm_timeout_s: f64,
