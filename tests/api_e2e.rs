@@ -246,7 +246,8 @@ async fn a_base64_token_works_in_the_websocket_url_and_bearer_in_any_case() {
 }
 
 /// A web page on another site cannot drive a tokenless Kestrel: its "simple" text/plain POST is
-/// refused for its content type, and anything it sends carries a foreign Origin.
+/// refused for its content type, anything it sends carries a foreign Origin, and a page whose
+/// name was rebound to 127.0.0.1 sends a foreign Host.
 #[tokio::test]
 async fn a_foreign_web_page_cannot_upload_or_start_a_mission_without_a_token() {
     let dir = tempfile::tempdir().unwrap();
@@ -288,6 +289,65 @@ async fn a_foreign_web_page_cannot_upload_or_start_a_mission_without_a_token() {
     })
     .unwrap();
     assert!(tokio_tungstenite::connect_async(ws).await.is_err());
+    // DNS rebinding (issue 29, item 9): the attacker's page, its name now resolving to
+    // 127.0.0.1, sends that name as both Host and Origin, which then agree.
+    let rebound = format!("rebind.attacker.example:{}", k.port);
+    let page = format!("http://{rebound}");
+    let upload = c
+        .post(format!("{}/api/missions", k.base))
+        .header("Host", rebound.as_str())
+        .header("Origin", page.as_str())
+        .json(&takeoff_go_land())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(upload.status().as_u16(), 403);
+    let body: Value = upload.json().await.unwrap();
+    assert_eq!(body["error"]["code"], "foreign_host", "{body}");
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("rebind.attacker.example"),
+        "{body}"
+    );
+    let start = c
+        .post(format!("{}/api/mission_update", k.base))
+        .header("Host", rebound.as_str())
+        .header("Origin", page.as_str())
+        .json(&json!({"drone_id": "drone_0", "action": 0, "mission": takeoff_go_land()}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(start.status().as_u16(), 403);
+    // A same-origin GET carries no Origin at all: the Host alone decides.
+    let read = c
+        .get(format!("{}/api/status", k.base))
+        .header("Host", rebound.as_str())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(read.status().as_u16(), 403);
+    let ws = tokio_tungstenite::tungstenite::client::IntoClientRequest::into_client_request(
+        format!("ws://127.0.0.1:{}/api/ws", k.port),
+    )
+    .map(|mut r| {
+        r.headers_mut().insert("Host", rebound.parse().unwrap());
+        r.headers_mut().insert("Origin", page.parse().unwrap());
+        r
+    })
+    .unwrap();
+    assert!(tokio_tungstenite::connect_async(ws).await.is_err());
+    let localhost = c
+        .get(format!("http://localhost:{}/api/status", k.port))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        localhost.status().as_u16(),
+        200,
+        "localhost is this machine"
+    );
     let (_, missions) = k.get("/api/missions").await;
     assert_eq!(missions, json!([]), "nothing was loaded");
     let (_, status) = k.get("/api/status").await;
