@@ -539,6 +539,45 @@ async fn mission_updates_over_the_websocket_are_answered() {
         .as_str()
         .unwrap()
         .contains("no mission is running"));
+    let took = oversized_frame_dropped_after(k.port).await;
+    assert!(took < Duration::from_secs(2), "dropped after {took:?}");
+}
+
+/// Issue 29, item 10b: a client announces one 15 MB frame and sends its first kilobyte. The
+/// server must drop it from the frame's header, not wait for (and buffer) the 15 MB before the
+/// 256 KiB message limit applies. How long until the server closed the connection.
+async fn oversized_frame_dropped_after(port: u16) -> Duration {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut tcp = tokio::net::TcpStream::connect(("127.0.0.1", port))
+        .await
+        .unwrap();
+    let head = format!(
+        "GET /api/ws?token={TOKEN} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n\
+         Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\
+         Sec-WebSocket-Version: 13\r\n\r\n"
+    );
+    tcp.write_all(head.as_bytes()).await.unwrap();
+    let mut buf = vec![0u8; 4096];
+    let n = tcp.read(&mut buf).await.unwrap();
+    let answer = String::from_utf8_lossy(&buf[..n]).to_string();
+    assert!(answer.starts_with("HTTP/1.1 101"), "{answer}");
+    // FIN + text, masked, 64-bit length 15 000 000, a zero mask, then 1 KiB of the payload.
+    let mut frame = vec![0x81, 0xff];
+    frame.extend(15_000_000u64.to_be_bytes());
+    frame.extend([0u8; 4]);
+    frame.extend(vec![b' '; 1024]);
+    tcp.write_all(&frame).await.unwrap();
+    let sent = Instant::now();
+    // Telemetry may still arrive; the connection must end (EOF or reset) without the rest.
+    let ended = tokio::time::timeout(Duration::from_secs(5), async {
+        while matches!(tcp.read(&mut buf).await, Ok(n) if n > 0) {}
+    })
+    .await;
+    assert!(
+        ended.is_ok(),
+        "still open 5 s after the oversized frame's header"
+    );
+    sent.elapsed()
 }
 
 async fn huge_upload_status(port: u16) -> String {
