@@ -246,7 +246,8 @@ async fn a_base64_token_works_in_the_websocket_url_and_bearer_in_any_case() {
 }
 
 /// A web page on another site cannot drive a tokenless Kestrel: its "simple" text/plain POST is
-/// refused for its content type, and anything it sends carries a foreign Origin.
+/// refused for its content type, anything it sends carries a foreign Origin, and a page whose
+/// name was rebound to 127.0.0.1 sends a foreign Host.
 #[tokio::test]
 async fn a_foreign_web_page_cannot_upload_or_start_a_mission_without_a_token() {
     let dir = tempfile::tempdir().unwrap();
@@ -288,6 +289,65 @@ async fn a_foreign_web_page_cannot_upload_or_start_a_mission_without_a_token() {
     })
     .unwrap();
     assert!(tokio_tungstenite::connect_async(ws).await.is_err());
+    // DNS rebinding (issue 29, item 9): the attacker's page, its name now resolving to
+    // 127.0.0.1, sends that name as both Host and Origin, which then agree.
+    let rebound = format!("rebind.attacker.example:{}", k.port);
+    let page = format!("http://{rebound}");
+    let upload = c
+        .post(format!("{}/api/missions", k.base))
+        .header("Host", rebound.as_str())
+        .header("Origin", page.as_str())
+        .json(&takeoff_go_land())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(upload.status().as_u16(), 403);
+    let body: Value = upload.json().await.unwrap();
+    assert_eq!(body["error"]["code"], "foreign_host", "{body}");
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("rebind.attacker.example"),
+        "{body}"
+    );
+    let start = c
+        .post(format!("{}/api/mission_update", k.base))
+        .header("Host", rebound.as_str())
+        .header("Origin", page.as_str())
+        .json(&json!({"drone_id": "drone_0", "action": 0, "mission": takeoff_go_land()}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(start.status().as_u16(), 403);
+    // A same-origin GET carries no Origin at all: the Host alone decides.
+    let read = c
+        .get(format!("{}/api/status", k.base))
+        .header("Host", rebound.as_str())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(read.status().as_u16(), 403);
+    let ws = tokio_tungstenite::tungstenite::client::IntoClientRequest::into_client_request(
+        format!("ws://127.0.0.1:{}/api/ws", k.port),
+    )
+    .map(|mut r| {
+        r.headers_mut().insert("Host", rebound.parse().unwrap());
+        r.headers_mut().insert("Origin", page.parse().unwrap());
+        r
+    })
+    .unwrap();
+    assert!(tokio_tungstenite::connect_async(ws).await.is_err());
+    let localhost = c
+        .get(format!("http://localhost:{}/api/status", k.port))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        localhost.status().as_u16(),
+        200,
+        "localhost is this machine"
+    );
     let (_, missions) = k.get("/api/missions").await;
     assert_eq!(missions, json!([]), "nothing was loaded");
     let (_, status) = k.get("/api/status").await;
@@ -479,6 +539,45 @@ async fn mission_updates_over_the_websocket_are_answered() {
         .as_str()
         .unwrap()
         .contains("no mission is running"));
+    let took = oversized_frame_dropped_after(k.port).await;
+    assert!(took < Duration::from_secs(2), "dropped after {took:?}");
+}
+
+/// Issue 29, item 10b: a client announces one 15 MB frame and sends its first kilobyte. The
+/// server must drop it from the frame's header, not wait for (and buffer) the 15 MB before the
+/// 256 KiB message limit applies. How long until the server closed the connection.
+async fn oversized_frame_dropped_after(port: u16) -> Duration {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut tcp = tokio::net::TcpStream::connect(("127.0.0.1", port))
+        .await
+        .unwrap();
+    let head = format!(
+        "GET /api/ws?token={TOKEN} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n\
+         Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\
+         Sec-WebSocket-Version: 13\r\n\r\n"
+    );
+    tcp.write_all(head.as_bytes()).await.unwrap();
+    let mut buf = vec![0u8; 4096];
+    let n = tcp.read(&mut buf).await.unwrap();
+    let answer = String::from_utf8_lossy(&buf[..n]).to_string();
+    assert!(answer.starts_with("HTTP/1.1 101"), "{answer}");
+    // FIN + text, masked, 64-bit length 15 000 000, a zero mask, then 1 KiB of the payload.
+    let mut frame = vec![0x81, 0xff];
+    frame.extend(15_000_000u64.to_be_bytes());
+    frame.extend([0u8; 4]);
+    frame.extend(vec![b' '; 1024]);
+    tcp.write_all(&frame).await.unwrap();
+    let sent = Instant::now();
+    // Telemetry may still arrive; the connection must end (EOF or reset) without the rest.
+    let ended = tokio::time::timeout(Duration::from_secs(5), async {
+        while matches!(tcp.read(&mut buf).await, Ok(n) if n > 0) {}
+    })
+    .await;
+    assert!(
+        ended.is_ok(),
+        "still open 5 s after the oversized frame's header"
+    );
+    sent.elapsed()
 }
 
 async fn huge_upload_status(port: u16) -> String {

@@ -105,6 +105,10 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
         let s = status(&http, &base).await;
         let d = &s["drones"][0];
         if d["link"] == "ok" && d["ready_to_fly"] == true {
+            // The `udpin` address pinned from the autopilot's HEARTBEAT, shown to operators.
+            let address = d["autopilot_address"].as_str().unwrap_or_default();
+            assert!(address.starts_with("127.0.0.1:"), "{d}");
+            assert_eq!(d["autopilot_address_changes"], 0, "{d}");
             break;
         }
         assert!(Instant::now() < deadline, "autopilot not ready: {d}");

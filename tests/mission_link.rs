@@ -136,3 +136,54 @@ fn a_landing_interrupted_by_the_link_counts_as_done_when_the_autopilot_landed() 
         ("land", ItemResult::Succeeded)
     );
 }
+
+/// Issue 29, item 10a: the same landing, but the link comes back only after `link_wait_s` has
+/// failed the mission; once the vehicle reports it landed, the landing counts as done.
+#[test]
+fn a_landing_that_outlasts_link_wait_counts_as_done_once_the_vehicle_reports_it_landed() {
+    let mut r = rig(LinkRegained::Land);
+    let mission = json!({"target": "drone_0", "plan": [
+        {"behavior": "takeoff", "args": {"height": 1.0, "speed": 1.0}},
+        {"behavior": "land", "args": {"speed": 0.5}}]});
+    r.execute(1, mission);
+    assert!(r.run_until(30.0, |r| r.at_item(1) && r.position()[2] < 0.7));
+    r.host.set_link_lost(0, true).unwrap();
+    r.host.sim_world_mut().unwrap().vehicles[0].autopilot_land();
+    assert!(
+        r.run_until(15.0, |r| r.is_idle()),
+        "link_wait_s (10 s) fails it"
+    );
+    let failed = r.status();
+    assert_eq!(failed.last_error_code, Some(FailureCode::LinkLost));
+    assert!(failed.outcome(1).unwrap().is_err());
+    assert!(!r.host.sim_world().unwrap().vehicles[0].is_armed());
+    r.host.set_link_lost(0, false).unwrap();
+    r.run_for(1.0);
+    let status = r.status();
+    assert_eq!(status.outcome(1), Some(Ok(())), "{status:?}");
+    assert_eq!(status.last_error_code, None);
+    let last = status.done_results.last().unwrap();
+    assert_eq!(
+        (last.behavior.as_str(), last.result),
+        ("land", ItemResult::Succeeded)
+    );
+    assert!(r.host.executors()[0].missions()[&1].progress.finished);
+}
+
+/// A landing whose vehicle is still in the air when the link comes back stays failed.
+#[test]
+fn a_landing_that_outlasts_link_wait_stays_failed_while_the_vehicle_flies() {
+    let mut r = rig(LinkRegained::Land);
+    let mission = json!({"target": "drone_0", "plan": [
+        {"behavior": "takeoff", "args": {"height": 1.0, "speed": 1.0}},
+        {"behavior": "land", "args": {"speed": 0.5}}]});
+    r.execute(1, mission);
+    assert!(r.run_until(30.0, |r| r.at_item(1) && r.position()[2] < 0.7));
+    r.host.set_link_lost(0, true).unwrap();
+    assert!(r.run_until(15.0, |r| r.is_idle()));
+    r.host.set_link_lost(0, false).unwrap();
+    r.run_for(1.0);
+    let status = r.status();
+    assert!(status.outcome(1).unwrap().is_err(), "{status:?}");
+    assert_eq!(status.last_error_code, Some(FailureCode::LinkLost));
+}

@@ -454,3 +454,67 @@ fn frames_registered_over_the_api_make_a_mission_valid() {
         .unwrap();
     assert!(rig.host.upload(&m, None).is_ok());
 }
+
+/// Issue 29, item 10c: `POST /api/missions` for a drone another Kestrel of the fleet flies
+/// answered `422 invalid_mission` instead of the documented `409 remote_drone`.
+#[test]
+fn a_mission_for_a_remote_drone_is_refused_as_remote_not_invalid() {
+    use kestrel::api::error::ApiError;
+    use kestrel::fleet_bus::remote::SilencePolicy;
+    use kestrel::fleet_bus::wire::{DroneState, StateMsg, WIRE_VERSION};
+    use kestrel::types::LinkHealth;
+    use std::time::Duration;
+
+    let mut rig = Rig::new();
+    rig.host.enable_fleet_bus(SilencePolicy {
+        peer_timeout: Duration::from_secs(3),
+        lost_after: Duration::from_secs(10),
+        keepout_m: 2.0,
+    });
+    let drone = DroneState {
+        id: "drone_7".into(),
+        position_enu_m: [5.0, 0.0, 0.0],
+        velocity_enu_mps: [0.0; 3],
+        yaw_rad: 0.0,
+        flying: false,
+        link: LinkHealth::Ok,
+        battery_pct: None,
+        behavior: None,
+        goal_enu_m: None,
+        mission: None,
+        claim_enu_m: None,
+    };
+    let refused = rig.host.apply_bus_state(StateMsg {
+        v: WIRE_VERSION,
+        node: "kestrel-b".into(),
+        seq: 0,
+        sent_unix_us: 0,
+        drones: vec![drone],
+    });
+    assert!(refused.is_empty(), "{refused:?}");
+    let mut mission = plan(vec![takeoff()]);
+    mission["target"] = json!("drone_7");
+    let answers = [
+        rig.host.upload_context(Some("drone_7")).map(|_| ()),
+        rig.host.upload(&mission, None).map(|_| ()),
+    ];
+    for answer in answers {
+        let e = answer.unwrap_err();
+        assert!(
+            matches!(&e, HostError::RemoteDrone { node, .. } if node == "kestrel-b"),
+            "{e:?}"
+        );
+        let (status, code) = ApiError::from(e).status_and_code();
+        assert_eq!((status.as_u16(), code), (409, "remote_drone"));
+    }
+    // A drone no Kestrel flies is still an error of the mission, at its target.
+    let unknown = rig.host.upload_context(Some("drone_9")).map(|_| ());
+    assert!(
+        matches!(&unknown, Err(HostError::Invalid(e)) if e[0].pointer == "/target"),
+        "{unknown:?}"
+    );
+    assert!(
+        rig.host.executors()[0].missions().is_empty(),
+        "nothing was loaded"
+    );
+}

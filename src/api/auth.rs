@@ -11,7 +11,7 @@ use axum::extract::{Request, State};
 use axum::http::header::{AUTHORIZATION, HOST, ORIGIN};
 use axum::middleware::Next;
 use axum::response::Response;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum AuthError {
@@ -107,8 +107,11 @@ pub async fn require_token(
 /// Middleware, when no token is configured: a request a browser made from another site's page
 /// (its `Origin` is neither this server nor one of `[api] cors_origins`) is refused, so a web
 /// page cannot fly the drone through a tokenless loopback API. Requests without `Origin`
-/// (curl, scripts, the CLI) pass.
-pub async fn same_origin_without_token(
+/// (curl, scripts, the CLI) pass. Before that, a request addressed to any `Host` but a loopback
+/// name or address is refused: a page whose own name was rebound to 127.0.0.1 (DNS
+/// rebinding) sends its own name as both `Host` and `Origin`, which then look alike. A tokenless
+/// API only ever listens on loopback (`check_listen`), so the listen address is one of those.
+pub async fn this_site_only_without_token(
     State(state): State<ApiState>,
     request: Request,
     next: Next,
@@ -117,14 +120,44 @@ pub async fn same_origin_without_token(
         return Ok(next.run(request).await);
     }
     let headers = request.headers();
+    let host = headers
+        .get(HOST)
+        .map(|v| v.to_str().unwrap_or("(not text)"));
+    if let Some(h) = host.filter(|h| !loopback_host(h)) {
+        return Err(ApiError::ForeignHost(h.chars().take(100).collect()));
+    }
     let Some(origin) = headers.get(ORIGIN).and_then(|v| v.to_str().ok()) else {
         return Ok(next.run(request).await);
     };
-    let host = headers.get(HOST).and_then(|v| v.to_str().ok());
     if same_site(origin, host) || state.cors_origins.iter().any(|o| o == origin) {
         return Ok(next.run(request).await);
     }
     Err(ApiError::ForeignOrigin(origin.to_string()))
+}
+
+/// Whether a `Host` header (`name`, `name:port`, `[v6]:port`) names this machine's loopback:
+/// `localhost` or a loopback address, never a name that DNS could point anywhere.
+fn loopback_host(host: &str) -> bool {
+    let name = match host.strip_prefix('[') {
+        Some(rest) => match rest.split_once(']') {
+            Some((ip, "")) => ip,
+            Some((ip, port)) if port.strip_prefix(':').is_some_and(is_port) => ip,
+            _ => return false,
+        },
+        None => match host.split_once(':') {
+            Some((name, port)) if is_port(port) => name,
+            Some(_) => return false,
+            None => host,
+        },
+    };
+    let name = name.strip_suffix('.').unwrap_or(name);
+    name.eq_ignore_ascii_case("localhost")
+        || name.parse::<IpAddr>().is_ok_and(|ip| ip.is_loopback())
+}
+
+/// A port number as written after the colon: 1 to 5 digits.
+fn is_port(digits: &str) -> bool {
+    (1..=5).contains(&digits.len()) && digits.bytes().all(|b| b.is_ascii_digit())
 }
 
 /// Whether `origin` (`http://host:port`) is the server the request was sent to (`Host`).
@@ -162,6 +195,40 @@ mod tests {
         assert!(check_listen(lo, None).is_ok());
         assert!(check_listen(any, None).is_err());
         assert!(check_listen(any, Some("t")).is_ok());
+    }
+
+    /// Issue 29, item 9: a page on `rebind.attacker.example`, its name rebound to 127.0.0.1,
+    /// sends that name as `Host` (and as `Origin`, which then matches it).
+    #[test]
+    fn only_loopback_names_and_addresses_are_this_machines_host() {
+        for ok in [
+            "127.0.0.1:8080",
+            "127.0.0.1",
+            "127.8.9.10:80",
+            "localhost:8080",
+            "LOCALHOST",
+            "localhost.:8080",
+            "[::1]:8080",
+            "[::1]",
+        ] {
+            assert!(loopback_host(ok), "{ok}");
+        }
+        for refused in [
+            "rebind.attacker.example:8080",
+            "rebind.attacker.example",
+            "localhost.attacker.example:8080",
+            "127.0.0.1.nip.io:8080",
+            "10.0.0.5:8080",
+            "0.0.0.0:8080",
+            "[::2]:8080",
+            "[::1]junk",
+            "[::1]8080",
+            "localhost:80:80",
+            "localhost:http",
+            "",
+        ] {
+            assert!(!loopback_host(refused), "{refused}");
+        }
     }
 
     #[test]

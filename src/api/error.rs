@@ -42,6 +42,8 @@ pub enum ApiError {
     Refused { status: StatusCode, message: String },
     #[error("requests from the web page at {0} are refused: this Kestrel has no API token, so only its own pages and [api] cors_origins may call it")]
     ForeignOrigin(String),
+    #[error("requests for the host `{0}` are refused: this Kestrel has no API token, so it answers only requests addressed to a loopback name or address (localhost, 127.0.0.1, [::1]); a web page that rebinds its own name to this machine cannot call it")]
+    ForeignHost(String),
 }
 
 /// The JSON error body, for the OpenAPI spec.
@@ -94,6 +96,7 @@ impl ApiError {
                 (StatusCode::UNSUPPORTED_MEDIA_TYPE, "unsupported_media_type")
             }
             ApiError::ForeignOrigin(_) => (StatusCode::FORBIDDEN, "foreign_origin"),
+            ApiError::ForeignHost(_) => (StatusCode::FORBIDDEN, "foreign_host"),
             ApiError::Refused { status, .. } => (*status, refused_code(*status)),
         }
     }

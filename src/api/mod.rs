@@ -131,7 +131,7 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         ))
         .layer(middleware::from_fn_with_state(
             state.clone(),
-            auth::same_origin_without_token,
+            auth::this_site_only_without_token,
         ))
         .layer(tower_http::timeout::TimeoutLayer::with_status_code(
             axum::http::StatusCode::REQUEST_TIMEOUT,

@@ -25,6 +25,9 @@ const MAX_RATE_HZ: f64 = 50.0;
 const MIN_RATE_HZ: f64 = 0.1;
 /// A client that cannot take a message in this time is dropped.
 const SEND_TIMEOUT: Duration = Duration::from_secs(2);
+/// The largest client message, and frame: a frame's length is checked from its header, so a
+/// client announcing more is dropped before anything of it is buffered (the frame limit alone
+/// was 16 MiB, all read before the message limit was checked).
 const MAX_CLIENT_MESSAGE: usize = 256 * 1024;
 
 pub async fn upgrade(State(s): State<ApiState>, ws: WebSocketUpgrade) -> Response {
@@ -35,6 +38,7 @@ pub async fn upgrade(State(s): State<ApiState>, ws: WebSocketUpgrade) -> Respons
     }
     let counter = s.ws_clients.clone();
     ws.max_message_size(MAX_CLIENT_MESSAGE)
+        .max_frame_size(MAX_CLIENT_MESSAGE)
         .on_upgrade(move |socket| async move {
             serve(socket, s).await;
             counter.fetch_sub(1, Ordering::SeqCst);

@@ -42,6 +42,14 @@ pub struct DroneStatus {
     pub boot_counter: u32,
     pub battery: Option<BatteryStatus>,
     pub last_error: Option<String>,
+    /// Where the autopilot is heard and answered (MAVLink `udpin`: `IP:port`); null on other
+    /// transports and in the simulator.
+    #[serde(default)]
+    pub autopilot_address: Option<String>,
+    /// How many times another address took the autopilot's place (README, "Who is answered on
+    /// `udpin`").
+    #[serde(default)]
+    pub autopilot_address_changes: u32,
     /// Whether the autopilot (or simulator) has given a position: until it has, position,
     /// yaw, velocity and geo are `null`.
     pub has_position: bool,
@@ -82,6 +90,8 @@ impl DroneStatus {
                 remaining_fraction: b.remaining_fraction,
             }),
             last_error: s.platform.last_error,
+            autopilot_address: s.platform.autopilot_address,
+            autopilot_address_changes: s.platform.autopilot_address_changes,
             has_position: age.is_some(),
             stale: s.platform.link == LinkHealth::Lost,
             age_s: age.map(|a| a.as_secs_f64()),

@@ -293,6 +293,7 @@ impl Platform for SimVehicle {
             }),
             last_error: self.last_error.clone(),
             boot_counter: 0,
+            ..PlatformStatus::default()
         };
         let angular_velocity_flu_radps = Vec3::new(0.0, 0.0, s.yaw_rate_radps);
         // The same truth as every source an estimator plugin may listen to.

@@ -91,6 +91,13 @@ pub struct PlatformStatus {
     pub last_error: Option<String>,
     /// Counts autopilot reboots seen; a change means the vehicle restarted.
     pub boot_counter: u32,
+    /// Where the autopilot's frames come from and Kestrel's go, when the transport pins one
+    /// address (MAVLink `udpin`); `None` otherwise.
+    #[serde(default)]
+    pub autopilot_address: Option<String>,
+    /// How many times another address took that place (each one logged and alerted).
+    #[serde(default)]
+    pub autopilot_address_changes: u32,
 }
 
 /// Everything known about one vehicle at one instant; what the API publishes.

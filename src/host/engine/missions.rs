@@ -136,14 +136,22 @@ impl Host {
                 });
             }
         };
-        let i = self.route(Some(&target)).map_err(|e| {
-            HostError::Invalid(vec![ValidationError {
-                pointer: "/target".into(),
-                message: e.to_string(),
-            }])
-        })?;
+        let i = self.route_target(&target)?;
         let valid = self.validate(i, mission)?;
         self.load_valid(i, target, mission.clone(), valid, mission_id)
+    }
+
+    /// The drone a mission's `target` names. A drone this Kestrel does not know is an error of
+    /// the mission (`/target`); one that another Kestrel of the fleet flies is not: the mission
+    /// may be fine, it is only sent to the wrong Kestrel (`remote_drone`, naming its node).
+    fn route_target(&self, target: &str) -> Result<usize, HostError> {
+        self.route(Some(target)).map_err(|e| match e {
+            HostError::RemoteDrone { .. } => e,
+            other => HostError::Invalid(vec![ValidationError {
+                pointer: "/target".into(),
+                message: other.to_string(),
+            }]),
+        })
     }
 
     /// The validation context of drone `target` (the first drone when the mission names none:
@@ -155,12 +163,7 @@ impl Host {
     ) -> Result<(usize, ContextSnapshot), HostError> {
         let i = match target {
             None => 0,
-            Some(t) => self.route(Some(t)).map_err(|e| {
-                HostError::Invalid(vec![ValidationError {
-                    pointer: "/target".into(),
-                    message: e.to_string(),
-                }])
-            })?,
+            Some(t) => self.route_target(t)?,
         };
         let ctx = self
             .validation_context(i)

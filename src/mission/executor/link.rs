@@ -3,8 +3,9 @@
 //! `[mission] link_wait_s` for the link, then follows `[mission] on_link_regained`:
 //! `resume` starts the interrupted item again, `land` ends the mission and lands, `hold` pauses the
 //! mission with the vehicle hovering until RESUME or STOP. A `land` item is finished whatever the
-//! policy (it counts as done when the autopilot landed by itself meanwhile); a vehicle that landed
-//! during the outage ends the mission. The same rules hold on every platform (simulator, PX4,
+//! policy (it counts as done when the autopilot landed by itself meanwhile, even when the link
+//! came back only after `link_wait` had failed the mission); a vehicle that landed during the
+//! outage ends the mission. The same rules hold on every platform (simulator, PX4,
 //! ArduPilot) and on every path (API, CLI), since this is the one place they live.
 //!
 //! In: the core's link and arming state each tick. Out: behavior commands, the mission status.
@@ -67,6 +68,44 @@ pub(super) struct LinkWait {
 }
 
 impl MissionExecutor {
+    /// A `land` item failed because the link stayed lost past `link_wait`. Once the link is back
+    /// the vehicle says whether it landed meanwhile (the autopilot's own failsafe): if it is on
+    /// the ground and disarmed, the item is recorded as succeeded, and when it was the mission's
+    /// last the mission completes and its error is cleared. Still flying: the failure stands.
+    pub(super) fn confirm_landing(&mut self, core: &DroneCore) {
+        let Some((id, index)) = self.unconfirmed_landing else {
+            return;
+        };
+        if self.run.is_some() {
+            // Another run started since: that mission's record is no longer this one to amend.
+            self.unconfirmed_landing = None;
+            return;
+        }
+        let status = core.platform_status();
+        if status.link != LinkHealth::Ok {
+            return;
+        }
+        self.unconfirmed_landing = None;
+        if status.armed || status.flight.is_airborne() {
+            return;
+        }
+        let Some(items) = self.missions.get(&id).map(|l| l.mission.items.len()) else {
+            return;
+        };
+        let reason = "the autopilot landed while the link was lost".to_string();
+        tracing::info!("mission {id} item {index} (land): {reason}");
+        self.record(id, index, ItemResult::Succeeded, Some(reason), None);
+        let last = index + 1 >= items;
+        self.with_progress(id, |p| {
+            p.cursor = index + 1;
+            p.finished |= last;
+        });
+        if last {
+            self.last_error = None;
+            self.last_error_code = None;
+        }
+    }
+
     /// The current item ended because the link was lost: wait for it.
     pub(super) fn wait_for_link(&mut self, index: usize, now: Duration) {
         if let Some(run) = self.run.as_mut() {
@@ -103,6 +142,9 @@ impl MissionExecutor {
                     &reason,
                     Some(FailureCode::LinkLost),
                 );
+                if behavior == "land" {
+                    self.unconfirmed_landing = Some((id, wait.index));
+                }
             }
             return;
         }

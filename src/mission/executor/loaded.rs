@@ -73,6 +73,7 @@ impl MissionExecutor {
             changed: BTreeSet::new(),
             alerts: Vec::new(),
             failed_in_flight: None,
+            unconfirmed_landing: None,
             config,
         }
     }

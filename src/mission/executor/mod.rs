@@ -72,6 +72,9 @@ pub struct MissionExecutor {
     /// A mission failed: `[mission] on_failure` is applied at the end of the next update (a
     /// refused START forgets it: a refusal changes nothing).
     failed_in_flight: Option<InFlightFailed>,
+    /// A `land` item (mission, item) failed because the link stayed lost past `link_wait`:
+    /// whether the vehicle did land is known once the link is back (`link.rs`).
+    unconfirmed_landing: Option<(u32, usize)>,
     config: ExecutorConfig,
 }
 
@@ -88,6 +91,7 @@ impl MissionExecutor {
             changed: BTreeSet::new(),
             alerts: Vec::new(),
             failed_in_flight: None,
+            unconfirmed_landing: None,
             config,
         }
     }
@@ -300,6 +304,7 @@ impl MissionExecutor {
                 self.on_finished(*id, behavior, result, core, now);
             }
         }
+        self.confirm_landing(core);
         self.follow_link(core, now);
         self.follow_fleet(core);
         self.end_timed_item(core, now);

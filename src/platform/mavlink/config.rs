@@ -4,10 +4,11 @@
 //! strings, the `udpin` [`PeerPolicy`] and the [`SessionConfig`] (our ids, link policy, EKF
 //! origin).
 
-use super::peer::{PeerPattern, PeerPolicy};
+use super::peer::{PeerPattern, PeerPolicy, REPIN_AFTER};
 use super::session::SessionConfig;
 use crate::types::GeoPoint;
 use serde::{Deserialize, Serialize};
+use std::time::Duration;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -36,9 +37,14 @@ pub struct MavlinkSection {
     /// Ground station endpoints that get the autopilot's stream, e.g. `udpout:127.0.0.1:14550`.
     pub forward: Vec<String>,
     /// `udpin` only: answer only the address the autopilot's HEARTBEAT came from, and ignore
-    /// datagrams from any other (another may take its place after 3 s of its silence). `false`
-    /// answers whoever sent last (any host that can reach the port can then take the link).
+    /// datagrams from any other (another may take its place only as `repin_after_s` says).
+    /// `false` answers whoever sent last (any host that can reach the port can then take the
+    /// link).
     pub pin_peer: bool,
+    /// `udpin` only: how long the pinned address must be silent before another address may
+    /// take its place (s, 5..=86 400; default 30), and then only for the same autopilot system,
+    /// last heard disarmed and on the ground. Each change is logged and shown in the API.
+    pub repin_after_s: f64,
     /// `udpin` only: the addresses that may be heard at all, `IP` (any port) or `IP:port`, e.g.
     /// a GCS router's `["127.0.0.1:14580"]`; empty = any.
     pub allowed_peers: Vec<String>,
@@ -56,6 +62,7 @@ impl Default for MavlinkSection {
             ekf_origin: None,
             forward: Vec::new(),
             pin_peer: true,
+            repin_after_s: REPIN_AFTER.as_secs_f64(),
             allowed_peers: Vec::new(),
         }
     }
@@ -83,6 +90,12 @@ impl MavlinkSection {
                 "moved to [mission] on_link_regained (land, hold or resume)".into(),
             ));
         }
+        if !(5.0..=86_400.0).contains(&self.repin_after_s) {
+            return Err((
+                "mavlink.repin_after_s".into(),
+                format!("{} s: must be 5..=86400 s", self.repin_after_s),
+            ));
+        }
         if self.component_id == 0 {
             return Err(("mavlink.component_id".into(), "must be 1..=255".into()));
         }
@@ -103,6 +116,7 @@ impl MavlinkSection {
                 .filter_map(|p| PeerPattern::parse(p).ok())
                 .collect(),
             target_system: self.target_system,
+            repin_after: Duration::from_secs_f64(self.repin_after_s.clamp(5.0, 86_400.0)),
         }
     }
 
@@ -135,5 +149,18 @@ mod tests {
         let (field, message) = bad.validate().unwrap_err();
         assert_eq!(field, "mavlink.allowed_peers");
         assert!(message.contains("gcs.local"), "{message}");
+    }
+
+    #[test]
+    fn repin_after_s_is_bounded_and_reaches_the_policy() {
+        let section: MavlinkSection = toml::from_str("repin_after_s = 120.0").unwrap();
+        assert_eq!(section.validate(), Ok(()));
+        assert_eq!(section.peer_policy().repin_after, Duration::from_secs(120));
+        for bad in ["repin_after_s = 1.0", "repin_after_s = nan"] {
+            let section: MavlinkSection = toml::from_str(bad).unwrap();
+            let (field, message) = section.validate().unwrap_err();
+            assert_eq!(field, "mavlink.repin_after_s", "{bad}");
+            assert!(message.contains("5..=86400"), "{message}");
+        }
     }
 }

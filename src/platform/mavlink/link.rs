@@ -19,6 +19,7 @@ use crate::types::Setpoint;
 use mavlink::dialects::ardupilotmega::MavMessage;
 use mavlink::error::MessageWriteError;
 use mavlink::{AsyncMavConnection, MAVLinkMessageRaw, MavHeader, MavlinkVersion, Message};
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -81,6 +82,13 @@ pub enum Event {
 pub enum TransportEvent {
     Connected,
     Failed(String),
+    /// `udpin` with `pin_peer`: the autopilot's address was pinned; `previous` is the one it
+    /// replaced, and `changes` counts such replacements (`peer.rs`).
+    Pinned {
+        address: SocketAddr,
+        previous: Option<SocketAddr>,
+        changes: u32,
+    },
 }
 
 /// Decodes a raw frame with the ardupilotmega dialect (unknown ids are skipped).
@@ -239,6 +247,9 @@ pub async fn session_task(mut session: Session, mut io: SessionIo) {
                     Some(TransportEvent::Failed(e)) => {
                         tracing::warn!(target: "mavlink", "connection: {e}");
                         session.note_transport_error(e);
+                    }
+                    Some(TransportEvent::Pinned { address, previous, changes }) => {
+                        session.note_peer(address, previous, changes);
                     }
                     Some(TransportEvent::Connected) => {}
                     None => return,

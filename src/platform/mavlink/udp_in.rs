@@ -77,6 +77,7 @@ pub async fn task(
                 let io = Io {
                     socket: &socket,
                     inbound: &inbound,
+                    transport: &transport,
                     router: router.as_ref(),
                     start,
                 };
@@ -102,6 +103,7 @@ type Decoded = (Arc<MAVLinkMessageRaw>, Option<(MavHeader, MavMessage)>);
 struct Io<'a> {
     socket: &'a UdpSocket,
     inbound: &'a mpsc::Sender<Inbound>,
+    transport: &'a mpsc::Sender<TransportEvent>,
     router: Option<&'a broadcast::Sender<Arc<MAVLinkMessageRaw>>>,
     start: Instant,
 }
@@ -156,6 +158,7 @@ impl Io<'_> {
             .collect();
         let messages: Vec<(MavHeader, MavMessage)> =
             decoded.iter().filter_map(|(_, d)| d.clone()).collect();
+        let before = pin.destination();
         if !pin.admit(self.start.elapsed(), from, &messages) {
             let n = pin.ignored();
             if n.is_power_of_two() {
@@ -164,6 +167,19 @@ impl Io<'_> {
                     pin.destination().map_or_else(|| "(none yet)".to_string(), |a| a.to_string()));
             }
             return true;
+        }
+        if let Some(address) = pin
+            .destination()
+            .filter(|a| pin.pins() && before != Some(*a))
+        {
+            let pinned = TransportEvent::Pinned {
+                address,
+                previous: before,
+                changes: pin.changes(),
+            };
+            if self.transport.send(pinned).await.is_err() {
+                return false;
+            }
         }
         for (raw, d) in decoded {
             if let Some(r) = self.router {
@@ -239,6 +255,61 @@ mod tests {
         );
     }
 
+    /// Issue 29, item 8, on real sockets: the armed autopilot falls silent for longer than
+    /// the old 3 s rule, a stranger's HEARTBEAT claims its system id; Kestrel's frames still go
+    /// to the autopilot's address, and nothing of the stranger reaches the session.
+    #[tokio::test]
+    async fn a_stranger_does_not_take_a_silent_armed_autopilots_address() {
+        let (in_tx, mut in_rx) = mpsc::channel(64);
+        let (out_tx, out_rx) = mpsc::channel(64);
+        let (tr_tx, mut tr_rx) = mpsc::channel(8);
+        let probe = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let address = probe.local_addr().unwrap().to_string();
+        drop(probe);
+        let policy = PeerPolicy::default();
+        let server = tokio::spawn(task(address.clone(), policy, in_tx, out_rx, tr_tx, None));
+        assert_eq!(tr_rx.recv().await, Some(TransportEvent::Connected));
+        let autopilot = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let stranger = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let armed = bytes(&hb(0, true));
+        autopilot.send_to(&armed, &address).await.unwrap();
+        assert!(in_rx.recv().await.is_some());
+        assert!(matches!(
+            tr_rx.recv().await,
+            Some(TransportEvent::Pinned { .. })
+        ));
+        tokio::time::sleep(Duration::from_millis(3500)).await;
+        for _ in 0..5 {
+            stranger
+                .send_to(&bytes(&hb(0, false)), &address)
+                .await
+                .unwrap();
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        out_tx
+            .send(Outbound::Message(
+                autopilot_header(),
+                Box::new(hb(0, false)),
+            ))
+            .await
+            .unwrap();
+        let mut buf = [0u8; 600];
+        let to_autopilot =
+            tokio::time::timeout(Duration::from_secs(2), autopilot.recv(&mut buf)).await;
+        let to_stranger =
+            tokio::time::timeout(Duration::from_millis(300), stranger.recv(&mut buf)).await;
+        assert!(
+            to_autopilot.is_ok() && to_stranger.is_err(),
+            "answered the stranger"
+        );
+        assert!(
+            in_rx.try_recv().is_err(),
+            "the stranger's frames reached the session"
+        );
+        assert!(tr_rx.try_recv().is_err(), "no change of address");
+        server.abort();
+    }
+
     #[tokio::test]
     async fn a_flooding_stranger_is_never_answered() {
         let (in_tx, mut in_rx) = mpsc::channel(64);
@@ -264,6 +335,15 @@ mod tests {
             .unwrap();
         let first = in_rx.recv().await.unwrap();
         assert_eq!(first.header.system_id, 1);
+        // The session hears which address was pinned (the API shows it).
+        assert_eq!(
+            tr_rx.recv().await,
+            Some(TransportEvent::Pinned {
+                address: autopilot.local_addr().unwrap(),
+                previous: None,
+                changes: 0,
+            })
+        );
         for _ in 0..50 {
             stranger.send_to(b"garbage", &address).await.unwrap();
             stranger

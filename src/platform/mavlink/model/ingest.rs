@@ -285,8 +285,10 @@ impl VehicleModel {
         let silent = self.link_lost || self.link(now) == LinkHealth::Lost;
         let this = (system_id, header.component_id);
         match self.autopilot {
-            // Another autopilot is followed only once the selected one has fallen silent.
-            Some(selected) if selected != this && !silent => return None,
+            // Another autopilot is followed only once the selected one has fallen silent, and
+            // never when it was last heard armed: its own failsafe flies it, and commands meant
+            // for it must not go to whoever answers meanwhile.
+            Some(selected) if selected != this && (!silent || self.armed) => return None,
             Some(selected) if selected != this => {
                 tracing::warn!(target: "mavlink", "autopilot {selected:?} silent: following {this:?}");
                 self.forget_estimate();

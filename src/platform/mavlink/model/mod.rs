@@ -273,6 +273,7 @@ impl VehicleModel {
             battery: self.battery,
             last_error: self.last_error.clone(),
             boot_counter: self.boot_counter,
+            ..PlatformStatus::default()
         }
     }
 
@@ -489,6 +490,12 @@ mod tests {
             "{ev:?}"
         );
         assert_eq!(m.link(later), LinkHealth::Ok);
+        // Never while the one followed was last heard armed.
+        let mut armed = VehicleModel::new(px4_profile(), None);
+        assert!(armed.ingest(Duration::ZERO, &ap(), &hb(0, true)).is_some());
+        assert!(armed.ingest(later, &rogue, &hb(0, false)).is_none());
+        assert_eq!(armed.autopilot(), Some((1, ap().component_id)));
+        assert_eq!(armed.link(later), LinkHealth::Lost);
         // With a configured system id the rogue never captures it.
         let mut m = VehicleModel::new(px4_profile(), Some(1));
         assert!(m.ingest(Duration::ZERO, &rogue, &hb(0, false)).is_none());

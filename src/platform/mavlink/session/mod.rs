@@ -34,6 +34,7 @@ use mavlink::dialects::ardupilotmega::{
 };
 use mavlink::MavHeader;
 use serde::Serialize;
+use std::net::SocketAddr;
 use std::time::Duration;
 
 const HEARTBEAT_PERIOD: Duration = Duration::from_secs(1);
@@ -103,6 +104,8 @@ pub struct Session {
     texts: Outbox,
     /// When the behavior `land` last said it flies the descent on setpoints.
     landing_on_setpoints_at: Option<Duration>,
+    /// `udpin`: the autopilot's pinned address and how many times another took its place.
+    peer: Option<(SocketAddr, u32)>,
     stats: SessionStats,
 }
 
@@ -137,6 +140,7 @@ impl Session {
             link_was_lost: false,
             texts: Outbox::default(),
             landing_on_setpoints_at: None,
+            peer: None,
             stats: SessionStats::default(),
         }
     }
@@ -206,6 +210,18 @@ impl Session {
     /// The transport failed (connect or read error): visible in the status until the link is up.
     pub fn note_transport_error(&mut self, error: String) {
         self.model.set_error(format!("connection: {error}"));
+    }
+
+    /// The transport pinned the autopilot's address (`udpin`): shown in the status; a change
+    /// of address is also the last error, so operators hear of it.
+    pub fn note_peer(&mut self, address: SocketAddr, previous: Option<SocketAddr>, changes: u32) {
+        self.peer = Some((address, changes));
+        if let Some(old) = previous {
+            self.model.set_error(format!(
+                "the autopilot is now answered at {address}, no longer at {old} (address change \
+                 {changes}, after its silence)"
+            ));
+        }
     }
 
     /// One message from the link.
@@ -370,8 +386,13 @@ impl Session {
 
     /// Status, the latest odometry, scans and finished requests since the last call.
     pub fn feedback(&mut self, now: Duration) -> PlatformFeedback {
+        let mut status = self.model.status(now);
+        if let Some((address, changes)) = self.peer {
+            status.autopilot_address = Some(address.to_string());
+            status.autopilot_address_changes = changes;
+        }
         PlatformFeedback {
-            status: self.model.status(now),
+            status,
             measurements: self.model.odometry(now).into_iter().collect(),
             scans: self.model.take_scans(),
             request_results: std::mem::take(&mut self.results),
@@ -491,6 +512,33 @@ mod tests {
         let bytes: Vec<u8> = texts.iter().flat_map(|(_, t)| t.text.to_vec()).collect();
         let text = String::from_utf8_lossy(&bytes);
         assert!(text.starts_with(&format!("Kestrel: {long}\0")), "{text}");
+    }
+
+    #[test]
+    fn the_pinned_address_and_a_change_of_it_show_in_the_status() {
+        let mut s = Session::new(px4_profile(), SessionConfig::default());
+        let status = s.feedback(MS(0)).status;
+        assert_eq!((status.autopilot_address, status.last_error), (None, None));
+        let (first, moved) = (
+            "127.0.0.1:14580".parse().unwrap(),
+            "127.0.0.1:14581".parse().unwrap(),
+        );
+        s.note_peer(first, None, 0);
+        let status = s.feedback(MS(10)).status;
+        assert_eq!(status.autopilot_address.as_deref(), Some("127.0.0.1:14580"));
+        assert_eq!(
+            (status.autopilot_address_changes, status.last_error),
+            (0, None)
+        );
+        s.note_peer(moved, Some(first), 1);
+        let status = s.feedback(MS(20)).status;
+        assert_eq!(status.autopilot_address.as_deref(), Some("127.0.0.1:14581"));
+        assert_eq!(status.autopilot_address_changes, 1);
+        let error = status.last_error.unwrap_or_default();
+        assert!(
+            error.contains("127.0.0.1:14581") && error.contains("127.0.0.1:14580"),
+            "{error}"
+        );
     }
 
     #[test]
