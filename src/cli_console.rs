@@ -7,32 +7,57 @@
 //! standard output.
 
 use kestrel::behavior::{BehaviorEvent, BehaviorResult};
+use kestrel::fleet_bus::join::JoinWatch;
+use kestrel::fleet_bus::zenoh_log::{self, ZenohLog};
 use serde_json::Value;
 use std::io::IsTerminal;
 use tracing_subscriber::layer::SubscriberExt;
 use tracing_subscriber::util::SubscriberInitExt;
 use tracing_subscriber::EnvFilter;
+use tracing_subscriber::Layer;
 
 /// The longest goal summary printed with a `started` line (characters).
 const MAX_GOAL_CHARS: usize = 120;
 
-/// Installs the log output: journald under systemd, otherwise lines on standard output.
+/// Installs the log output: journald under systemd, otherwise lines on standard output. Zenoh's
+/// own lines go to the fleet bus's reader (`fleet_bus::zenoh_log`), which says what matters in
+/// Kestrel's words; they are printed raw only when `RUST_LOG` names zenoh.
 pub fn init_logging() {
-    let filter = || EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into());
+    let zenoh = ZenohLog::new(JoinWatch::global()).with_filter(zenoh_log::targets());
+    let registry = tracing_subscriber::registry().with(zenoh);
     if stdout_is_the_journal() {
         if let Ok(journal) = tracing_journald::layer() {
-            tracing_subscriber::registry()
-                .with(filter())
-                .with(journal.with_syslog_identifier("kestrel".into()))
+            registry
+                .with(
+                    journal
+                        .with_syslog_identifier("kestrel".into())
+                        .with_filter(output_filter()),
+                )
                 .init();
             return;
         }
     }
-    tracing_subscriber::fmt()
-        .with_env_filter(filter())
-        .with_target(false)
-        .with_ansi(std::io::stdout().is_terminal())
+    registry
+        .with(
+            tracing_subscriber::fmt::layer()
+                .with_target(false)
+                .with_ansi(std::io::stdout().is_terminal())
+                .with_filter(output_filter()),
+        )
         .init();
+}
+
+/// `RUST_LOG` (default `info`), with Zenoh's lines left out unless it names them.
+fn output_filter() -> EnvFilter {
+    let asked = std::env::var("RUST_LOG").unwrap_or_default();
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into());
+    if asked.contains("zenoh") {
+        return filter;
+    }
+    match "zenoh=off".parse() {
+        Ok(directive) => filter.add_directive(directive),
+        Err(_) => filter,
+    }
 }
 
 /// systemd sets `JOURNAL_STREAM=<device>:<inode>` to the stream it connected standard output

@@ -75,6 +75,7 @@ impl ApiError {
                 HostError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
                 HostError::AlreadyLanded(_) => (StatusCode::CONFLICT, "already_landed"),
                 HostError::RemoteDrone { .. } => (StatusCode::CONFLICT, "remote_drone"),
+                HostError::FleetNotJoined { .. } => (StatusCode::CONFLICT, "fleet_not_joined"),
                 HostError::Behavior(b) => match b {
                     ServerError::UnknownBehavior(_) => (StatusCode::NOT_FOUND, "unknown_behavior"),
                     ServerError::Rejected { reason, .. } => {

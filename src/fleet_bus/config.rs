@@ -54,6 +54,11 @@ pub struct FleetSection {
     /// the bus is open to anyone on the network (a warning says so).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub credentials_file: Option<PathBuf>,
+    /// With peers in `connect`, refuse missions and explorations (`409 fleet_not_joined`) until
+    /// every one of them has been joined once, so a node the others refused (wrong credentials)
+    /// or cannot reach never flies unseen by their separation and allocation. Once joined, peers
+    /// that fall silent follow the lost-peer rules instead (`peer_timeout_s`, `lost_after_s`).
+    pub require_join: bool,
 }
 
 impl Default for FleetSection {
@@ -72,6 +77,7 @@ impl Default for FleetSection {
             lost_after_s: 10.0,
             silent_keepout_m: 0.5,
             credentials_file: None,
+            require_join: true,
         }
     }
 }

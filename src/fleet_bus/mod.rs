@@ -6,12 +6,16 @@
 //! exploration claims) and the changed regions of its drones' map layers; from peers, theirs.
 //! Out: remote drones in the fleet view (`local: false`, with a position uncertainty that grows
 //! while their node is silent), their map layers in the merged map, their claims in the
-//! allocator. `config`, `credentials` and `wire` (formats and checks) and `remote` (what was
-//! heard) are plain code; `node` (the Zenoh session) is built with the `fleet-bus` feature.
+//! allocator. `config`, `credentials` and `wire` (formats and checks), `remote` (what was
+//! heard) and `join` (whether this node joined its peers, who refused whom) are plain code;
+//! `zenoh_log` reads Zenoh's log lines for `join`; `node` (the Zenoh session) is built with the
+//! `fleet-bus` feature.
 
 pub mod config;
 pub mod credentials;
+pub mod join;
 #[cfg(feature = "fleet-bus")]
 pub mod node;
 pub mod remote;
 pub mod wire;
+pub mod zenoh_log;

@@ -15,12 +15,15 @@ use serde::Serialize;
 use tokio::sync::mpsc;
 
 use super::config::FleetSection;
+use super::join::{JoinWatch, Severity};
 use super::wire::{MapMsg, StateMsg};
 
 /// Messages waiting to be sent, or to be read by the control loop.
 const QUEUE: usize = 256;
 /// How soon a link that stopped answering is dropped (ms): Wi-Fi drops are noticed quickly.
 const LEASE_MS: u64 = 3000;
+/// How often what the join watch has to say is logged.
+const JOIN_LINES_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// What the bus needs to start.
 #[derive(Debug, Clone)]
@@ -92,6 +95,35 @@ pub struct BusPort {
     pub inbound: mpsc::Receiver<Inbound>,
     pub outbound: mpsc::Sender<Outbound>,
     pub stats: Arc<BusStats>,
+    /// Whether this node joined its peers (fed by Zenoh's log lines, `zenoh_log`).
+    pub join: &'static JoinWatch,
+}
+
+/// The process's join watch, expecting the peers of `section`, and its lines logged.
+fn watch_joins(section: &FleetSection) -> &'static JoinWatch {
+    let join = JoinWatch::global();
+    join.lock()
+        .expect(&section.name, &section.connect, section.require_join);
+    spawn_join_lines(join);
+    join
+}
+
+/// Logs what the join watch has to say (refusals, peers joined), in Kestrel's words, for as
+/// long as the process runs.
+fn spawn_join_lines(join: &'static JoinWatch) {
+    tokio::spawn(async move {
+        let mut every = tokio::time::interval(JOIN_LINES_EVERY);
+        loop {
+            every.tick().await;
+            let lines = join.lock().take_lines();
+            for (severity, line) in lines {
+                match severity {
+                    Severity::Info => tracing::info!("{line}"),
+                    Severity::Warn => tracing::warn!("{line}"),
+                }
+            }
+        }
+    });
 }
 
 /// The Zenoh configuration for a section: peer mode, the endpoints, scouting only if asked,
@@ -133,6 +165,7 @@ fn key_parts<'a>(key: &'a str, fleet: &str) -> Option<(&'a str, &'a str)> {
 /// configuration is checked at once; peers are reached in the background.
 pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
     let zconfig = zenoh_config(&config.section)?;
+    let join = watch_joins(&config.section);
     let session = zenoh::open(zconfig)
         .await
         .map_err(|e| anyhow::anyhow!("fleet bus: cannot open the Zenoh session: {e}"))?;
@@ -244,6 +277,7 @@ pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
         inbound,
         outbound,
         stats,
+        join,
     })
 }
 

@@ -38,6 +38,8 @@ pub struct BusLink {
     map_seq: u64,
     latencies_ms: VecDeque<f64>,
     refused_here: u64,
+    /// The join watch's revision last reported.
+    join_revision: Option<u64>,
 }
 
 fn due(last: Option<Instant>, period: Duration, now: Instant) -> bool {
@@ -68,6 +70,7 @@ impl BusLink {
             map_seq: 0,
             latencies_ms: VecDeque::with_capacity(LATENCY_SAMPLES),
             refused_here: 0,
+            join_revision: None,
         }
     }
 
@@ -82,12 +85,14 @@ impl BusLink {
 
     /// Between two ticks: peers' messages in, what is due out.
     pub fn exchange(&mut self, host: &mut Host) {
+        let mut heard = false;
         for _ in 0..MAX_IN_PER_TICK {
             let Ok(msg) = self.port.inbound.try_recv() else {
                 break;
             };
             match msg {
                 Inbound::State(m) => {
+                    heard = true;
                     let sent = m.sent_unix_us;
                     for why in host.apply_bus_state(m) {
                         self.warn(&why);
@@ -108,6 +113,18 @@ impl BusLink {
             }
         }
         let now = Instant::now();
+        let revision = {
+            let mut join = self.port.join.lock();
+            if heard {
+                join.peer_heard(now);
+            }
+            join.revision()
+        };
+        // A change of the join (joined, refused) is reported at once: missions wait on it.
+        if self.join_revision != Some(revision) {
+            self.join_revision = Some(revision);
+            self.last_report = None;
+        }
         if due(self.last_state, self.state_period, now) {
             self.last_state = Some(now);
             let msg = host.bus_state(&self.node, self.state_seq, unix_us());
@@ -147,6 +164,7 @@ impl BusLink {
             sorted.get(i).copied()
         };
         let stats = self.port.stats.view();
+        let join = self.port.join.lock().status();
         BusReport {
             fleet: self.fleet.clone(),
             node: self.node.clone(),
@@ -161,6 +179,10 @@ impl BusLink {
             latency_samples: sorted.len(),
             latency_p50_ms: pct(0.5),
             latency_p99_ms: pct(0.99),
+            joined: join.joined,
+            join_required: join.join_required,
+            refused_joins: join.refused_joins,
+            waiting_for: join.waiting_for,
         }
     }
 }

@@ -150,6 +150,16 @@ pub struct BusReport {
     pub latency_samples: usize,
     pub latency_p50_ms: Option<f64>,
     pub latency_p99_ms: Option<f64>,
+    /// Whether this node has joined its fleet: every peer of `[fleet] connect` answered once
+    /// (listing none: a peer was heard). Latched: a peer lost later follows the lost-peer rules.
+    pub joined: bool,
+    /// Missions and explorations are refused (`409 fleet_not_joined`) until joined: peers are
+    /// listed and `[fleet] require_join` is on.
+    pub join_required: bool,
+    /// Handshakes refused for their credentials, by a peer or by this node.
+    pub refused_joins: u64,
+    /// The peers of `connect` not joined yet, each with why.
+    pub waiting_for: Vec<String>,
 }
 
 /// Something that happened, for WebSocket clients and logs.

@@ -302,3 +302,26 @@ impl Fleet {
         }
     }
 }
+
+/// A Kestrel on a bus without an autopilot (its drone `drone_{id}` waits on a UDP port where
+/// nothing answers): node `node_{id}` listening on `listen`, connecting to `connect`.
+pub fn bus_only_node(id: usize, fleet: &str, listen: u16, connect: &[u16], creds: &str) -> String {
+    let connect: Vec<String> = connect
+        .iter()
+        .map(|p| format!("tcp/127.0.0.1:{p}"))
+        .collect();
+    format!(
+        "[[vehicle]]\nid = \"drone_{id}\"\nconnection = \"udpin:127.0.0.1:{}\"\n\n\
+         [fleet]\nenabled = true\nname = \"{fleet}\"\nnode = \"node_{id}\"\n\
+         listen = [\"tcp/127.0.0.1:{listen}\"]\nconnect = {}\ncredentials_file = \"{creds}\"\n",
+        super::free_udp_port(),
+        serde_json::to_string(&connect).unwrap()
+    )
+}
+
+/// `kestrel run` of that config, its API on a free port.
+pub fn start_bus_only(config: &str) -> (Kestrel, Api) {
+    let port = free_tcp_port();
+    let node = Kestrel::run_config(config, &["--listen", &format!("127.0.0.1:{port}")]);
+    (node, Api::connect(port))
+}

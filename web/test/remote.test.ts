@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import { ApiClient, ApiError } from '../src/lib/api';
-import { applyRemote, busSummary, newRemoteState, peersHeard, remoteLabel, remoteLink } from '../src/lib/remote';
+import { applyRemote, busSummary, joinBanner, newRemoteState, peersHeard, remoteLabel, remoteLink } from '../src/lib/remote';
 import type { BusReport, RemoteDrone } from '../src/lib/types';
 
 function remote(id: string, over: Partial<RemoteDrone> = {}): RemoteDrone {
@@ -31,6 +31,10 @@ const BUS: BusReport = {
   latency_samples: 5,
   latency_p50_ms: 10.14,
   latency_p99_ms: 11,
+  joined: true,
+  join_required: true,
+  refused_joins: 0,
+  waiting_for: [],
 };
 
 describe('remote drones', () => {
@@ -73,6 +77,21 @@ describe('remote drones', () => {
     applyRemote(s, [remote('a'), remote('b', { node: 'node_2', silent: true }), remote('c')], 0);
     expect(peersHeard(s)).toEqual(['node_1']);
     expect(busSummary(s)).toBe('fleet farm-7 · node node_0 · peers heard 1 (node_1) · latency p50 10.1 ms / p99 11.0 ms · refused 2');
+  });
+
+  it('a Kestrel not joined shows a banner naming the peers it waits for, none once joined', () => {
+    const s = newRemoteState();
+    expect(joinBanner(s)).toBeNull();
+    s.bus = BUS;
+    expect(joinBanner(s)).toBeNull();
+    const waiting = '127.0.0.1:7447 (refused this node: credentials do not match)';
+    s.bus = { ...BUS, joined: false, refused_joins: 3, waiting_for: [waiting] };
+    expect(joinBanner(s)).toBe(
+      `Not joined to fleet farm-7 (node node_0): waiting for ${waiting}. Missions and explorations are refused until it joins: flying now, its drones would be unseen by the others.`,
+    );
+    expect(busSummary(s)).toMatch(/ · refused 2 · refused joins 3$/);
+    s.bus = { ...BUS, joined: false, join_required: false };
+    expect(joinBanner(s)).toMatch(/no peer heard yet\. Its drones fly unseen by the rest of the fleet until it joins\.$/);
   });
 });
 

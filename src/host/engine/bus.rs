@@ -9,7 +9,7 @@
 
 use std::time::Duration;
 
-use super::Host;
+use super::{Host, HostError};
 use crate::fleet_bus::remote::{RemoteFleet, SilencePolicy};
 use crate::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
 use crate::mapping::merged::LayerRegion;
@@ -37,6 +37,30 @@ impl Host {
         if let Some(map) = self.map.as_mut() {
             map.enable_bus();
         }
+    }
+
+    /// Refuses to start drone `i` moving while this Kestrel has not joined the peers its
+    /// `[fleet] connect` lists (`require_join`): refused by them, or not reaching them, it would
+    /// fly unseen by their separation and allocation. A drone already in the air is not held.
+    pub(super) fn refuse_before_joining(&self, i: usize) -> Result<(), HostError> {
+        let Some(report) = self
+            .bus_report
+            .as_ref()
+            .filter(|r| r.join_required && !r.joined)
+        else {
+            return Ok(());
+        };
+        let airborne = self
+            .cores
+            .get(i)
+            .is_some_and(|c| c.platform_status().flight.is_airborne());
+        if airborne {
+            return Ok(());
+        }
+        Err(HostError::FleetNotJoined {
+            fleet: report.fleet.clone(),
+            waiting_for: report.waiting_for.join(", "),
+        })
     }
 
     /// Which node flies `drone`, when another Kestrel does.

@@ -262,6 +262,9 @@ impl Host {
                 .ok_or_else(|| HostError::UnknownDrone(i.to_string(), self.ids()))?;
             Request::prepare(update, &ctx)?
         };
+        if matches!(req.action, Action::Execute | Action::Start | Action::Resume) {
+            self.refuse_before_joining(i)?;
+        }
         // EXECUTE only: a landing mission LOADed for later is not a landing now.
         if let (Action::Execute, Some(m)) = (req.action, &req.mission) {
             self.refuse_landing_on_ground(i, m)?;

@@ -71,6 +71,9 @@ pub enum HostError {
     /// A drone of the fleet that another Kestrel flies (heard over the fleet bus).
     #[error("{drone} is flown by the Kestrel `{node}` of the fleet, not this one: send the command to that Kestrel's API")]
     RemoteDrone { drone: String, node: String },
+    /// This Kestrel lists peers in `[fleet] connect` and has not joined them yet.
+    #[error("this Kestrel has not joined its fleet `{fleet}` yet, waiting for {waiting_for}: it does not take off until it has (so that it never flies unseen by the others' separation and allocation); fix the credentials or the address, or set [fleet] require_join = false to fly without the fleet")]
+    FleetNotJoined { fleet: String, waiting_for: String },
 }
 
 impl From<FrameError> for HostError {

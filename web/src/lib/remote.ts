@@ -80,5 +80,20 @@ export function busSummary(state: RemoteState): string | null {
     `peers heard ${peers.length}${peers.length ? ` (${peers.join(', ')})` : ''}`,
     latency,
     `refused ${b.refused}`,
+    ...(b.refused_joins > 0 ? [`refused joins ${b.refused_joins}`] : []),
   ].join(' · ');
+}
+
+/**
+ * The banner shown while this Kestrel has not joined its fleet (null once joined, or without a
+ * bus): which peers it waits for and why, and whether it may take off meanwhile.
+ */
+export function joinBanner(state: RemoteState): string | null {
+  const b = state.bus;
+  if (!b || b.joined) return null;
+  const waiting = b.waiting_for.length ? `waiting for ${b.waiting_for.join(', ')}` : 'no peer heard yet';
+  const consequence = b.join_required
+    ? 'Missions and explorations are refused until it joins: flying now, its drones would be unseen by the others.'
+    : 'Its drones fly unseen by the rest of the fleet until it joins.';
+  return `Not joined to fleet ${b.fleet} (node ${b.node}): ${waiting}. ${consequence}`;
 }

@@ -209,6 +209,14 @@ export interface BusReport {
   latency_samples: number;
   latency_p50_ms: number | null;
   latency_p99_ms: number | null;
+  /** Joined its fleet: every peer of `[fleet] connect` answered once (latched). */
+  joined: boolean;
+  /** Missions and explorations are refused (`409 fleet_not_joined`) until joined. */
+  join_required: boolean;
+  /** Handshakes refused for their credentials, by a peer or by this Kestrel. */
+  refused_joins: number;
+  /** The listed peers not joined yet, each with why. */
+  waiting_for: string[];
 }
 
 /** `GET /api/status`: `remote` and `fleet_bus` only on a fleet bus. */

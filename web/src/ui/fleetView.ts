@@ -53,6 +53,7 @@ export class FleetView {
   constructor(private readonly app: App) {
     const panel = byId('panel-fleet');
     this.remote = new RemoteCards(app);
+    byId('topbar').after(this.remote.banner);
     const addr = h('input', { id: 'inst-addr', placeholder: 'http://drone-2.local:8080', 'aria-label': 'instance address' });
     const token = h('input', { id: 'inst-token', type: 'password', placeholder: 'token', 'aria-label': 'instance token' });
     const answer = h('p', { className: 'answer', id: 'inst-answer' });

@@ -2,7 +2,7 @@
 // instance on a bus, and one card per drone another Kestrel flies — marked "remote (node)", live
 // or "silent N s", with no command button: the operator is sent to that Kestrel's ground station.
 
-import { busSummary, remoteCommandNote } from '../lib/remote';
+import { busSummary, joinBanner, remoteCommandNote } from '../lib/remote';
 import type { App } from './app';
 import { fmt, h } from './dom';
 
@@ -16,6 +16,8 @@ const FIELDS = ['flight', 'battery', 'position', 'behavior', 'mission', 'command
 export class RemoteCards {
   /** The bus line(s), hidden when no instance is on a bus. */
   readonly bus = h('div', { id: 'fleet-bus', className: 'bus-line', hidden: true });
+  /** Under the top bar while an instance has not joined its fleet. */
+  readonly banner = h('div', { id: 'fleet-join-banner', className: 'join-banner', role: 'alert', hidden: true });
   readonly list = h('div', { className: 'cards', id: 'remote-cards' });
   private cards = new Map<string, Card>();
 
@@ -47,6 +49,13 @@ export class RemoteCards {
       return text ? [h('div', {}, `Fleet bus${this.app.instances.length > 1 ? ` (${i.label})` : ''}: ${text}`)] : [];
     });
     this.bus.hidden = lines.length === 0;
+    const banners = this.app.instances.flatMap((i) => {
+      const text = joinBanner(i.remote);
+      return text ? [`${this.app.instances.length > 1 ? `${i.label}: ` : ''}${text}`] : [];
+    });
+    this.banner.hidden = banners.length === 0;
+    const bannerText = banners.join('\n');
+    if (this.banner.textContent !== bannerText) this.banner.textContent = bannerText;
     if (this.bus.textContent !== lines.map((l) => l.textContent).join('')) this.bus.replaceChildren(...lines);
 
     const now = Date.now();
