@@ -3,7 +3,8 @@
 //! credentials; node_1, whose credentials file has the wrong password, connects to it and is
 //! refused at every retry (every 2 s). Both sides say it once in Kestrel's words (rate-limited,
 //! no Zenoh ERROR), node_1's `fleet_bus` counts the refused joins and says it has not joined,
-//! and its missions and explorations are refused with `409 fleet_not_joined` naming the peer.
+//! and its missions and explorations are refused with `409 fleet_not_joined` naming the peer
+//! (never a stop).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod mavlink_support;
@@ -82,4 +83,12 @@ fn a_refused_node_says_why_on_both_sides_and_does_not_take_off() {
         (409, &json!("fleet_not_joined")),
         "{answer}"
     );
+    // Stopping is never held back: it answers as it would in a whole fleet (nothing to stop).
+    let (status, answer) = api_1.post("/api/exploration/stop", &json!({"drones": ["drone_1"]}));
+    assert_ne!(
+        answer["error"]["code"],
+        json!("fleet_not_joined"),
+        "{answer}"
+    );
+    assert!(status != 500, "{status} {answer}");
 }

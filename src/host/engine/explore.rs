@@ -205,9 +205,6 @@ impl Host {
     /// drone must be exploring, or nothing is stopped.
     pub fn stop_exploration(&mut self, drones: &[String]) -> Result<Vec<String>, HostError> {
         let targets = self.explore_targets(drones)?;
-        for &i in &targets {
-            self.refuse_before_joining(i)?;
-        }
         let mut missions = Vec::new();
         for (&i, d) in targets.iter().zip(drones) {
             let id = self

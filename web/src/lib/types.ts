@@ -75,6 +75,11 @@ export interface DroneStatus {
   geo: { lat_deg: number; lon_deg: number; alt_m: number } | null;
   active_behaviors: ActiveBehavior[];
   mission?: MissionStatus | null;
+  /** The address the autopilot's link is pinned to, `null` before it is heard or on links
+   * without one (older servers omit it). */
+  autopilot_address?: string | null;
+  /** How often the pin moved to another address (older servers omit it). */
+  autopilot_address_changes?: number;
 }
 
 /** A status with a position the autopilot gave (see `hasPosition`). */
