@@ -4,7 +4,8 @@
 # follow_path, go_to, land; 1 m/s) flown RUNS times per way of driving, each on a fresh PX4.
 # Prints per run whether the mission succeeded, each item's end time, the fastest horizontal
 # speed PX4 reported (its LOCAL_POSITION_NED on the GCS link) against the 1 m/s limit, how far
-# from where its landing began PX4 touched down, and any (false) pilot takeover.
+# from where its landing began PX4 touched down, any (false) pilot takeover, and how far PX4's
+# estimate was from SIH's ground truth (benches/field/sih_truth.py).
 #
 #   bash benches/field/px4_sih_missions.sh [RUNS] [velocity|position_target ...]
 #
@@ -32,27 +33,28 @@ for mode in $modes; do
         name="$mode-$i"
         bash "$anchors/run-px4-sih.sh" 0 stop > /dev/null
         bash "$anchors/run-px4-sih.sh" 0 start > /dev/null || { echo "$name: PX4 did not start"; continue; }
-        sitl/.venv/bin/python benches/field/listen.py udpin:127.0.0.1:14550 110 "$out/$name.gcs.jsonl" LOCAL_POSITION_NED &
+        sitl/.venv/bin/python benches/field/listen.py udpin:127.0.0.1:14550 170 "$out/$name.gcs.jsonl" LOCAL_POSITION_NED,HIL_STATE_QUATERNION &
         listener=$!
         sleep 1
-        timeout 115 "$bin" run --platform "$out/px4-$mode.toml" --connection udpin:0.0.0.0:14540 \
-            --mission "$out/mission.json" --no-api --exit-when-done --max-time-s 100 \
+        timeout 175 "$bin" run --platform "$out/px4-$mode.toml" --connection udpin:0.0.0.0:14540 \
+            --mission "$out/mission.json" --no-api --exit-when-done --max-time-s 160 \
             --log "$out/$name.jsonl" --log-overwrite --state-dir "$out/state-$name" > "$out/$name.out" 2>&1
         rc=$?
         kill "$listener" 2> /dev/null; wait "$listener" 2> /dev/null
         ends=$(grep -oE '\[ *[0-9.]+ s\] drone_0: [a-z_]+ #[0-9] (succeeded|failed[^:]*)' "$out/$name.out" | sed -E 's/\[ *([0-9.]+) s\] drone_0: /\1s /' | paste -sd, -)
         fastest=$(python3 -c "
 import json, math, sys
-v = [math.hypot(d['vx'], d['vy']) for d in map(json.loads, open(sys.argv[1])) if d.get('z', 0) < -2.5]
+v = [math.hypot(d['vx'], d['vy']) for d in map(json.loads, open(sys.argv[1])) if d['mavpackettype'] == 'LOCAL_POSITION_NED' and d['z'] < -2.5]
 print('%.2f' % max(v) if v else 'n/a')" "$out/$name.gcs.jsonl")
         # Touchdown: PX4's last position against Kestrel's at the start of `land` (ENU -> NED).
         touchdown=$(python3 -c "
 import json, math, sys
-gcs = [d for d in map(json.loads, open(sys.argv[1])) if 'x' in d]
+gcs = [d for d in map(json.loads, open(sys.argv[1])) if d['mavpackettype'] == 'LOCAL_POSITION_NED']
 began = next((r for r in map(json.loads, open(sys.argv[2])) if r.get('type') == 'pose' and r.get('behavior') == 'land'), None)
 print('%.2f' % math.hypot(gcs[-1]['x'] - began['y'], gcs[-1]['y'] - began['x']) if gcs and began else 'n/a')" "$out/$name.gcs.jsonl" "$out/$name.jsonl")
         takeover=$(grep -c 'pilot took over' "$out/$name.out")
         echo "$name: rc=$rc fastest=${fastest} m/s touchdown=${touchdown} m from where landing began, takeovers=$takeover  $ends"
+        echo "  $(python3 benches/field/sih_truth.py "$out/$name.gcs.jsonl")"
     done
 done
 bash "$anchors/run-px4-sih.sh" 0 stop > /dev/null
