@@ -32,7 +32,7 @@
 //! stop it) and holds until they are 1.2 times that apart, then returns.
 
 use super::follow_path::{FollowPath, FollowPathGoal};
-use super::goal::{check_positive, YawArgs, YawMode};
+use super::goal::{check_positive, check_within, GoalError, YawArgs, YawMode};
 use super::land::{Land, LandGoal};
 use super::navigate_to::with_yaw;
 use super::registry::{BehaviorSpec, Goal, Resource};
@@ -123,38 +123,28 @@ impl Default for ExploreGoal {
     }
 }
 
-fn within(name: &str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<(), String> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(format!(
-            "{name} must be within {lo}..={hi} {unit}, got {value}"
-        ))
-    }
-}
-
 impl Goal for ExploreGoal {
-    fn check(&self) -> Result<(), String> {
-        within("height", self.height, 0.2, 100.0, "m")?;
+    fn check(&self) -> Result<(), GoalError> {
+        check_within("height", self.height, 0.2, 100.0, "m")?;
         check_positive("speed", self.speed, "m/s")?;
-        within("spin_rate", self.spin_rate, 0.0, 2.0, "rad/s")?;
-        within("safety_distance", self.safety_distance, 0.1, 5.0, "m")?;
-        within(
+        check_within("spin_rate", self.spin_rate, 0.0, 2.0, "rad/s")?;
+        check_within("safety_distance", self.safety_distance, 0.1, 5.0, "m")?;
+        check_within(
             "drone_safety_distance",
             self.drone_safety_distance,
             0.5,
             50.0,
             "m",
         )?;
-        within("retarget_period", self.retarget_period, 0.2, 60.0, "s")?;
-        within(
+        check_within("retarget_period", self.retarget_period, 0.2, 60.0, "s")?;
+        check_within(
             "min_frontier_length",
             self.min_frontier_length,
             0.1,
             20.0,
             "m",
         )?;
-        within(
+        check_within(
             "end_frontier_length",
             self.end_frontier_length,
             0.1,
@@ -489,7 +479,7 @@ impl Explore {
 
     fn fly(&mut self, ctx: &BehaviorContext, goal: Vec3, path: &[Vec3]) -> Result<(), Failure> {
         let follow = self.path_goal(path);
-        follow.check().map_err(Failure::invalid)?;
+        follow.check()?;
         let mut child = FollowPath::new(follow);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
         self.child = Some(Box::new(child));

@@ -5,6 +5,7 @@
 //! In: the errors of frames, planning and the platform, and each behavior's own reasons.
 //! Out: [`Failure`], carried unchanged by behavior results, mission status and HTTP errors.
 
+use super::goal::GoalError;
 use crate::estimator::frames::FrameError;
 use crate::planning::PlanError;
 use serde::{Deserialize, Serialize};
@@ -156,6 +157,13 @@ impl Failure {
             code: self.code,
             message: format!("{context}: {}", self.message),
         }
+    }
+}
+
+/// A goal refused by its own checks, with the goal's words (they name the argument first).
+impl From<GoalError> for Failure {
+    fn from(e: GoalError) -> Self {
+        Self::invalid(e.to_string())
     }
 }
 

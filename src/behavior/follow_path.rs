@@ -2,7 +2,8 @@
 
 use super::arrival::Arrival;
 use super::goal::{
-    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, ResolvedYaw, YawArgs,
+    check_finite, check_positive, frame_or_earth, FramedPoint, GoalError, InFlight, ResolvedYaw,
+    YawArgs,
 };
 use super::progress::Progress;
 use super::registry::{BehaviorSpec, Goal, Resource};
@@ -32,15 +33,15 @@ pub struct FollowPathGoal {
 }
 
 impl Goal for FollowPathGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         if self.path.is_empty() {
-            return Err("path must have at least one waypoint".into());
+            return Err(GoalError::EmptyPath);
         }
         for (i, p) in self.path.iter().enumerate() {
             check_finite(&format!("path[{i}]"), p)?;
         }
         check_positive("speed", self.speed, "m/s")?;
-        Ok(self.yaw.check()?)
+        self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
         let frame_id = frame_or_earth(&self.frame_id);

@@ -2,7 +2,8 @@
 //! Never finishes by itself; stop it or start another motion behavior.
 
 use super::goal::{
-    check_finite, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw, YawArgs,
+    check_finite, frame_or_earth, FramedPoint, GoalError, InFlight, MovingTarget, ResolvedYaw,
+    YawArgs,
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::{yaw_target, BehaviorContext, Failure, PathHeading, Step};
@@ -32,15 +33,15 @@ pub struct FollowReferenceGoal {
 }
 
 impl Goal for FollowReferenceGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         check_finite("x, y, z", &[self.x, self.y, self.z])?;
         if [self.speed_x, self.speed_y, self.speed_z]
             .iter()
             .any(|s| !s.is_finite() || *s < 0.0)
         {
-            return Err("speed_x, speed_y, speed_z must be >= 0 m/s".into());
+            return Err(GoalError::NegativeSpeeds);
         }
-        Ok(self.yaw.check()?)
+        self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {

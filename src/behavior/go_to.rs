@@ -2,8 +2,8 @@
 
 use super::arrival::Arrival;
 use super::goal::{
-    check_finite, check_positive, frame_or_earth, FramedPoint, InFlight, MovingTarget, ResolvedYaw,
-    YawArgs,
+    check_finite, check_positive, frame_or_earth, FramedPoint, GoalError, InFlight, MovingTarget,
+    ResolvedYaw, YawArgs,
 };
 use super::progress::Progress;
 use super::registry::{BehaviorSpec, Goal, Resource};
@@ -37,10 +37,10 @@ pub struct GoToGoal {
 }
 
 impl Goal for GoToGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         check_finite("x, y, z", &[self.x, self.y, self.z])?;
         check_positive("speed", self.speed, "m/s")?;
-        Ok(self.yaw.check()?)
+        self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {
@@ -67,16 +67,15 @@ pub struct GoToGpsGoal {
 }
 
 impl Goal for GoToGpsGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         GeoPoint {
             lat_deg: self.lat,
             lon_deg: self.lon,
             alt_m: self.alt,
         }
-        .validate()
-        .map_err(|e| e.to_string())?;
+        .validate()?;
         check_positive("speed", self.speed, "m/s")?;
-        Ok(self.yaw.check()?)
+        self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {

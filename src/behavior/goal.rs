@@ -3,6 +3,7 @@
 use super::registry::ParsedGoal;
 use super::{Behavior, BehaviorContext, Failure, Step};
 use crate::estimator::frames::EARTH;
+use crate::types::GeoError;
 use crate::types::PlatformRequest;
 use crate::types::Vec3;
 use schemars::JsonSchema;
@@ -194,7 +195,8 @@ pub fn frame_or_earth(frame_id: &Option<String>) -> String {
 }
 
 /// Why a goal's arguments are refused: the argument, the rule and its unit, in the words
-/// operators see.
+/// operators see. Each message starts with the argument's name when there is one: mission
+/// validation points at it from there.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GoalError {
     #[error("{name} must be a positive number of {unit}, got {value}")]
@@ -203,20 +205,48 @@ pub enum GoalError {
         value: f64,
         unit: String,
     },
+    #[error("{name} must be >= 0 {unit}, got {value}")]
+    Negative {
+        name: String,
+        value: f64,
+        unit: String,
+    },
+    /// Outside `lo..=hi`; `unit` may say where a bound comes from.
+    #[error("{name} must be within {lo}..={hi} {unit}, got {value}")]
+    OutOfRange {
+        name: String,
+        value: f64,
+        lo: f64,
+        hi: f64,
+        unit: String,
+    },
     #[error("{name} must be finite numbers")]
     NotFinite { name: String },
+    #[error("{name} must be finite numbers ({unit})")]
+    NotFiniteIn { name: String, unit: String },
+    #[error("speed_x, speed_y, speed_z must be >= 0 m/s")]
+    NegativeSpeeds,
     #[error("yaw_mode fixed needs yaw_angle (rad)")]
     FixedNeedsAngle,
     #[error("yaw_mode face_point needs face_point [x, y, z] (m)")]
     FaceNeedsPoint,
-}
-
-/// [`Goal::check`](super::registry::Goal::check) still answers in words: a goal's own checks
-/// hand it these in them.
-impl From<GoalError> for String {
-    fn from(e: GoalError) -> Self {
-        e.to_string()
-    }
+    #[error("give yaw_angle or by_angle (rad), not both")]
+    BothAngles,
+    #[error("give yaw_angle or by_angle (rad)")]
+    NoAngle,
+    #[error("angle must be finite (rad)")]
+    AngleNotFinite,
+    #[error("path must have at least one waypoint")]
+    EmptyPath,
+    /// `unknown_cost` is a multiple of a free cell's cost, without a unit.
+    #[error("unknown_cost must be in 0..={max}, got {value}")]
+    UnknownCost { value: f64, max: f64 },
+    #[error("n must be 1..={max} photos, got {n}")]
+    PhotoCount { n: u32, max: u32 },
+    #[error("mode must be 0 (point at the target), got {0}")]
+    GimbalMode(u8),
+    #[error(transparent)]
+    Geo(#[from] GeoError),
 }
 
 /// Refuses non-finite or out-of-range numbers with the argument's name and unit.
@@ -229,6 +259,32 @@ pub fn check_positive(name: &str, value: f64, unit: &str) -> Result<(), GoalErro
         });
     }
     Ok(())
+}
+
+/// Refuses non-finite or negative numbers with the argument's name and unit.
+pub fn check_non_negative(name: &str, value: f64, unit: &str) -> Result<(), GoalError> {
+    if !value.is_finite() || value < 0.0 {
+        return Err(GoalError::Negative {
+            name: name.to_string(),
+            value,
+            unit: unit.to_string(),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses non-finite numbers and numbers outside `lo..=hi`, with the argument's name and unit.
+pub fn check_within(name: &str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<(), GoalError> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        return Ok(());
+    }
+    Err(GoalError::OutOfRange {
+        name: name.to_string(),
+        value,
+        lo,
+        hi,
+        unit: unit.to_string(),
+    })
 }
 
 pub fn check_finite(name: &str, values: &[f64]) -> Result<(), GoalError> {
@@ -258,5 +314,39 @@ mod tests {
         let m: YawMode = serde_json::from_str("\"fixed_yaw\"").unwrap();
         assert_eq!(m, YawMode::Fixed);
         assert!(serde_json::from_str::<YawMode>("7").is_err());
+    }
+
+    #[test]
+    fn goal_errors_name_the_argument_rule_and_unit() {
+        let said = |r: Result<(), GoalError>| r.map_err(|e| e.to_string());
+        assert_eq!(
+            said(check_positive("speed", 0.0, "m/s")),
+            Err("speed must be a positive number of m/s, got 0".into())
+        );
+        assert_eq!(
+            said(check_non_negative("duration", -1.5, "s")),
+            Err("duration must be >= 0 s, got -1.5".into())
+        );
+        assert_eq!(
+            said(check_within("height", f64::NAN, 0.2, 100.0, "m")),
+            Err("height must be within 0.2..=100 m, got NaN".into())
+        );
+        assert_eq!(said(check_within("height", 100.0, 0.2, 100.0, "m")), Ok(()));
+        assert_eq!(
+            said(check_finite("path[2]", &[0.0, f64::INFINITY])),
+            Err("path[2] must be finite numbers".into())
+        );
+        assert_eq!(
+            GoalError::PhotoCount { n: 0, max: 10_000 }.to_string(),
+            "n must be 1..=10000 photos, got 0"
+        );
+        assert_eq!(
+            GoalError::UnknownCost {
+                value: 2000.0,
+                max: 1000.0
+            }
+            .to_string(),
+            "unknown_cost must be in 0..=1000, got 2000"
+        );
     }
 }

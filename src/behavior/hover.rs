@@ -1,5 +1,6 @@
 //! `hover`: hold position, for `duration` seconds or until stopped.
 
+use super::goal::{check_non_negative, GoalError};
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
 use super::{Behavior, BehaviorContext, Failure, Step};
@@ -19,12 +20,10 @@ pub struct HoverGoal {
 }
 
 impl Goal for HoverGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         match self.duration {
-            Some(d) if !d.is_finite() || d < 0.0 => {
-                Err(format!("duration must be >= 0 s, got {d}"))
-            }
-            _ => Ok(()),
+            Some(d) => check_non_negative("duration", d, "s"),
+            None => Ok(()),
         }
     }
 }

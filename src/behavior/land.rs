@@ -10,9 +10,10 @@
 //! detector) no descent for one second after at least 0.2 m of descent.
 
 use super::arrival::Arrival;
+use super::goal::{check_positive, GoalError};
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
+use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::types::PlatformRequest;
 use crate::types::{FlightStatus, Vec3};
@@ -34,8 +35,8 @@ fn default_speed() -> f64 {
 }
 
 impl Goal for LandGoal {
-    fn check(&self) -> Result<(), String> {
-        Ok(check_positive("speed", self.speed, "m/s")?)
+    fn check(&self) -> Result<(), GoalError> {
+        check_positive("speed", self.speed, "m/s")
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]

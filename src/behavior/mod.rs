@@ -32,7 +32,7 @@ mod takeoff;
 pub(crate) mod testing;
 
 pub use failure::{Failure, FailureCode};
-pub use goal::{FramedPoint, YawMode, WGS84};
+pub use goal::{check_non_negative, FramedPoint, GoalError, YawMode, WGS84};
 pub use registry::{BehaviorSpec, Goal, GoalSummary, ParsedGoal, Registry, Resource};
 pub use server::{
     ActiveInfo, BehaviorEvent, BehaviorId, BehaviorResult, BehaviorServer, RunState, ServerError,

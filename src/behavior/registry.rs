@@ -1,7 +1,7 @@
 //! Behavior registry: every behavior registers once here and becomes available to the
 //! behavior server, missions and the API's behavior list (with its argument schema).
 
-use super::goal::{parse_args, FramedPoint};
+use super::goal::{parse_args, FramedPoint, GoalError};
 use super::{Behavior, Failure, FailureCode};
 use schemars::JsonSchema;
 use serde::de::DeserializeOwned;
@@ -21,8 +21,9 @@ pub enum Resource {
 
 /// A goal type: parsed from JSON, checked without flying, and able to say where it goes.
 pub trait Goal: DeserializeOwned + JsonSchema + Clone + Send + Sync + 'static {
-    /// Static checks (ranges, required combinations); the message names field and unit.
-    fn check(&self) -> Result<(), String>;
+    /// Static checks (ranges, required combinations); the error names field, rule and unit, and
+    /// refuses the goal as [`FailureCode::InvalidGoal`].
+    fn check(&self) -> Result<(), GoalError>;
     /// Points the goal flies to, for frame and geofence validation.
     fn targets(&self) -> Vec<FramedPoint> {
         Vec::new()
@@ -120,7 +121,7 @@ impl BehaviorSpec {
             args_schema,
             parse: Arc::new(move |args| {
                 let goal: G = parse_args(args).map_err(|e| Failure::invalid(e.to_string()))?;
-                goal.check().map_err(Failure::invalid)?;
+                goal.check()?;
                 Ok(ParsedGoal {
                     behavior: name,
                     args: args.clone(),

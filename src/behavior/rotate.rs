@@ -1,7 +1,7 @@
 //! `rotate`: turn in place to a heading (`yaw_angle`, in `frame_id`) or by an angle (`by_angle`)
 //! at `yaw_speed`.
 
-use super::goal::{frame_or_earth, InFlight};
+use super::goal::{check_positive, frame_or_earth, GoalError, InFlight};
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::{BehaviorContext, Failure, Step};
 use crate::control::{MotionReference, YawTarget};
@@ -32,20 +32,16 @@ fn default_yaw_speed() -> f64 {
 }
 
 impl Goal for RotateGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         match (self.yaw_angle, self.by_angle) {
-            (Some(_), Some(_)) => return Err("give yaw_angle or by_angle (rad), not both".into()),
-            (None, None) => return Err("give yaw_angle or by_angle (rad)".into()),
+            (Some(_), Some(_)) => return Err(GoalError::BothAngles),
+            (None, None) => return Err(GoalError::NoAngle),
             (Some(a), None) | (None, Some(a)) if !a.is_finite() => {
-                return Err("angle must be finite (rad)".into())
+                return Err(GoalError::AngleNotFinite)
             }
             _ => {}
         }
-        Ok(super::goal::check_positive(
-            "yaw_speed",
-            self.yaw_speed,
-            "rad/s",
-        )?)
+        check_positive("yaw_speed", self.yaw_speed, "rad/s")
     }
 }
 

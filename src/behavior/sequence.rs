@@ -2,7 +2,7 @@
 //! the primitives (never copied from them). `rtl` = climb to a height, go_to home, then land.
 
 use super::go_to::{GoTo, GoToGoal};
-use super::goal::{check_positive, YawArgs};
+use super::goal::{check_positive, GoalError, YawArgs};
 use super::land::{Land, LandGoal};
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
@@ -101,10 +101,10 @@ fn default_land_speed() -> f64 {
 }
 
 impl Goal for RtlGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         check_positive("height", self.height, "metres")?;
         check_positive("speed", self.speed, "m/s")?;
-        Ok(check_positive("land_speed", self.land_speed, "m/s")?)
+        check_positive("land_speed", self.land_speed, "m/s")
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed, self.land_speed]

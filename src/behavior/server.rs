@@ -494,7 +494,7 @@ mod tests {
         ticks: u32,
     }
     impl Goal for CountGoal {
-        fn check(&self) -> Result<(), String> {
+        fn check(&self) -> Result<(), crate::behavior::GoalError> {
             Ok(())
         }
     }

@@ -1,9 +1,10 @@
 //! `takeoff`: arm, enter offboard, climb `height` metres above the ground at `speed`.
 
+use super::goal::{check_positive, GoalError};
 use super::progress::Progress;
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::server::seconds_since;
-use super::{goal::check_positive, Behavior, BehaviorContext, Failure, FailureCode, Step};
+use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::MotionReference;
 use crate::types::PlatformRequest;
 use crate::types::{FlightStatus, LinkHealth, Vec3};
@@ -31,9 +32,9 @@ fn default_speed() -> f64 {
 }
 
 impl Goal for TakeoffGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         check_positive("height", self.height, "metres")?;
-        Ok(check_positive("speed", self.speed, "m/s")?)
+        check_positive("speed", self.speed, "m/s")
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]

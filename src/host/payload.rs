@@ -5,8 +5,8 @@
 //! In: goals and the vehicle state. Out: `PointGimbal` / `TakePhoto` platform requests.
 
 use crate::behavior::{
-    Behavior, BehaviorContext, BehaviorSpec, Failure, FailureCode, FramedPoint, Goal, Registry,
-    Resource, Step,
+    check_non_negative, Behavior, BehaviorContext, BehaviorSpec, Failure, FailureCode, FramedPoint,
+    Goal, GoalError, Registry, Resource, Step,
 };
 use crate::types::{wrap_angle_rad, Vec3};
 use crate::types::{PlatformRequest, RequestRefused};
@@ -54,15 +54,15 @@ fn frame_of(frame_id: &Option<String>) -> String {
 }
 
 impl Goal for PointGimbalGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         if ![self.x, self.y, self.z].iter().all(|v| v.is_finite()) {
-            return Err("x, y, z must be finite numbers (m)".into());
+            return Err(GoalError::NotFiniteIn {
+                name: "x, y, z".into(),
+                unit: "m".into(),
+            });
         }
         if self.mode != 0 {
-            return Err(format!(
-                "mode must be 0 (point at the target), got {}",
-                self.mode
-            ));
+            return Err(GoalError::GimbalMode(self.mode));
         }
         Ok(())
     }
@@ -195,6 +195,9 @@ pub struct TakePhotoGoal {
     pub interval_s: f64,
 }
 
+/// The most photos one `take_photo` goal may ask for.
+const MAX_PHOTOS: u32 = 10_000;
+
 fn one() -> u32 {
     1
 }
@@ -203,17 +206,14 @@ fn half_second() -> f64 {
 }
 
 impl Goal for TakePhotoGoal {
-    fn check(&self) -> Result<(), String> {
-        if self.n == 0 || self.n > 10_000 {
-            return Err(format!("n must be 1..=10000 photos, got {}", self.n));
+    fn check(&self) -> Result<(), GoalError> {
+        if self.n == 0 || self.n > MAX_PHOTOS {
+            return Err(GoalError::PhotoCount {
+                n: self.n,
+                max: MAX_PHOTOS,
+            });
         }
-        if !(self.interval_s.is_finite() && self.interval_s >= 0.0) {
-            return Err(format!(
-                "interval_s must be >= 0 s, got {}",
-                self.interval_s
-            ));
-        }
-        Ok(())
+        check_non_negative("interval_s", self.interval_s, "s")
     }
 }
 

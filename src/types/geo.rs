@@ -9,7 +9,7 @@ pub struct GeoPoint {
     pub alt_m: f64,
 }
 
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, Copy, thiserror::Error, PartialEq)]
 pub enum GeoError {
     #[error("latitude {0} deg is outside -90..90")]
     Latitude(f64),

@@ -4,7 +4,10 @@
 //! In: the JSON arguments of a mission item or an API call. Out: a checked [`NavigateToGoal`],
 //! or the field and rule it breaks; its target and speed for mission validation.
 
-use crate::behavior::goal::{check_finite, check_positive, frame_or_earth, FramedPoint, YawArgs};
+use crate::behavior::goal::{
+    check_finite, check_non_negative, check_positive, frame_or_earth, FramedPoint, GoalError,
+    YawArgs,
+};
 use crate::behavior::registry::Goal;
 use crate::planning::{PlannerKind, MAX_UNKNOWN_EXTRA_COST};
 use crate::types::Vec3;
@@ -102,26 +105,21 @@ fn default_unknown_cost() -> f64 {
 }
 
 impl Goal for NavigateToGoal {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), GoalError> {
         check_finite("x, y, z", &[self.x, self.y, self.z])?;
         check_positive("speed", self.speed, "m/s")?;
-        if !(self.safety_distance.is_finite() && self.safety_distance >= 0.0) {
-            return Err(format!(
-                "safety_distance must be >= 0 metres, got {}",
-                self.safety_distance
-            ));
-        }
+        check_non_negative("safety_distance", self.safety_distance, "metres")?;
         if !(0.0..=MAX_UNKNOWN_EXTRA_COST).contains(&self.unknown_cost) {
-            return Err(format!(
-                "unknown_cost must be in 0..={MAX_UNKNOWN_EXTRA_COST}, got {}",
-                self.unknown_cost
-            ));
+            return Err(GoalError::UnknownCost {
+                value: self.unknown_cost,
+                max: MAX_UNKNOWN_EXTRA_COST,
+            });
         }
         if let Some(rate) = self.spin_rate {
             check_finite("spin_rate", &[rate])?;
         }
         check_positive("sense_rate", self.sense_rate, "rad/s")?;
-        Ok(self.yaw.check()?)
+        self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
         vec![FramedPoint {

@@ -281,7 +281,7 @@ impl NavigateTo {
             yaw: self.yaw_args.clone(),
             frame_id: Some(EARTH.to_string()),
         };
-        goal.check().map_err(Failure::invalid)?;
+        goal.check()?;
         let mut child = FollowPath::new(goal);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
         self.child = Some(Box::new(child));
