@@ -2,8 +2,8 @@
 //! Never finishes by itself; stop it or start another motion behavior.
 
 use super::goal::{
-    check_finite, frame_or_earth, FramedPoint, GoalError, InFlight, MovingTarget, ResolvedYaw,
-    YawArgs,
+    check_finite, check_non_negative, frame_or_earth, FramedPoint, GoalError, InFlight,
+    MovingTarget, ResolvedYaw, YawArgs,
 };
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::{yaw_target, BehaviorContext, Failure, PathHeading, Step};
@@ -35,12 +35,10 @@ pub struct FollowReferenceGoal {
 impl Goal for FollowReferenceGoal {
     fn check(&self) -> Result<(), GoalError> {
         check_finite("x, y, z", &[self.x, self.y, self.z])?;
-        if [self.speed_x, self.speed_y, self.speed_z]
-            .iter()
-            .any(|s| !s.is_finite() || *s < 0.0)
-        {
-            return Err(GoalError::NegativeSpeeds);
-        }
+        // Each speed on its own, so the error (and its JSON pointer) names the one at fault.
+        check_non_negative("speed_x", self.speed_x, "m/s")?;
+        check_non_negative("speed_y", self.speed_y, "m/s")?;
+        check_non_negative("speed_z", self.speed_z, "m/s")?;
         self.yaw.check()
     }
     fn targets(&self) -> Vec<FramedPoint> {
@@ -137,5 +135,21 @@ impl InFlight for FollowReference {
             reference: Some(reference),
             feedback,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::registry::Goal;
+
+    #[test]
+    fn a_negative_speed_is_named_on_its_own() {
+        let goal: FollowReferenceGoal = serde_json::from_value(serde_json::json!({
+            "x": 0.0, "y": 0.0, "z": 2.0, "frame_id": "earth", "speed_x": 1.0, "speed_z": -0.5
+        }))
+        .unwrap();
+        let error = goal.check().unwrap_err().to_string();
+        assert!(error.starts_with("speed_z must be >= 0 m/s"), "{error}");
     }
 }

@@ -224,8 +224,6 @@ pub enum GoalError {
     NotFinite { name: String },
     #[error("{name} must be finite numbers ({unit})")]
     NotFiniteIn { name: String, unit: String },
-    #[error("speed_x, speed_y, speed_z must be >= 0 m/s")]
-    NegativeSpeeds,
     #[error("yaw_mode fixed needs yaw_angle (rad)")]
     FixedNeedsAngle,
     #[error("yaw_mode face_point needs face_point [x, y, z] (m)")]
