@@ -88,7 +88,15 @@ describe('wind turbine: control of the selected drone, confirmations, altitude v
 
   test('the altitude view shows the climb to the nacelle', async () => {
     await until(page, () => Number(document.querySelector('#alt-view .alt-drone[data-drone="drone_0"]')?.dataset.z) > 20, null, 180_000);
-    const box = await page.locator('#alt-view circle.alt-drone[data-drone="drone_0"]').boundingBox();
+    // The view is redrawn with each telemetry frame: a circle read between two draws has no
+    // box, so read it again until it has one.
+    const circle = page.locator('#alt-view circle.alt-drone[data-drone="drone_0"]');
+    let box = null;
+    for (let i = 0; i < 20 && !box; i++) {
+      await circle.waitFor({ state: 'visible', timeout: 10_000 });
+      box = await circle.boundingBox();
+    }
+    assert.ok(box, 'the climbing drone has a place in the altitude view');
     const view = await page.locator('#alt-view').boundingBox();
     assert.ok(box.y > view.y && box.y < view.y + view.height / 2, `the climbing drone is in the upper half of the view (${box.y} in ${view.y}..${view.y + view.height})`);
     await browser.shot('21-altitude-view');
