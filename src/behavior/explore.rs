@@ -35,6 +35,7 @@ use super::follow_path::{FollowPath, FollowPathGoal};
 use super::goal::{check_positive, check_within, GoalError, YawArgs, YawMode};
 use super::land::{Land, LandGoal};
 use super::navigate_to::with_yaw;
+use super::progress::lost_peer;
 use super::registry::{BehaviorSpec, Goal, Resource};
 use super::services::Ticket;
 use super::takeoff::{Takeoff, TakeoffGoal};
@@ -416,6 +417,12 @@ impl Explore {
                 self.frontiers = frontiers;
                 self.target = None;
                 self.child = None;
+                // Held for a silent peer, it sees no more than where it hovers: an end then would
+                // leave what that peer's silence hides. It waits for the hold to end.
+                if lost_peer(ctx).is_some() {
+                    self.done_since = None;
+                    return Ok(false);
+                }
                 // Nothing left anywhere after a full sweep, or, after a flight (it turns all
                 // the time), only frontiers it can reach but that are not worth the trip: over.
                 // Before its first flight (space may open up as it turns), with frontiers that
@@ -504,10 +511,11 @@ impl Explore {
         }
     }
 
-    /// Gives the goal up when the drone has stayed in one place for a full sweep with it.
+    /// Gives the goal up when the drone has stayed in one place for a full sweep with it. Time
+    /// the safety stage holds it for a silent peer does not count: the goal is not what stops it.
     fn check_stuck(&mut self, ctx: &BehaviorContext) {
         let here = ctx.position();
-        if (here - self.anchor.0).norm() > STUCK_RADIUS_M {
+        if (here - self.anchor.0).norm() > STUCK_RADIUS_M || lost_peer(ctx).is_some() {
             self.anchor = (here, ctx.now);
             return;
         }
@@ -1074,6 +1082,51 @@ mod tests {
             !ends_after(11, 3, 1, 2, 1),
             "others hold frontiers: it waits"
         );
+    }
+
+    #[test]
+    fn a_drone_held_for_a_silent_peer_neither_gives_its_goal_up_nor_ends() {
+        // A peer's drone fell silent while flying: the safety stage holds this one in place.
+        let held = |silent_peer: bool| {
+            let mut scene = Scene::flying();
+            let mut peer = other(4.0, 1.0);
+            peer.local = false;
+            peer.silent = silent_peer;
+            peer.unaccounted = silent_peer;
+            scene.fleet.drones.push(peer);
+            let mut explore = Explore::new(ExploreGoal::default());
+            explore.start_exploring(&scene.ctx(0));
+            let mut requests = Vec::new();
+            explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
+            answer_with_goal(&scene);
+            explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
+            assert!(explore.target.is_some(), "a goal to fly to");
+            // Where it is for longer than a sweep and the stuck allowance (12.5 s), shorter
+            // than a held child takes to fail `fleet_peer_lost` (20 s).
+            for t in 13..30 {
+                explore.explore_tick(&scene.ctx(t), &mut requests).unwrap();
+                scene.services.drain_calls();
+            }
+            let kept_goal = explore.given_up == 0;
+            // After a flight, every answer says nothing is left that is worth a trip, for
+            // longer than it would wait with frontiers others hold.
+            explore.allocations = 1;
+            explore.crumbs = vec![Vec3::zeros(), Vec3::new(1.5, 0.0, 0.0)];
+            explore.target = None;
+            explore.child = None;
+            explore.pending = None;
+            let mut ended = false;
+            for t in 30..50 {
+                explore.explore_tick(&scene.ctx(t), &mut requests).unwrap();
+                ended |= matches!(explore.phase, Phase::Landing(_) | Phase::Relocating(_));
+                if explore.pending.is_some() {
+                    answer_done(&scene, 2, 0, 0);
+                }
+            }
+            (kept_goal, ended)
+        };
+        assert_eq!(held(false), (false, true), "unheld: gives up, then ends");
+        assert_eq!(held(true), (true, false), "held: keeps its goal, waits");
     }
 
     #[test]

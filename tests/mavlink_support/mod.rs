@@ -330,7 +330,11 @@ impl Kestrel {
         let log = dir.path().join("flight.jsonl");
         let mut child = Command::new(env!("CARGO_BIN_EXE_kestrel"))
             .current_dir(repo())
-            .env("RUST_LOG", "warn")
+            // KESTREL_TEST_RUST_LOG sets the children's log filter when a failure is studied.
+            .env(
+                "RUST_LOG",
+                std::env::var("KESTREL_TEST_RUST_LOG").unwrap_or_else(|_| "warn".into()),
+            )
             .env("RUST_BACKTRACE", "0")
             .arg("run")
             .args(["--config", config_path.to_str().unwrap()])
