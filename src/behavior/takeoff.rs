@@ -73,6 +73,8 @@ pub struct Takeoff {
     climb: Option<Progress>,
     /// The autopilot's own climb (NAV_TAKEOFF) stopped short: Kestrel finishes it on setpoints.
     finishing: bool,
+    /// When NAV_TAKEOFF was last asked for (the autopilot's own takeoff).
+    takeoff_asked_at: Option<Duration>,
 }
 
 /// An autopilot climb that has not got on for this long is finished on Kestrel's setpoints (s).
@@ -90,6 +92,7 @@ impl Takeoff {
             yaw_rad: 0.0,
             climb: None,
             finishing: false,
+            takeoff_asked_at: None,
         }
     }
 }
@@ -131,6 +134,20 @@ impl Behavior for Takeoff {
         }
         if let Some(step) = self.arm(ctx, requests) {
             return step;
+        }
+        // Still on the ground after asking the autopilot's own takeoff: the answer was lost or a
+        // refusal (ArduCopter once let NAV_TAKEOFF pass right after arming, then disarmed after
+        // its idle delay while Kestrel's velocity setpoints, which it ignores on the ground, went
+        // on). Asked again each period while it sits there.
+        let on_ground = ctx.platform.armed && ctx.platform.flight == FlightStatus::Landed;
+        let asked_s = self
+            .takeoff_asked_at
+            .map_or(f64::INFINITY, |t| seconds_since(ctx.now, t));
+        if ctx.capabilities.native_takeoff
+            && on_ground
+            && asked_s >= REQUEST_PERIOD.as_secs_f64() * 2.0
+        {
+            self.ask_takeoff(ctx, requests);
         }
         self.climb_to_height(ctx)
     }
@@ -193,9 +210,7 @@ impl Takeoff {
             let since = since.unwrap_or(ctx.now);
             if ctx.platform.armed && (ctx.platform.offboard || ctx.capabilities.native_takeoff) {
                 if ctx.capabilities.native_takeoff {
-                    requests.push(PlatformRequest::Takeoff {
-                        height_m: self.goal.height,
-                    });
+                    self.ask_takeoff(ctx, requests);
                 }
                 self.phase = Phase::Climbing;
             } else {
@@ -273,7 +288,9 @@ impl Takeoff {
         }
         // The autopilot's own climb (NAV_TAKEOFF) may stop short of the height (its own
         // acceptance): Kestrel then finishes the climb on its setpoints instead of waiting.
-        self.finishing |= stuck_s > NATIVE_STALL_S;
+        // On the ground the autopilot's takeoff is asked again instead (ArduCopter ignores
+        // setpoints there).
+        self.finishing |= stuck_s > NATIVE_STALL_S && ctx.platform.flight != FlightStatus::Landed;
         let reference = if ctx.capabilities.native_takeoff && far_below && !self.finishing {
             None
         } else {
@@ -291,6 +308,13 @@ impl Takeoff {
 }
 
 impl Takeoff {
+    fn ask_takeoff(&mut self, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) {
+        requests.push(PlatformRequest::Takeoff {
+            height_m: self.goal.height,
+        });
+        self.takeoff_asked_at = Some(ctx.now);
+    }
+
     fn feedback(&self, ctx: &BehaviorContext) -> serde_json::Value {
         json!({
             "actual_takeoff_height": ctx.position().z - (self.target.z - self.goal.height),
@@ -417,6 +441,50 @@ mod tests {
             ),
             "the autopilot climbs by itself"
         );
+    }
+
+    #[test]
+    fn native_takeoff_is_asked_again_while_the_vehicle_sits_on_the_ground() {
+        let mut scene = on_the_ground();
+        scene.capabilities.native_takeoff = true;
+        let mut takeoff = Takeoff::new(TakeoffGoal {
+            height: 5.0,
+            speed: 1.0,
+        });
+        takeoff.activate(&scene.ctx(0)).unwrap();
+        run(&mut takeoff, &scene, Duration::ZERO);
+        scene.platform.armed = true;
+        scene.platform.flight = FlightStatus::Landed;
+        let s = Duration::from_secs;
+        let asks = |from: u64, to: u64, takeoff: &mut Takeoff, scene: &Scene| {
+            let mut n = 0;
+            for t in from..to {
+                let (step, requests) = run(takeoff, scene, s(t));
+                let on_ground = scene.platform.flight == FlightStatus::Landed;
+                assert!(
+                    !on_ground
+                        || matches!(
+                            step,
+                            Step::Running {
+                                reference: None,
+                                ..
+                            }
+                        ),
+                    "{step:?}"
+                );
+                n += requests
+                    .iter()
+                    .filter(|r| matches!(r, PlatformRequest::Takeoff { .. }))
+                    .count();
+            }
+            n
+        };
+        // Asked on arming, then every 2 s while it sits there; the climb is left to the
+        // autopilot (no setpoints, which ArduCopter ignores on the ground).
+        assert_eq!(asks(1, 8, &mut takeoff, &scene), 4);
+        // Off the ground: not asked again.
+        scene.platform.flight = FlightStatus::TakingOff;
+        assert_eq!(asks(8, 10, &mut takeoff, &scene), 0);
     }
 
     #[test]
