@@ -15,6 +15,7 @@ use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
 pub use geofence::GeofenceSection;
 use serde::Serialize;
+use std::time::Duration;
 
 /// What the stage enforces (from `[geofence]`, `[safety]`, `[controller]`, `[behaviors]`).
 #[derive(Debug, Clone, PartialEq)]
@@ -72,7 +73,14 @@ pub struct SafetyStage {
     position_loop: PositionLoop,
     /// The override of the previous tick (an episode is reported when it starts).
     active: Option<OverrideKind>,
+    /// Per kind: when an episode was last reported, and how many started since unreported.
+    reported: [(Option<Duration>, u32); 4],
 }
+
+/// An episode of the same kind starting within this long of the last one reported is counted,
+/// not reported: a vehicle braking on and off near another must not flood the log, the ground
+/// station's texts and the WebSocket (a real PX4 SIH exploration once logged 199 in 3 minutes).
+const REPORT_EVERY: Duration = Duration::from_secs(5);
 
 /// Headroom over the controller's own limits before a setpoint counts as beyond them.
 const LIMIT_HEADROOM: f64 = 1.1;
@@ -118,7 +126,25 @@ impl SafetyStage {
                 gain_z_per_s: 1.0,
             }),
             active: None,
+            reported: [(None, 0); 4],
         }
+    }
+
+    /// An episode of `kind` starting at `now`: reported, unless one of that kind was within
+    /// [`REPORT_EVERY`]; the next report says how many were not.
+    fn episode(&mut self, kind: OverrideKind, reason: String, now: Duration) -> Option<Override> {
+        let (last, unreported) = &mut self.reported[kind as usize];
+        if last.is_some_and(|t| now.saturating_sub(t) < REPORT_EVERY) {
+            *unreported += 1;
+            return None;
+        }
+        let reason = match *unreported {
+            0 => reason,
+            n => format!("{reason} (and {n} more times since the last report)"),
+        };
+        *last = Some(now);
+        *unreported = 0;
+        Some(Override { kind, reason })
     }
 
     /// Checks one setpoint of drone `me` against this tick's speed `caps` (the running
@@ -183,7 +209,7 @@ impl SafetyStage {
         };
         let kind = change.as_ref().map(|(k, _)| *k);
         let report = match change {
-            Some((k, reason)) if self.active != Some(k) => Some(Override { kind: k, reason }),
+            Some((k, reason)) if self.active != Some(k) => self.episode(k, reason, state.stamp),
             _ => None,
         };
         self.active = kind;

@@ -69,17 +69,45 @@ fn a_target_above_the_ceiling_is_held_under_it_and_reported_once() {
 }
 
 #[test]
+fn episodes_of_one_kind_are_reported_at_most_every_five_seconds_with_a_count() {
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+    let mut state = at(0.0, 0.0, 100.0);
+    let mut reports = Vec::new();
+    // A target over the ceiling every other tick, at 10 Hz for 12 s: 60 episodes.
+    for tick in 0..120u32 {
+        state.stamp = Duration::from_millis(100) * tick;
+        let z = if tick % 2 == 0 { 500.0 } else { 100.0 };
+        if let (_, Some(o)) = check(&mut stage, &state, position(0.0, 0.0, z)) {
+            reports.push((state.stamp.as_secs_f64(), o.reason));
+        }
+    }
+    let times: Vec<f64> = reports.iter().map(|r| r.0).collect();
+    assert_eq!(times, [0.0, 5.0, 10.0], "{reports:?}");
+    assert!(
+        reports[1]
+            .1
+            .ends_with("(and 24 more times since the last report)"),
+        "{reports:?}"
+    );
+}
+
+#[test]
 fn non_finite_setpoints_become_a_hold_even_on_the_ground() {
     let mut stage = SafetyStage::new(SafetyConfig::default(), None);
-    let state = at(3.0, 4.0, 0.0);
-    for bad in [
+    let mut state = at(3.0, 4.0, 0.0);
+    for (i, bad) in [
         position(f64::NAN, 0.0, 1.0),
         velocity(0.0, f64::INFINITY, 0.0),
         Setpoint::Velocity {
             velocity_enu_mps: Vec3::zeros(),
             yaw: YawTarget::Rate(f64::NAN),
         },
-    ] {
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        // Far enough apart in time to be reported each.
+        state.stamp = REPORT_EVERY * i as u32;
         let (out, o) = stage.check(
             "me",
             &state,
