@@ -202,14 +202,14 @@ macro_rules! seeded_runs {
     )+};
 }
 
+// Two seeds per personality (about a minute each, on CI's 30-minute budget); seed 3 of each
+// ran in CI until 2026-11-27 and passed every time (BENCHMARKS.md, "The fakes with telemetry").
 seeded_runs!(Personality::Px4,
     px4_converges_on_every_goal_with_telemetry_jitter_seed_1: 1,
-    px4_converges_on_every_goal_with_telemetry_jitter_seed_2: 2,
-    px4_converges_on_every_goal_with_telemetry_jitter_seed_3: 3);
+    px4_converges_on_every_goal_with_telemetry_jitter_seed_2: 2);
 seeded_runs!(Personality::Ardupilot,
     ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_1: 1,
-    ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_2: 2,
-    ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_3: 3);
+    ardupilot_converges_on_every_goal_with_telemetry_jitter_seed_2: 2);
 
 /// The other way of driving (`[drive] setpoints = "position_target"`: a moving reference point
 /// held by the autopilot's own position loop) converges as well on an autopilot that holds its
