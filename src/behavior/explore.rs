@@ -44,6 +44,7 @@ use crate::estimator::frames::EARTH;
 use crate::exploration::allocation::AllocatorKind;
 use crate::exploration::reach::KeepOut;
 use crate::exploration::service::{Allocation, ExploreRequest, CLAIM_TTL};
+use crate::exploration::settings::SettingsOverride;
 use crate::exploration::space::SpaceParams;
 use crate::exploration::tracking::TrackingMargin;
 use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
@@ -90,6 +91,9 @@ pub struct ExploreGoal {
     /// unknown side best (the beams clear them on the way), instead of to their middle and
     /// waiting there for the turn to sweep them.
     pub sweep_along: bool,
+    /// The exploration's weights for this drone (`edge_bonus_m`, `others_penalty_m`, ...):
+    /// each field given replaces the config's `[exploration]` value; those left out keep it.
+    pub settings: SettingsOverride,
 }
 
 /// How the explorer turns its beams.
@@ -119,6 +123,7 @@ impl Default for ExploreGoal {
             min_frontier_length: 1.5,
             end_frontier_length: 1.0,
             sweep_along: true,
+            settings: SettingsOverride::default(),
         }
     }
 }
@@ -150,7 +155,14 @@ impl Goal for ExploreGoal {
             0.1,
             self.min_frontier_length,
             "m (at most min_frontier_length)",
-        )
+        )?;
+        self.settings.validate().map_err(|e| GoalError::OutOfRange {
+            name: format!("settings.{}", e.field),
+            value: e.value,
+            lo: e.min,
+            hi: e.max,
+            unit: e.unit.to_string(),
+        })
     }
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]
@@ -168,14 +180,6 @@ pub fn spec() -> BehaviorSpec {
     )
 }
 
-/// Frontiers bordering less unknown than this (m^2) are pockets (behind a pole, in a corner),
-/// flown to only when a few metres away: a visit adds at most this much area. Half a square metre
-/// is 0.02 % of the thesis's 50 x 50 m world, and the watch at a pocket that never clears (a
-/// quarter turn and more) took the end of every run.
-const POCKET_AREA_M2: f64 = 0.5;
-/// Frontiers bordering at least this much unknown (m^2) are worth a trip from anywhere;
-/// smaller regions only from nearer, the nearer the smaller (the allocator's rule).
-const WORTH_ANY_TRIP_M2: f64 = 4.0;
 /// Shortest time between two questions to the allocator.
 const MIN_ASK_INTERVAL: Duration = Duration::from_millis(500);
 /// Track points kept for finding a landing spot, and their spacing (m).
@@ -351,14 +355,17 @@ impl Explore {
     }
 
     fn ask(&mut self, ctx: &BehaviorContext) {
+        let settings = ctx.exploration.with(&self.goal.settings);
         let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
         let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
         let space = SpaceParams {
             safety_distance_m: self.goal.safety_distance + self.tracking.extra_m(),
             min_cells: cells(self.goal.min_frontier_length),
             min_final_cells: cells(self.goal.end_frontier_length),
-            min_gain_cells: (POCKET_AREA_M2 / (resolution_m * resolution_m)).round() as usize,
-            gain_cap_cells: (WORTH_ANY_TRIP_M2 / (resolution_m * resolution_m)).round() as usize,
+            min_gain_cells: (settings.pocket_area_m2 / (resolution_m * resolution_m)).round()
+                as usize,
+            gain_cap_cells: (settings.worth_any_trip_m2 / (resolution_m * resolution_m)).round()
+                as usize,
             occupied_threshold: ctx
                 .map
                 .map_or(SpaceParams::default().occupied_threshold, |m| {
@@ -371,6 +378,7 @@ impl Explore {
             position_enu_m: ctx.position(),
             flight_height_m: self.base_z,
             allocator: self.goal.allocator,
+            settings,
             space,
             current_goal_enu_m: self.target.map(|t| t.xy()),
             give_up: self.give_up.take(),

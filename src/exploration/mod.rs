@@ -9,6 +9,8 @@
 //! - [`space`]: navigable cells and frontiers of a grid (thesis Algorithm 1).
 //! - [`reach`]: path distances and paths from one drone through navigable space.
 //! - [`allocation`]: which frontier a drone takes (`kestrel`, `thesis`, `nearest`, `farthest`).
+//! - [`settings`]: the tuned weights, one validated struct (config `[exploration]`).
+//! - [`sweep`]: flying a long frontier end to end.
 //! - [`service`]: the allocator service: claims, given-up goals, answers.
 //! - [`worker`]: the allocator service on its own thread, fed with the map's changes.
 //! - [`watcher`]: the intra-swarm avoidance decision.
@@ -22,7 +24,9 @@ pub mod evaluate;
 pub mod progress;
 pub mod reach;
 pub mod service;
+pub mod settings;
 pub mod space;
+pub mod sweep;
 pub mod tracking;
 pub mod watcher;
 pub mod worker;

@@ -367,6 +367,7 @@ mod tests {
                 position_enu_m: Vec3::new(x, y, 1.0),
                 flight_height_m: 1.0,
                 allocator: AllocatorKind::Kestrel,
+                settings: Default::default(),
                 space: SpaceParams::default(),
                 current_goal_enu_m: None,
                 give_up: None,
