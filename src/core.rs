@@ -16,7 +16,7 @@ use crate::control::{Controller, ControllerConfig, MotionReference, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::estimator::{self, Estimator, EstimatorPlugin};
-use crate::exploration::settings::ExplorationSettings;
+use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;

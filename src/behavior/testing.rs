@@ -5,7 +5,7 @@ use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::exploration::settings::ExplorationSettings;
+use crate::exploration::online::settings::ExplorationSettings;
 use crate::types::FleetView;
 use crate::types::{Capabilities, RequestResult};
 use crate::types::{

@@ -11,7 +11,7 @@ use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
-use crate::exploration::settings::ExplorationSettings;
+use crate::exploration::online::settings::ExplorationSettings;
 use crate::mission::executor::{ExecutorConfig, InFlightFailure, LinkRegained};
 use crate::mission::Limits;
 use crate::safety::{GeofenceSection, SafetyConfig};

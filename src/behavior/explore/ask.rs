@@ -5,9 +5,9 @@
 use super::end::{self, EndFacts, Left};
 use super::{seconds, trace, Explore};
 use crate::behavior::{BehaviorContext, Failure, FailureCode};
-use crate::exploration::reach::KeepOut;
-use crate::exploration::service::{Allocation, ExploreRequest};
-use crate::exploration::space::SpaceParams;
+use crate::exploration::online::reach::KeepOut;
+use crate::exploration::online::service::{Allocation, ExploreRequest};
+use crate::exploration::online::space::SpaceParams;
 
 /// An allocation is flown only if the drone is still this close to where it asked (m).
 const STALE_ANSWER_M: f64 = 0.3;

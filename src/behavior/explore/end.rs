@@ -9,7 +9,7 @@
 //! may open): a quarter turn, and long enough for the claims of a drone that failed to lapse,
 //! so its part is taken.
 
-use crate::exploration::service::CLAIM_TTL;
+use crate::exploration::online::service::CLAIM_TTL;
 
 /// With frontiers left that others hold, a drone waits this long past the claims' lifetime
 /// before it ends (s): a failed drone's claims lapse and its frontiers are offered first.

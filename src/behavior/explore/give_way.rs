@@ -1,12 +1,12 @@
 //! Drone avoidance, the explorer's side of it: when the watcher
-//! ([`crate::exploration::watcher`]) says this drone gives way, it climbs 1 m above where it
+//! ([`crate::exploration::online::watcher`]) says this drone gives way, it climbs 1 m above where it
 //! was (or as far as it gets in 8 s) and holds there until the other drone has passed, then
 //! comes back down and explores on.
 
 use super::{seconds, Explore, Phase};
 use crate::behavior::BehaviorContext;
 use crate::control::MotionReference;
-use crate::exploration::watcher::{may_return, must_yield, WatchParams, Watched};
+use crate::exploration::online::watcher::{may_return, must_yield, WatchParams, Watched};
 use crate::types::Vec3;
 use std::time::Duration;
 

@@ -3,8 +3,8 @@
 
 use super::super::goal::{check_positive, check_within, GoalError};
 use super::super::registry::Goal;
-use crate::exploration::allocation::AllocatorKind;
-use crate::exploration::settings::SettingsOverride;
+use crate::exploration::online::allocation::AllocatorKind;
+use crate::exploration::online::settings::SettingsOverride;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 

@@ -16,7 +16,7 @@
 //! The drone asks the fleet's frontier allocator (a service: asked on one tick, answered on a
 //! later one) for a goal and the path to it through space observed free with the safety
 //! distance all around (plus how far this drone has lately strayed across its path,
-//! `exploration::tracking`, so an autopilot whose own hold wanders is kept that much farther
+//! `exploration::online::tracking`, so an autopilot whose own hold wanders is kept that much farther
 //! away), so it never flies where it has not seen; it asks again every
 //! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
@@ -54,7 +54,7 @@ use super::takeoff::{Takeoff, TakeoffGoal};
 use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::EARTH;
-use crate::exploration::tracking::TrackingMargin;
+use crate::exploration::online::tracking::TrackingMargin;
 use crate::types::{PlatformRequest, Vec3};
 use nalgebra::Vector2;
 use serde_json::json;

@@ -5,7 +5,7 @@ use super::landing::no_obstacle_within;
 use super::*;
 use crate::behavior::services::{ServiceAnswer, ServiceCall};
 use crate::behavior::testing::Scene;
-use crate::exploration::service::Allocation;
+use crate::exploration::online::service::Allocation;
 use crate::mapping::grid::OccupancyGrid;
 
 /// The explorer's question this tick, answered with a goal 5 m east of where it asked.

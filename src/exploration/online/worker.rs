@@ -336,8 +336,8 @@ fn serve(batches: &Receiver<Batch>, done: &mpsc::Sender<Done>) {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::exploration::allocation::AllocatorKind;
-    use crate::exploration::space::SpaceParams;
+    use crate::exploration::online::allocation::AllocatorKind;
+    use crate::exploration::online::space::SpaceParams;
     use crate::mapping::config::MapConfig;
     use crate::mapping::grid::{Cell, CellBox, GridSpec, UNKNOWN};
     use crate::types::Vec3;
