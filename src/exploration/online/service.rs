@@ -789,6 +789,32 @@ mod tests {
     }
 
     #[test]
+    fn a_trip_is_worth_it_by_the_unknown_behind_the_frontier_and_the_settings() {
+        let grid = half_known();
+        let space = Space::new(&grid, &SpaceParams::default());
+        let mut f = space.frontiers[0].clone();
+        let s = ExplorationSettings::default();
+        // A pocket: from 3 m of path.
+        f.low_gain = true;
+        assert!(worth_trip(&f, 3.0, 4.0, &s) && !worth_trip(&f, 3.1, 4.0, &s));
+        // 0.5 m^2 behind it, under the 4 m^2 cap: 3 m + 8 m per m^2 = 7 m.
+        f.low_gain = false;
+        f.gain_m2 = 0.5;
+        assert!(worth_trip(&f, 7.0, 4.0, &s) && !worth_trip(&f, 7.1, 4.0, &s));
+        let farther = ExplorationSettings {
+            trip_m_per_m2: 20.0,
+            ..s
+        };
+        assert!(worth_trip(&f, 13.0, 4.0, &farther));
+        // At the cap or more: any trip.
+        f.gain_m2 = 4.0;
+        assert!(worth_trip(&f, 1e6, 4.0, &s));
+        // The edge distance: to the nearest side of the 20 x 10 m map, 0 outside.
+        assert_eq!(edge_distance_m(&space, Vector2::new(3.0, 8.5)), 1.5);
+        assert_eq!(edge_distance_m(&space, Vector2::new(-1.0, 5.0)), 0.0);
+    }
+
+    #[test]
     fn a_long_frontier_is_swept_end_to_end_turning_so_the_unknown_is_swept_best() {
         let grid = half_known();
         let t = Duration::from_secs(1);
