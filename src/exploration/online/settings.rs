@@ -197,18 +197,31 @@ impl ExplorationSettings {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct SettingsOverride {
+    /// Bonus per metre of frontier length (m per m, 0..=10).
     pub size_bonus_per_m: Option<f64>,
+    /// Longest frontier the size bonus counts (m, 0..=50).
     pub size_bonus_cap_m: Option<f64>,
+    /// Penalty at another drone's goal (m, 0..=100; 0: off).
     pub others_penalty_m: Option<f64>,
+    /// Reach of that penalty (m, 0.1..=50).
     pub others_radius_m: Option<f64>,
+    /// Penalty per metre another drone would be there first (m per m, 0..=10).
     pub behind_penalty_per_m: Option<f64>,
+    /// Bonus for keeping the current goal (m, 0..=50).
     pub keep_bonus_m: Option<f64>,
+    /// A goal this close to the current one is still it (m, 0..=10).
     pub keep_radius_m: Option<f64>,
+    /// Bonus at the map's edge (m, 0..=50; 0 turns the edge rule off).
     pub edge_bonus_m: Option<f64>,
+    /// Reach of the edge bonus (m, 0.1..=50).
     pub edge_radius_m: Option<f64>,
+    /// Less unknown than this behind a frontier makes it a pocket (m^2, 0..=100).
     pub pocket_area_m2: Option<f64>,
+    /// This much unknown behind a frontier is worth any trip (m^2, 0..=1000).
     pub worth_any_trip_m2: Option<f64>,
+    /// Pockets are flown to from at most this far (m of path, 0..=100).
     pub low_gain_near_m: Option<f64>,
+    /// Trip a small region is worth per m^2 of it (m of path per m^2, 0..=100).
     pub trip_m_per_m2: Option<f64>,
 }
 
