@@ -3,7 +3,7 @@
 //!
 //!     cargo bench --bench evaluate_log
 
-use kestrel::exploration::evaluate::{evaluate, poses_from_log, EvalParams};
+use kestrel::exploration::offline::evaluate::{evaluate, poses_from_log, EvalParams};
 use kestrel::sim::world::World;
 use serde_json::json;
 use std::path::Path;

@@ -2,11 +2,11 @@
 //!
 //! In: a world file and a JSON-lines flight log, or one log per node of a fleet (`--log` again
 //! for each; put on one clock by their `clock` records). Out: a short summary on stdout and,
-//! with `--out`, the full metrics as JSON (`exploration::evaluate::ExplorationMetrics`).
+//! with `--out`, the full metrics as JSON (`exploration::offline::evaluate::ExplorationMetrics`).
 
 use anyhow::{Context, Result};
 use clap::Args;
-use kestrel::exploration::evaluate::{self, EvalParams, ExplorationMetrics, MergeError};
+use kestrel::exploration::offline::evaluate::{self, EvalParams, ExplorationMetrics, MergeError};
 use kestrel::sim::world::World;
 use std::path::PathBuf;
 

@@ -5,7 +5,7 @@
 //! parameters as defaults (0.1 m map, four 4 m beams at 20 Hz, 1.0 m height, 0.75 m/s, turns at
 //! 0.15 rad/s, 0.4 m from obstacles, 2.0 m between drones), a seed and an allocator.
 //! Out: the flight log (poses at 20 Hz), a JSON report with the exploration's metrics (computed
-//! by `exploration::evaluate` from the log and the true world, as an outside evaluator would),
+//! by `exploration::offline::evaluate` from the log and the true world, as an outside evaluator would),
 //! progress
 //! lines while it runs, and the exit status: 0 when every drone explored and landed, non-zero
 //! with the reason otherwise (a failed drone, a collision, or the simulated timeout).
@@ -14,8 +14,8 @@ use crate::cli_sim::{execute, load_config, parse_speedup};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
-use kestrel::exploration::allocation::AllocatorKind;
-use kestrel::exploration::evaluate::{self, EvalParams};
+use kestrel::exploration::offline::evaluate::{self, EvalParams};
+use kestrel::exploration::online::allocation::AllocatorKind;
 use kestrel::flightlog::files;
 use kestrel::flightlog::FlightLog;
 use kestrel::host::runtime::Pace;

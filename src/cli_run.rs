@@ -363,6 +363,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
         core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
         core_config.controller = config.controller;
         core_config.behaviors = config.behaviors;
+        core_config.exploration = config.exploration;
         core_config.map.clone_from(&map);
         core_config.safety = config.safety_config();
         if let Some(o) = config.drone.geodetic_origin {

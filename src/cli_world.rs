@@ -5,7 +5,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use kestrel::exploration::worldgen::{self, PoleCount, WorldGenParams};
+use kestrel::exploration::offline::worldgen::{self, PoleCount, WorldGenParams};
 use std::path::PathBuf;
 
 #[derive(Subcommand, Debug)]

@@ -16,6 +16,7 @@ use crate::control::{Controller, ControllerConfig, MotionReference, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::estimator::{self, Estimator, EstimatorPlugin};
+use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
@@ -34,6 +35,8 @@ pub struct CoreConfig {
     pub estimator: EstimatorPlugin,
     pub controller: ControllerConfig,
     pub behaviors: BehaviorConfig,
+    /// The exploration's weights, for the `explore` behavior (config `[exploration]`).
+    pub exploration: ExplorationSettings,
     pub geo_origin: GeodeticOrigin,
     /// Mapping (`None` = off): the drone's scans build its grid, which `navigate_to` plans on.
     pub map: Option<MapConfig>,
@@ -48,6 +51,7 @@ impl CoreConfig {
             estimator: EstimatorPlugin::GroundTruth,
             controller: ControllerConfig::default(),
             behaviors: BehaviorConfig::default(),
+            exploration: ExplorationSettings::default(),
             geo_origin: GeodeticOrigin::default(),
             // The default section is a fixed, valid 40 m x 40 m grid.
             map: MapConfig::open_field().ok(),
@@ -255,6 +259,7 @@ impl DroneCore {
             home_enu_m: self.home_enu_m,
             held_at_enu_m: self.held_at_enu_m,
             config: &self.config.behaviors,
+            exploration: &self.config.exploration,
             map: self.map.as_ref(),
             request_results: &[],
             services: &self.services,
@@ -315,6 +320,7 @@ impl DroneCore {
             home_enu_m: self.home_enu_m,
             held_at_enu_m: self.held_at_enu_m,
             config: &self.config.behaviors,
+            exploration: &self.config.exploration,
             map: self.map.as_ref(),
             request_results: &feedback.request_results,
             services: &self.services,

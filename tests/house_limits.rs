@@ -33,15 +33,9 @@ enum Limit {
 
 use Limit::{FileLines, Function, StringErrors};
 
-/// The breaches kept for now. Temporary: drop a line (or lower a count) when one goes. The files
-/// of `src/control/`, `src/exploration/` and `src/behavior/explore.rs` are being reworked on
-/// their own and stay listed until that work lands.
-const EXCEPTIONS: &[(&str, Limit)] = &[
-    ("src/behavior/explore.rs", FileLines),
-    ("src/exploration/allocation.rs", StringErrors(1)),
-    ("src/exploration/service.rs", Function("allocate")),
-    ("src/exploration/space.rs", FileLines),
-];
+/// The breaches kept for now. Temporary: drop a line (or lower a count) when one goes; none is
+/// left, so a new breach fails.
+const EXCEPTIONS: &[(&str, Limit)] = &[];
 
 /// One breach of a limit, where it is.
 #[derive(Debug)]

@@ -10,7 +10,7 @@ mod common;
 use common::Harness;
 use common::SimConfig;
 use kestrel::behavior::BehaviorResult;
-use kestrel::exploration::worldgen::{generate, PoleCount, WorldGenParams};
+use kestrel::exploration::offline::worldgen::{generate, PoleCount, WorldGenParams};
 use kestrel::mapping::config::MapSection;
 use kestrel::mapping::{GridSpec, OccupancyGrid};
 use kestrel::planning::{

@@ -13,7 +13,7 @@
 mod mavlink_support;
 mod support;
 
-use kestrel::exploration::evaluate::{self, EvalParams};
+use kestrel::exploration::offline::evaluate::{self, EvalParams};
 use kestrel::sim::world::World;
 use kestrel::types::Vec3;
 use mavlink_support::room::{assert_no_collision, clearance_m, judge_map, wait_explored};

@@ -10,7 +10,7 @@ use common::{Harness, SimConfig};
 use kestrel::behavior::BehaviorResult;
 use kestrel::config::Config;
 use kestrel::core::BehaviorCommand;
-use kestrel::exploration::evaluate::{self, EvalParams, ExplorationMetrics};
+use kestrel::exploration::offline::evaluate::{self, EvalParams, ExplorationMetrics};
 use kestrel::sim::world::World;
 use serde_json::json;
 use std::path::Path;

@@ -10,7 +10,7 @@
 use super::body::JsonBody;
 use super::error::{ApiError, ErrorBody};
 use super::ApiState;
-use crate::exploration::evaluate::{evaluate, EvalParams, PoseSample};
+use crate::exploration::offline::evaluate::{evaluate, EvalParams, PoseSample};
 use crate::host::engine::{ExplorationStarted, ReportInput};
 use crate::host::{Command, HostError};
 use axum::extract::State;

@@ -150,13 +150,13 @@ pub async fn post_scans(
 }
 
 #[utoipa::path(get, path = "/api/exploration", tag = "map", security(("bearer" = [])),
-    responses((status = 200, body = crate::exploration::service::ExplorationView)))]
+    responses((status = 200, body = crate::exploration::online::service::ExplorationView)))]
 /// The exploration as the frontier allocator last saw it: frontiers, each exploring drone's
 /// goal, the share of the merged map known, and the progress of the run started over the API
 /// (`api::exploration`).
 pub async fn exploration(
     State(s): State<ApiState>,
-) -> Result<Json<crate::exploration::service::ExplorationView>, ApiError> {
+) -> Result<Json<crate::exploration::online::service::ExplorationView>, ApiError> {
     s.host
         .call(|reply| Command::Exploration { reply })
         .await

@@ -52,9 +52,9 @@ pub struct ApiDoc;
     paths(map::grid, map::png, map::info, map::exploration, exploration::start, exploration::stop,
         exploration::report, map::post_scans, coverage::plan, geofence::geofence),
     components(schemas(
-        map::MapInfo, crate::exploration::service::ExplorationView,
-        crate::exploration::service::FrontierView, crate::exploration::service::ClaimView,
-        crate::exploration::progress::ProgressView, crate::exploration::progress::RunDroneView,
+        map::MapInfo, crate::exploration::online::service::ExplorationView,
+        crate::exploration::online::service::FrontierView, crate::exploration::online::service::ClaimView,
+        crate::exploration::online::progress::ProgressView, crate::exploration::online::progress::RunDroneView,
         exploration::StartRequest, exploration::StopRequest,
         crate::host::engine::ExplorationStarted, crate::host::engine::StartedDrone,
         scans::ScanInput, scans::ScanBatch, coverage::CoverageRequest,

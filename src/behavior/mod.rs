@@ -104,6 +104,9 @@ pub struct BehaviorContext<'a> {
     /// ends, a path's end), `None` after a velocity.
     pub held_at_enu_m: Option<Vec3>,
     pub config: &'a BehaviorConfig,
+    /// The exploration's weights (config `[exploration]`), which an `explore` goal's own
+    /// `settings` override field by field.
+    pub exploration: &'a crate::exploration::online::settings::ExplorationSettings,
     /// The drone's map (`None` when mapping is off), for behaviors that plan.
     pub map: Option<&'a MapServer>,
     /// Outcomes (the autopilot's acks) of platform requests completed since the last tick,

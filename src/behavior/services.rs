@@ -12,8 +12,8 @@ use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use crate::exploration::service::{Allocation, ExploreError, ExploreRequest};
-use crate::exploration::worker::ExploreJob;
+use crate::exploration::online::service::{Allocation, ExploreError, ExploreRequest};
+use crate::exploration::online::worker::ExploreJob;
 use crate::mapping::server::MapSnapshot;
 use crate::planning::worker::{PlanJob, PlanWorker};
 use crate::planning::{PlanError, PlanRequest, PlannedPath};

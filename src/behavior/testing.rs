@@ -5,6 +5,7 @@ use super::{BehaviorConfig, BehaviorContext};
 use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::exploration::online::settings::ExplorationSettings;
 use crate::types::FleetView;
 use crate::types::{Capabilities, RequestResult};
 use crate::types::{
@@ -18,6 +19,7 @@ pub(crate) struct Scene {
     pub frames: FrameTree,
     pub origin: GeodeticOrigin,
     pub config: BehaviorConfig,
+    pub exploration: ExplorationSettings,
     pub capabilities: Capabilities,
     pub dt_s: f64,
     /// What the previous reference held (`BehaviorContext::held_at_enu_m`).
@@ -47,6 +49,7 @@ impl Scene {
             frames: FrameTree::new(),
             origin: GeodeticOrigin::default(),
             config: BehaviorConfig::default(),
+            exploration: ExplorationSettings::default(),
             capabilities: Capabilities {
                 setpoints: AcceptedSetpoints {
                     velocity: true,
@@ -87,6 +90,7 @@ impl Scene {
             home_enu_m: None,
             held_at_enu_m: self.held_at_enu_m,
             config: &self.config,
+            exploration: &self.exploration,
             map: None,
             request_results: &self.request_results,
             services: &self.services,

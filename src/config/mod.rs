@@ -1,7 +1,8 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
-//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`, `[fleet]`, and the `[[vehicle]]`
-//! list (several autopilots on one host; without it, `[drone]` over `[mavlink]` is the one).
+//! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`, `[exploration]`,
+//! `[fleet]`, and the `[[vehicle]]` list (several autopilots on one host; without it, `[drone]`
+//! over `[mavlink]` is the one).
 
 pub mod bounds;
 pub mod vehicles;
@@ -10,6 +11,7 @@ use crate::behavior::BehaviorConfig;
 use crate::control::ControllerConfig;
 use crate::estimator::geodetic::GeoPoint;
 use crate::estimator::EstimatorPlugin;
+use crate::exploration::online::settings::ExplorationSettings;
 use crate::mission::executor::{ExecutorConfig, InFlightFailure, LinkRegained};
 use crate::mission::Limits;
 use crate::safety::{GeofenceSection, SafetyConfig};
@@ -31,6 +33,9 @@ pub struct Config {
     pub mission: MissionSection,
     pub map: crate::mapping::config::MapSection,
     pub safety: SafetySection,
+    /// `[exploration]`: the allocator's weights and which small unknown regions are worth a
+    /// trip (every `explore` goal's defaults).
+    pub exploration: ExplorationSettings,
     /// `[fleet]`: the bus to other Kestrels (off by default).
     pub fleet: crate::fleet_bus::config::FleetSection,
     /// `[[vehicle]]` entries: several autopilots flown by `kestrel run`; empty = one vehicle,
@@ -345,6 +350,9 @@ impl Config {
         self.validate_api()?;
         self.map.validate()?;
         self.validate_safety()?;
+        self.exploration
+            .validate()
+            .map_err(|e| (format!("exploration.{}", e.field), e.to_string()))?;
         Ok(())
     }
 
@@ -638,6 +646,10 @@ mod tests {
                 "api.header_read_timeout_s",
             ),
             ("[api]\nidle_timeout_s = inf\n", "api.idle_timeout_s"),
+            (
+                "[exploration]\nedge_radius_m = 0.0\n",
+                "exploration.edge_radius_m",
+            ),
         ] {
             let e = Config::parse(text, "test").unwrap_err().to_string();
             assert!(e.contains(key), "{text}: {e}");
@@ -650,6 +662,17 @@ mod tests {
         assert!(e.to_string().contains("speed"), "{e}");
         let e = Config::parse("[controller]\nmax_up_speed_mps = -1.0\n", "test").unwrap_err();
         assert!(e.to_string().contains("controller.max_up_speed_mps"), "{e}");
+    }
+
+    #[test]
+    fn the_exploration_section_sets_the_weights_and_refuses_unknown_ones() {
+        let c = Config::parse("[exploration]\nedge_bonus_m = 0.0\n", "test").unwrap();
+        assert_eq!(c.exploration.edge_bonus_m, 0.0);
+        assert_eq!(c.exploration.others_penalty_m, 12.0);
+        let e = Config::parse("[exploration]\nedge_bonus = 0.0\n", "test").unwrap_err();
+        assert!(e.to_string().contains("edge_bonus"), "{e}");
+        let e = Config::parse("[exploration]\nkeep_bonus_m = 99.0\n", "test").unwrap_err();
+        assert!(e.to_string().contains("0..=50 m"), "the unit: {e}");
     }
 
     #[test]

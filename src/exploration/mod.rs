@@ -1,29 +1,15 @@
-//! Cooperative frontier exploration with minimal sensing (the thesis's contribution C.3).
+//! Cooperative frontier exploration with minimal sensing (the thesis's contribution C.3), in
+//! two parts.
 //!
-//! In: the fleet's merged occupancy grid and each drone's requests. Out: frontiers, the
-//! navigable space around them, allocations (a goal and the path to it) and the watcher's
-//! decisions; the `explore` behavior (`behavior::explore`) flies them, the host runs the
-//! allocator as a fleet-level service ([`service::FrontierService`]) on a thread of its own
-//! ([`worker::FrontierWorker`]).
+//! [`online`] runs while drones fly. In: the fleet's merged occupancy grid and each drone's
+//! requests. Out: frontiers, the navigable space around them, allocations (a goal and the path
+//! to it) and the watcher's decisions; the `explore` behavior (`behavior::explore`) flies them,
+//! the host runs the allocator as a fleet-level service ([`online::service::FrontierService`])
+//! on a thread of its own ([`online::worker::FrontierWorker`]).
 //!
-//! - [`space`]: navigable cells and frontiers of a grid (thesis Algorithm 1).
-//! - [`reach`]: path distances and paths from one drone through navigable space.
-//! - [`allocation`]: which frontier a drone takes (`kestrel`, `thesis`, `nearest`, `farthest`).
-//! - [`service`]: the allocator service: claims, given-up goals, answers.
-//! - [`worker`]: the allocator service on its own thread, fed with the map's changes.
-//! - [`watcher`]: the intra-swarm avoidance decision.
-//! - [`tracking`]: how far a drone strays from its path, as room added to its safety distance.
-//! - [`progress`]: an exploration run as operators follow it (area curve, paths, time left).
-//! - [`evaluate`]: metrics of a flight log against the true world (outside the loop).
-//! - [`worldgen`]: seeded exploration worlds.
+//! [`offline`] works on what a flight left or what a flight needs beforehand, never in the
+//! loop. In: a flight log and the true world, or a seed. Out: the metrics of a run
+//! ([`offline::evaluate`]) and seeded worlds ([`offline::worldgen`]).
 
-pub mod allocation;
-pub mod evaluate;
-pub mod progress;
-pub mod reach;
-pub mod service;
-pub mod space;
-pub mod tracking;
-pub mod watcher;
-pub mod worker;
-pub mod worldgen;
+pub mod offline;
+pub mod online;

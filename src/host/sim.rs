@@ -97,6 +97,7 @@ fn simulated_parts_with(
             let mut c = CoreConfig::new(&format!("drone_{i}"));
             c.controller = config.controller;
             c.behaviors = config.behaviors;
+            c.exploration = config.exploration;
             c.estimator = config.estimator.plugin.unwrap_or_default();
             c.map.clone_from(&map);
             c.safety = config.safety_config();

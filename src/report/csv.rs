@@ -5,7 +5,7 @@
 //! units, ENU; empty cells where the log has null) and `area.csv` (t_s, area_pct).
 
 use super::read::Flight;
-use crate::exploration::evaluate::CurvePoint;
+use crate::exploration::offline::evaluate::CurvePoint;
 use std::fmt::Write;
 
 /// A text cell, quoted when it holds a comma, quote or line break.

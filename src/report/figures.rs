@@ -13,7 +13,7 @@ use super::palette;
 use super::read::{DroneLog, Flight};
 use super::tracks;
 use super::ReportError;
-use crate::exploration::evaluate::{CurvePoint, KnownMap};
+use crate::exploration::offline::evaluate::{CurvePoint, KnownMap};
 use crate::sim::world::World;
 use plotters::coord::Shift;
 use plotters::prelude::*;

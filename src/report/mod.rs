@@ -5,7 +5,7 @@
 //! true world (the header's `world`, or one given). Out: a [`Report`] written either as a
 //! directory ([`write_dir`]: `index.html`, each figure as SVG and PNG, `poses.csv`, and
 //! `area.csv` when the world is known) or as one self-contained HTML page with the figures
-//! inlined as SVG ([`inline_html`]). Exploration metrics come from `exploration::evaluate`,
+//! inlined as SVG ([`inline_html`]). Exploration metrics come from `exploration::offline::evaluate`,
 //! the same evaluator as `kestrel evaluate`.
 //!
 //! Files: `read` (the log), `stats` (the per-drone table), `palette`, `figures` and `tracks`
@@ -19,7 +19,9 @@ pub mod read;
 pub mod stats;
 mod tracks;
 
-use crate::exploration::evaluate::{self, EvalParams, ExplorationMetrics, KnownMap, PoseSample};
+use crate::exploration::offline::evaluate::{
+    self, EvalParams, ExplorationMetrics, KnownMap, PoseSample,
+};
 use crate::sim::world::World;
 use figures::Figure;
 use read::Flight;

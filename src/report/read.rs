@@ -13,7 +13,7 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::io::{BufRead, Read};
 
-/// Longest line read (bytes), as `exploration::evaluate`.
+/// Longest line read (bytes), as `exploration::offline::evaluate`.
 pub const MAX_LINE_BYTES: usize = 1 << 20;
 /// Most pose records kept (a 7-drone hour at 20 Hz is 504 000; each costs about 150 bytes).
 pub const MAX_POSES: usize = 5_000_000;

@@ -10,7 +10,7 @@ use super::figures::{plot_err, FAMILY};
 use super::palette;
 use super::read::{Flight, Pose};
 use super::ReportError;
-use crate::exploration::evaluate::KnownMap;
+use crate::exploration::offline::evaluate::KnownMap;
 use crate::sim::world::World;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;

@@ -201,7 +201,7 @@ impl Fleet {
     }
 
     /// `kestrel evaluate` over the listed nodes' flight logs, as one flight in `world`: its
-    /// metrics (`exploration::evaluate::ExplorationMetrics`), the area curve every 0.5 s.
+    /// metrics (`exploration::offline::evaluate::ExplorationMetrics`), the area curve every 0.5 s.
     pub fn evaluate(&self, live: &[usize], world: &Path) -> Value {
         let out = tempfile::NamedTempFile::new().unwrap();
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_kestrel"));

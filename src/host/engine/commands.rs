@@ -67,7 +67,7 @@ pub enum Command {
     /// The exploration as the frontier allocator last saw it: frontiers and the goal each
     /// drone holds.
     Exploration {
-        reply: Reply<crate::exploration::service::ExplorationView>,
+        reply: Reply<crate::exploration::online::service::ExplorationView>,
     },
     /// Start the `explore` behavior with `args` on `drones` (all or none).
     ExplorationStart {

@@ -9,8 +9,8 @@
 //! back the ones started before it.
 
 use super::{Host, HostError};
-use crate::exploration::evaluate::PoseSample;
-use crate::exploration::progress::{
+use crate::exploration::offline::evaluate::PoseSample;
+use crate::exploration::online::progress::{
     DronePose, ExplorationRun, LiveReport, ProgressView, RunDrone, RunDroneView,
 };
 use crate::mission::{Action, ActionError, ExecState, MissionUpdate, ValidationError};

@@ -1,21 +1,29 @@
 //! The frontier allocator as a fleet-level service: drones ask, on one tick, where to explore
 //! next; the host answers before their next tick, from the fleet's merged map.
 //!
-//! In: [`ExploreRequest`]s (who asks, where it is, which allocator, what it gives up) and the
-//! merged grid. Out: an [`Allocation`]: a goal with the path to it through navigable space, or
-//! `Done` when this drone can reach no frontier. The service keeps the goals each drone holds
-//! (a claim lapses when its drone stops asking, so a drone that fails leaves its frontiers to the
-//! others) and the goals given up (seen from up close and still unknown: occluded pockets;
-//! offered again once after a while, left for good the second time). Frontiers that border
-//! only a small pocket of unknown (`SpaceParams::min_gain_cells`) are offered only to a drone a
-//! few metres away: a visit adds little, so they are worth no more than a short detour, and they
-//! do not keep the exploration going. Those with under `SpaceParams::gain_cap_cells` of unknown
-//! near their goal are worth a trip that grows with it. When every frontier is held, a drone
-//! farther from one than its holder is told `Done` rather than sent to crowd it.
-//! With `sweep_along`, a frontier of 2 m or more is given as a sweep: the path goes to its end
-//! nearer by path, then along it to the other end (the goal), and the drone is told which way to
-//! turn so that the unknown side is the one its beams sweep best.
-//! The navigable space is kept between requests and re-read only around the cells that changed.
+//! In: [`ExploreRequest`]s (who asks, where it is, which allocator with which settings, what it
+//! gives up) and the merged grid. Out: an [`Allocation`]: a goal with the path to it through
+//! navigable space, or `Done` when this drone can reach no frontier. The service keeps the
+//! goals each drone holds (a claim lapses when its drone stops asking, so a drone that fails
+//! leaves its frontiers to the others) and the goals given up (seen from up close and still
+//! unknown: occluded pockets; offered again once after a while, left for good the second time).
+//! Frontiers that border only a small pocket of unknown (`SpaceParams::min_gain_cells`) are
+//! offered only to a drone a few metres away (`ExplorationSettings::low_gain_near_m`): a visit
+//! adds little, so they are worth no more than a short detour, and they do not keep the
+//! exploration going. Those with under `SpaceParams::gain_cap_cells` of unknown near their goal
+//! are worth a trip that grows with it (`ExplorationSettings::trip_m_per_m2`). When every
+//! frontier is held, a drone farther from one than its holder is told `Done` rather than sent
+//! to crowd it. With `sweep_along`, a frontier of 2 m or more is given as a sweep
+//! ([`super::sweep`]): the path goes to its end nearer by path, then along it to the other end
+//! (the goal), and the drone is told which way to turn so that the unknown side is the one its
+//! beams sweep best. The navigable space is kept between requests and re-read only around the
+//! cells that changed.
+//!
+//! One answer, in the steps of [`FrontierService::allocate`]: note what the drone gave up and
+//! lapse old claims; survey the frontiers open to it (not given up) and the path to each that
+//! is worth its trip; make candidates of them (long ones first, none a remote drone with a
+//! smaller id holds, a sweep reached at its entry); leave frontiers to holders that are nearer;
+//! let the allocator choose; claim the choice and give its path.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -26,7 +34,9 @@ use serde::Serialize;
 
 use super::allocation::{choose, AllocatorKind, Candidate, Held, Requester, CLAIM_RADIUS_M};
 use super::reach::{KeepOut, Reach};
+use super::settings::ExplorationSettings;
 use super::space::{Frontier, Space, SpaceParams};
+use super::sweep::{self, SWEEP_MIN_M};
 use crate::mapping::grid::OccupancyGrid;
 use crate::types::Vec3;
 
@@ -36,11 +46,6 @@ pub const CLAIM_TTL: Duration = Duration::from_secs(6);
 const GIVEN_UP_RADIUS_M: f64 = 0.8;
 /// A goal given up once is offered again after this long.
 const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
-/// Pockets (frontiers with little unknown behind) are flown to only this close (m of path).
-const LOW_GAIN_NEAR_M: f64 = 3.0;
-/// A frontier bordering an unknown region smaller than `SpaceParams::gain_cap_cells` is flown
-/// to from at most `LOW_GAIN_NEAR_M` plus this many metres of path per square metre of it.
-const TRIP_M_PER_M2: f64 = 8.0;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
 
@@ -52,6 +57,8 @@ pub struct ExploreRequest {
     /// Height of the path's waypoints (ENU z, m).
     pub flight_height_m: f64,
     pub allocator: AllocatorKind,
+    /// The allocator's weights and which small regions are worth a trip.
+    pub settings: ExplorationSettings,
     pub space: SpaceParams,
     /// The goal it flies to now, if any (for hysteresis).
     pub current_goal_enu_m: Option<Vector2<f64>>,
@@ -64,7 +71,6 @@ pub struct ExploreRequest {
     /// fell silent, which the safety stage keeps every drone away from.
     pub keep_out: Vec<KeepOut>,
 }
-
 /// What a drone is told.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Allocation {
@@ -150,67 +156,6 @@ const MAX_REMOTE_CLAIMS: usize = 256;
 /// smaller id holds (m).
 const CONFLICT_RADIUS_M: f64 = 1.5;
 
-/// Frontiers at least this long are swept end to end when asked (m).
-const SWEEP_MIN_M: f64 = 2.0;
-/// A frontier end this close to the drone's current goal is still that goal (m).
-const SWEEP_KEEP_M: f64 = 1.0;
-
-/// How to sweep `frontier`: (entry, exit, clockwise). From the end nearer by path to the
-/// other, turning so that the unknown lies on the side the turning beams sweep best: on the
-/// right of the travel when turning counter-clockwise, on the left when turning clockwise.
-fn sweep_ends(
-    space: &Space,
-    reach: &Reach,
-    frontier: &Frontier,
-    current: Option<Vector2<f64>>,
-) -> (usize, usize, bool) {
-    let [a, b] = frontier.end_indices;
-    let at = |i: usize| space.center_of(i).unwrap_or(frontier.goal_enu_m);
-    let far = |i: usize| reach.distance_m(i).unwrap_or(f64::INFINITY);
-    let unknown_on_left = |from: usize, to: usize| {
-        let along = at(to) - at(from);
-        space
-            .unknown_side(frontier)
-            .is_some_and(|u| along.x * u.y - along.y * u.x > 0.0)
-    };
-    let bound = |i: usize| current.is_some_and(|g| (at(i) - g).norm() < SWEEP_KEEP_M);
-    let (entry, exit) = if bound(b) || (!bound(a) && far(a) <= far(b)) {
-        (a, b)
-    } else {
-        (b, a)
-    };
-    (entry, exit, unknown_on_left(entry, exit))
-}
-
-/// The path that sweeps `frontier` from `entry` to `exit`: to the entry, then along through
-/// the frontier's middle (straight where that is navigable, else the shortest path to the
-/// exit). A drone already bound for the exit flies straight on to it, so a sweep is not
-/// turned back. `None` when the exit cannot be reached.
-fn sweep_path(
-    space: &Space,
-    reach: &Reach,
-    frontier: &Frontier,
-    (entry, exit, _): (usize, usize, bool),
-    current: Option<Vector2<f64>>,
-) -> Option<Vec<Vector2<f64>>> {
-    let at = |i: usize| space.center_of(i).unwrap_or(frontier.goal_enu_m);
-    let direct = || reach.path_to(space, exit);
-    if current.is_some_and(|g| (at(exit) - g).norm() < SWEEP_KEEP_M) {
-        return direct();
-    }
-    let mid = frontier.goal_index;
-    match reach.path_to(space, entry) {
-        Some(mut path)
-            if reach.line_clear(space, entry, mid) && reach.line_clear(space, mid, exit) =>
-        {
-            path.push(at(mid));
-            path.push(at(exit));
-            Some(path)
-        }
-        _ => direct(),
-    }
-}
-
 /// How far `point` lies from the nearest edge of the map (m, 0 outside it).
 fn edge_distance_m(space: &Space, point: Vector2<f64>) -> f64 {
     let spec = space.spec();
@@ -225,6 +170,88 @@ fn edge_distance_m(space: &Space, point: Vector2<f64>) -> f64 {
         .min(point.y - lo.y)
         .min(hi.y - point.y)
         .max(0.0)
+}
+
+/// Whether a frontier is worth the trip of `path_m` (m): a pocket only from nearby; a region
+/// smaller than the cap from a distance that grows with its area.
+fn worth_trip(f: &Frontier, path_m: f64, cap_m2: f64, s: &ExplorationSettings) -> bool {
+    if f.low_gain {
+        path_m <= s.low_gain_near_m
+    } else {
+        f.gain_m2 >= cap_m2 || path_m <= s.low_gain_near_m + s.trip_m_per_m2 * f.gain_m2
+    }
+}
+
+/// The frontiers open to one drone, with the path to each that is worth its trip.
+struct Survey<'s> {
+    open: Vec<&'s Frontier>,
+    /// Per open frontier: its path length from the drone (m), if it has one worth the trip.
+    paths: Vec<Option<f64>>,
+}
+
+impl<'s> Survey<'s> {
+    fn new(
+        open: Vec<&'s Frontier>,
+        space: &Space,
+        reach: &Reach,
+        request: &ExploreRequest,
+    ) -> Self {
+        let cap_m2 = {
+            let res = space.spec().resolution_m;
+            request.space.gain_cap_cells as f64 * res * res
+        };
+        let paths = open
+            .iter()
+            .map(|f| {
+                reach
+                    .distance_m(f.goal_index)
+                    .filter(|&d| worth_trip(f, d, cap_m2, &request.settings))
+            })
+            .collect();
+        Self { open, paths }
+    }
+
+    fn each(&self) -> impl Iterator<Item = (&'s Frontier, Option<f64>)> + '_ {
+        self.open.iter().copied().zip(self.paths.iter().copied())
+    }
+
+    /// Frontiers that keep the exploration going: all but the pockets not worth the trip.
+    fn left(&self) -> usize {
+        self.each()
+            .filter(|(f, p)| p.is_some() || !f.low_gain)
+            .count()
+    }
+
+    /// Short frontiers (corners, the last strips) are candidates only once no long one is
+    /// left that this drone can reach.
+    fn only_small(&self) -> bool {
+        !self.each().any(|(f, p)| p.is_some() && !f.small)
+    }
+
+    /// `Done`, with how many frontiers are left, how many of them others hold and how many
+    /// the drone has no path to.
+    fn done(&self, reach: &Reach, others: &[Held]) -> Allocation {
+        let left = self.left();
+        let unreached = self
+            .open
+            .iter()
+            .filter(|f| !f.low_gain && reach.distance_m(f.goal_index).is_none())
+            .count();
+        let held = self
+            .open
+            .iter()
+            .filter(|f| {
+                others
+                    .iter()
+                    .any(|h| (f.centroid_enu_m - h.goal_enu_m).norm() <= CLAIM_RADIUS_M)
+            })
+            .count();
+        Allocation::Done {
+            frontiers: left,
+            held: held.min(left),
+            unreached: unreached.min(left),
+        }
+    }
 }
 
 /// The allocator's memory between requests.
@@ -285,13 +312,41 @@ impl FrontierService {
         answer
     }
 
+    /// One answer, step by step (the module's doc).
     fn allocate(
         &mut self,
         now: Duration,
         space: &Space,
         request: &ExploreRequest,
     ) -> Result<Allocation, ExploreError> {
-        if let Some(goal) = request.give_up {
+        self.note_give_up_and_lapse(now, request.give_up);
+        let here = request.position_enu_m.xy();
+        let reach =
+            Reach::keeping_out(space, here, &request.keep_out).ok_or(ExploreError::OutsideMap)?;
+        let survey = Survey::new(self.open_frontiers(now, space), space, &reach, request);
+        let mut candidates = self.candidates(space, &reach, &survey, request);
+        let others = self.others(&request.drone);
+        self.leave_to_nearer_holders(&mut candidates, &request.drone);
+        let me = Requester {
+            position_enu_m: here,
+            current_goal_enu_m: request.current_goal_enu_m,
+        };
+        let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
+        let allocator = request.allocator.allocator(&request.settings);
+        let Some(chosen) = choose(&*allocator, &me, &just, &others) else {
+            self.claims.remove(&request.drone);
+            return Ok(survey.done(&reach, &others));
+        };
+        let Some(&(_, frontier)) = candidates.get(chosen) else {
+            return Ok(survey.done(&reach, &others));
+        };
+        Ok(self.give(now, space, &reach, frontier, request, survey.left()))
+    }
+
+    /// Records the goal the drone gave up (up to [`MAX_GIVEN_UP`]) and drops the claims not
+    /// renewed for [`CLAIM_TTL`].
+    fn note_give_up_and_lapse(&mut self, now: Duration, give_up: Option<Vector2<f64>>) {
+        if let Some(goal) = give_up {
             if self.given_up.len() < MAX_GIVEN_UP {
                 self.given_up.push(GivenUp { goal, at: now });
             }
@@ -299,16 +354,16 @@ impl FrontierService {
         for claims in [&mut self.claims, &mut self.remote] {
             claims.retain(|_, c| now.saturating_sub(c.stamp) < CLAIM_TTL);
         }
-        let here = request.position_enu_m.xy();
-        let reach =
-            Reach::keeping_out(space, here, &request.keep_out).ok_or(ExploreError::OutsideMap)?;
-        let open: Vec<_> = space
+    }
+
+    /// The frontiers not given up: a goal given up twice is left for good; once, for
+    /// [`GIVEN_UP_FOR`] (the drone may have given up for a reason that passes: another drone in
+    /// the way, a path that failed).
+    fn open_frontiers<'s>(&self, now: Duration, space: &'s Space) -> Vec<&'s Frontier> {
+        space
             .frontiers
             .iter()
             .filter(|f| {
-                // A goal given up twice is left for good; once, for a while (the drone may have
-                // given up for a reason that passes: another drone in the way, a path that
-                // failed).
                 let near: Vec<&GivenUp> = self
                     .given_up
                     .iter()
@@ -318,51 +373,33 @@ impl FrontierService {
                     || (near.len() < 2
                         && near.iter().all(|g| now.saturating_sub(g.at) > GIVEN_UP_FOR))
             })
-            .collect();
-        // Pockets (little unknown behind) only when near: a visit adds little, so it is worth
-        // only a short detour.
-        // A region smaller than the cap is worth a trip of a length that grows with its area.
-        let cap_m2 = {
-            let res = space.spec().resolution_m;
-            request.space.gain_cap_cells as f64 * res * res
-        };
-        let worth = |f: &Frontier, path_m: f64| {
-            if f.low_gain {
-                path_m <= LOW_GAIN_NEAR_M
-            } else {
-                f.gain_m2 >= cap_m2 || path_m <= LOW_GAIN_NEAR_M + TRIP_M_PER_M2 * f.gain_m2
-            }
-        };
-        let paths: Vec<Option<f64>> = open
-            .iter()
-            .map(|f| reach.distance_m(f.goal_index).filter(|&d| worth(f, d)))
-            .collect();
-        let left = open
-            .iter()
-            .zip(&paths)
-            .filter(|(f, p)| p.is_some() || !f.low_gain)
-            .count();
-        // Short frontiers (corners, the last strips) only once no long one is left that this
-        // drone can reach.
-        let only_small = !open
-            .iter()
-            .zip(&paths)
-            .any(|(f, p)| p.is_some() && !f.small);
-        // Two Kestrels may give one frontier to two drones at once (each allocates for its own
-        // drones, and hears the other's claim a moment later): the drone with the larger id
-        // leaves it, so both sides settle the same way without talking again.
+            .collect()
+    }
+
+    /// The surveyed frontiers the allocator may choose from, each with what it sees of it:
+    /// only those with a path worth the trip; short ones only when no long one is left; none
+    /// a remote drone with a smaller id holds (two Kestrels may give one frontier to two
+    /// drones at once, each allocating for its own and hearing the other's claim a moment
+    /// later: the larger id leaves it, so both settle the same way without talking again); a
+    /// sweep reached at its entry.
+    fn candidates<'s>(
+        &self,
+        space: &Space,
+        reach: &Reach,
+        survey: &Survey<'s>,
+        request: &ExploreRequest,
+    ) -> Vec<(Candidate, &'s Frontier)> {
+        let only_small = survey.only_small();
         let yielded: Vec<Vector2<f64>> = self
             .remote
             .iter()
             .filter(|(id, _)| **id < request.drone)
             .map(|(_, c)| c.goal)
             .collect();
-        let sweeping = |f: &Frontier| request.sweep_along && f.size_m >= SWEEP_MIN_M;
-        let mut candidates: Vec<(Candidate, &Frontier)> = open
-            .iter()
-            .zip(&paths)
+        survey
+            .each()
             .filter_map(|(f, p)| {
-                let mut path_m = (*p)?;
+                let mut path_m = p?;
                 if f.small && !only_small {
                     return None;
                 }
@@ -372,43 +409,52 @@ impl FrontierService {
                 {
                     return None;
                 }
-                // A frontier swept end to end is reached at its entry.
                 let mut goal_enu_m = f.goal_enu_m;
-                if sweeping(f) {
-                    let (entry, _, _) = sweep_ends(space, &reach, f, request.current_goal_enu_m);
+                if sweeping(request, f) {
+                    let entry = sweep::ends(space, reach, f, request.current_goal_enu_m).entry;
                     path_m = reach.distance_m(entry).unwrap_or(path_m);
                     goal_enu_m = space.center_of(entry).unwrap_or(goal_enu_m);
                 }
-                Some((
-                    Candidate {
-                        centroid_enu_m: f.centroid_enu_m,
-                        goal_enu_m,
-                        size_m: f.size_m,
-                        path_m,
-                        edge_m: edge_distance_m(space, f.centroid_enu_m),
-                    },
-                    *f,
-                ))
+                let candidate = Candidate {
+                    centroid_enu_m: f.centroid_enu_m,
+                    goal_enu_m,
+                    size_m: f.size_m,
+                    path_m,
+                    edge_m: edge_distance_m(space, f.centroid_enu_m),
+                };
+                Some((candidate, f))
             })
-            .collect();
-        let others: Vec<Held> = self
-            .claims
+            .collect()
+    }
+
+    /// The goals the other drones hold, local and remote.
+    fn others(&self, drone: &Arc<str>) -> Vec<Held> {
+        self.claims
             .iter()
             .chain(&self.remote)
-            .filter(|(id, _)| **id != request.drone)
+            .filter(|(id, _)| *id != drone)
             .map(|(_, c)| Held {
                 goal_enu_m: c.goal,
                 remaining_m: c.from.map(|from| (from - c.goal).norm()),
             })
-            .collect();
-        // Every frontier held: one whose drone is nearer it than this one would only be
-        // crowded (and one of the two would have to give way); this drone waits instead, and
-        // ends if nothing frees up.
+            .collect()
+    }
+
+    /// With every candidate held, keeps only those this drone is nearer than their holder:
+    /// one whose drone is nearer would only be crowded (and one of the two would have to give
+    /// way); this drone waits instead, and ends if nothing frees up.
+    fn leave_to_nearer_holders(
+        &self,
+        candidates: &mut Vec<(Candidate, &Frontier)>,
+        drone: &Arc<str>,
+    ) {
+        // The holder's distance to its goal: `Some(None)` for a holder whose position is
+        // unknown, `None` for a frontier nobody holds.
         let holder_m = |c: &Candidate| {
             self.claims
                 .iter()
                 .chain(&self.remote)
-                .filter(|(id, _)| **id != request.drone)
+                .filter(|(id, _)| *id != drone)
                 .find(|(_, h)| (c.centroid_enu_m - h.goal).norm() <= CLAIM_RADIUS_M)
                 .map(|(_, h)| h.from.map(|p| (p - h.goal).norm()))
         };
@@ -419,37 +465,19 @@ impl FrontierService {
                     .is_none_or(|holder_m| c.path_m < holder_m)
             });
         }
-        let me = Requester {
-            position_enu_m: here,
-            current_goal_enu_m: request.current_goal_enu_m,
-        };
-        let just: Vec<Candidate> = candidates.iter().map(|(c, _)| *c).collect();
-        let done = || {
-            let unreached = open
-                .iter()
-                .filter(|f| !f.low_gain && reach.distance_m(f.goal_index).is_none())
-                .count();
-            let held = open
-                .iter()
-                .filter(|f| {
-                    others
-                        .iter()
-                        .any(|h| (f.centroid_enu_m - h.goal_enu_m).norm() <= CLAIM_RADIUS_M)
-                })
-                .count();
-            Allocation::Done {
-                frontiers: left,
-                held: held.min(left),
-                unreached: unreached.min(left),
-            }
-        };
-        let Some(chosen) = choose(request.allocator, &me, &just, &others) else {
-            self.claims.remove(&request.drone);
-            return Ok(done());
-        };
-        let Some(&(_, frontier)) = candidates.get(chosen) else {
-            return Ok(done());
-        };
+    }
+
+    /// Claims `frontier` for the asking drone and gives it: a sweep (its exit the goal, with the
+    /// turn) or the way to its middle; the path at the flight height.
+    fn give(
+        &mut self,
+        now: Duration,
+        space: &Space,
+        reach: &Reach,
+        frontier: &Frontier,
+        request: &ExploreRequest,
+        left: usize,
+    ) -> Allocation {
         let z = request.flight_height_m;
         let to_middle = || {
             (
@@ -460,13 +488,14 @@ impl FrontierService {
                 None,
             )
         };
-        let (goal_xy, path, clockwise) = if sweeping(frontier) {
-            let ends = sweep_ends(space, &reach, frontier, request.current_goal_enu_m);
-            match sweep_path(space, &reach, frontier, ends, request.current_goal_enu_m) {
+        let (goal_xy, path, clockwise) = if sweeping(request, frontier) {
+            let current = request.current_goal_enu_m;
+            let ends = sweep::ends(space, reach, frontier, current);
+            match sweep::path(space, reach, frontier, ends, current) {
                 Some(path) if !path.is_empty() => (
-                    space.center_of(ends.1).unwrap_or(frontier.goal_enu_m),
+                    space.center_of(ends.exit).unwrap_or(frontier.goal_enu_m),
                     path,
-                    Some(ends.2),
+                    Some(ends.clockwise),
                 ),
                 _ => to_middle(),
             }
@@ -479,16 +508,16 @@ impl FrontierService {
             Claim {
                 goal: frontier.goal_enu_m,
                 stamp: now,
-                from: Some(here),
+                from: Some(request.position_enu_m.xy()),
             },
         );
         let goal = Vec3::new(goal_xy.x, goal_xy.y, z);
-        Ok(Allocation::Goal {
+        Allocation::Goal {
             goal_enu_m: goal,
             path_enu_m: if path.is_empty() { vec![goal] } else { path },
             frontiers: left,
             clockwise,
-        })
+        }
     }
 
     /// The frontiers as last read, for operators.
@@ -521,6 +550,11 @@ impl FrontierService {
     }
 }
 
+/// Whether `frontier` is given as a sweep: asked for, and long enough.
+fn sweeping(request: &ExploreRequest, frontier: &Frontier) -> bool {
+    request.sweep_along && frontier.size_m >= SWEEP_MIN_M
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -547,6 +581,7 @@ mod tests {
             position_enu_m: Vec3::new(x, y, 1.0),
             flight_height_m: 1.0,
             allocator: AllocatorKind::Kestrel,
+            settings: ExplorationSettings::default(),
             space: SpaceParams::default(),
             current_goal_enu_m: None,
             give_up: None,
@@ -678,7 +713,7 @@ mod tests {
 
     #[test]
     fn a_small_unknown_region_is_worth_a_trip_that_grows_with_its_area() {
-        // A 1 x 1 m region around (15.5, 5.3): worth LOW_GAIN_NEAR_M + 8 m of path, so from
+        // A 1 x 1 m region around (15.5, 5.3): worth 3 m (`low_gain_near_m`) + 8 m of path, so from
         // 5 m away but not from 13 m.
         let grid = pocket(10);
         let capped = |mut r: ExploreRequest| {
@@ -751,6 +786,32 @@ mod tests {
         s.answer(later, &grid, &r).unwrap();
         let last = s.answer(later + GIVEN_UP_FOR * 2, &grid, &r2).unwrap();
         assert!(matches!(last, Allocation::Done { .. }), "{last:?}");
+    }
+
+    #[test]
+    fn a_trip_is_worth_it_by_the_unknown_behind_the_frontier_and_the_settings() {
+        let grid = half_known();
+        let space = Space::new(&grid, &SpaceParams::default());
+        let mut f = space.frontiers[0].clone();
+        let s = ExplorationSettings::default();
+        // A pocket: from 3 m of path.
+        f.low_gain = true;
+        assert!(worth_trip(&f, 3.0, 4.0, &s) && !worth_trip(&f, 3.1, 4.0, &s));
+        // 0.5 m^2 behind it, under the 4 m^2 cap: 3 m + 8 m per m^2 = 7 m.
+        f.low_gain = false;
+        f.gain_m2 = 0.5;
+        assert!(worth_trip(&f, 7.0, 4.0, &s) && !worth_trip(&f, 7.1, 4.0, &s));
+        let farther = ExplorationSettings {
+            trip_m_per_m2: 20.0,
+            ..s
+        };
+        assert!(worth_trip(&f, 13.0, 4.0, &farther));
+        // At the cap or more: any trip.
+        f.gain_m2 = 4.0;
+        assert!(worth_trip(&f, 1e6, 4.0, &s));
+        // The edge distance: to the nearest side of the 20 x 10 m map, 0 outside.
+        assert_eq!(edge_distance_m(&space, Vector2::new(3.0, 8.5)), 1.5);
+        assert_eq!(edge_distance_m(&space, Vector2::new(-1.0, 5.0)), 0.0);
     }
 
     #[test]

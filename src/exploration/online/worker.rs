@@ -336,8 +336,8 @@ fn serve(batches: &Receiver<Batch>, done: &mpsc::Sender<Done>) {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::exploration::allocation::AllocatorKind;
-    use crate::exploration::space::SpaceParams;
+    use crate::exploration::online::allocation::AllocatorKind;
+    use crate::exploration::online::space::SpaceParams;
     use crate::mapping::config::MapConfig;
     use crate::mapping::grid::{Cell, CellBox, GridSpec, UNKNOWN};
     use crate::types::Vec3;
@@ -367,6 +367,7 @@ mod tests {
                 position_enu_m: Vec3::new(x, y, 1.0),
                 flight_height_m: 1.0,
                 allocator: AllocatorKind::Kestrel,
+                settings: Default::default(),
                 space: SpaceParams::default(),
                 current_goal_enu_m: None,
                 give_up: None,

@@ -5,14 +5,14 @@
 //! In: `record(now, known_pct, poses)` every tick (a pose sample every [`POSE_EVERY`], an area
 //! point every [`CURVE_EVERY`]), `finish(now)` when no drone of the run explores any more.
 //! Out: the elapsed time, the area curve, [`ExplorationRun::remaining_s`], per-drone paths and
-//! the pose samples the evaluator (`exploration::evaluate`) can judge against a true world.
+//! the pose samples the evaluator (`exploration::offline::evaluate`) can judge against a true world.
 
 use std::sync::Arc;
 use std::time::Duration;
 
 use serde::Serialize;
 
-use super::evaluate::{CurvePoint, PoseSample};
+use super::super::offline::evaluate::{CurvePoint, PoseSample};
 use crate::types::Vec3;
 
 /// Spacing of the pose samples kept for paths, separation and the evaluator.

@@ -1,0 +1,155 @@
+//! The explorer's questions to the fleet's frontier allocator and what it does with the
+//! answers: a goal is flown (unless the drone has moved on since it asked), `Done` goes to the
+//! end rule ([`super::end`]).
+
+use super::end::{self, EndFacts, Left};
+use super::{seconds, trace, Explore};
+use crate::behavior::progress::lost_peer;
+use crate::behavior::{BehaviorContext, Failure, FailureCode};
+use crate::exploration::online::reach::KeepOut;
+use crate::exploration::online::service::{Allocation, ExploreRequest};
+use crate::exploration::online::space::SpaceParams;
+
+/// An allocation is flown only if the drone is still this close to where it asked (m).
+const STALE_ANSWER_M: f64 = 0.3;
+/// Kept from a silent drone's last position beyond its uncertainty (m): the safety stage's
+/// default least separation and its margin (1.0 + 0.2 m), and 0.3 m of room.
+const SILENT_KEEP_OUT_M: f64 = 1.5;
+
+impl Explore {
+    /// Asks the allocator for a goal from where the drone is, with this drone's settings
+    /// (the config's, with the goal's own over them) and what it gives up.
+    pub(super) fn ask(&mut self, ctx: &BehaviorContext) {
+        let settings = ctx.exploration.with(&self.goal.settings);
+        let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
+        let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
+        let space = SpaceParams {
+            safety_distance_m: self.goal.safety_distance + self.tracking.extra_m(),
+            min_cells: cells(self.goal.min_frontier_length),
+            min_final_cells: cells(self.goal.end_frontier_length),
+            min_gain_cells: (settings.pocket_area_m2 / (resolution_m * resolution_m)).round()
+                as usize,
+            gain_cap_cells: (settings.worth_any_trip_m2 / (resolution_m * resolution_m)).round()
+                as usize,
+            occupied_threshold: ctx
+                .map
+                .map_or(SpaceParams::default().occupied_threshold, |m| {
+                    m.occupied_threshold()
+                }),
+            ..SpaceParams::default()
+        };
+        self.pending = Some(ctx.services.explore(ExploreRequest {
+            drone: ctx.drone_id.into(),
+            position_enu_m: ctx.position(),
+            flight_height_m: self.base_z,
+            allocator: self.goal.allocator,
+            settings,
+            space,
+            current_goal_enu_m: self.target.map(|t| t.xy()),
+            give_up: self.give_up.take(),
+            sweep_along: self.goal.sweep_along,
+            keep_out: silent_keep_out(ctx),
+        }));
+        self.asked_at = Some(ctx.now);
+        self.asked_from = ctx.position();
+        trace(ctx, "ask", String::new);
+    }
+
+    /// Takes the allocator's answer; `Ok(true)` when the exploration is over for this drone.
+    pub(super) fn read_answer(&mut self, ctx: &BehaviorContext) -> Result<bool, Failure> {
+        let Some(ticket) = self.pending.as_ref() else {
+            return Ok(false);
+        };
+        let Some(answer) = ctx.services.take_allocation(ticket) else {
+            return Ok(false);
+        };
+        self.pending = None;
+        match answer {
+            Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
+            Ok(Allocation::Done {
+                frontiers,
+                held,
+                unreached,
+            }) => {
+                trace(ctx, "done", || {
+                    format!("frontiers={frontiers} held={held} unreached={unreached}")
+                });
+                self.frontiers = frontiers;
+                self.target = None;
+                self.child = None;
+                // Held for a silent peer, it sees no more than where it hovers: an end then would
+                // leave what that peer's silence hides. It waits for the hold to end.
+                if lost_peer(ctx).is_some() {
+                    self.done_since = None;
+                    return Ok(false);
+                }
+                let since = *self.done_since.get_or_insert(ctx.now);
+                let facts = EndFacts {
+                    exploring_s: seconds(ctx.now, self.started_at),
+                    done_for_s: seconds(ctx.now, since),
+                    here_s: seconds(ctx.now, self.anchor.1),
+                    sense_s: self.sense_s(),
+                    flown: self.allocations > 0 && self.crumbs.len() > 1,
+                };
+                let left = Left {
+                    frontiers,
+                    held,
+                    unreached,
+                };
+                Ok(end::over(left, &facts))
+            }
+            Ok(Allocation::Goal {
+                goal_enu_m,
+                path_enu_m,
+                frontiers,
+                clockwise,
+            }) => {
+                // A sweep says which way to turn; any other goal keeps the turn as it is.
+                if let Some(clockwise) = clockwise {
+                    self.clockwise = clockwise;
+                }
+                self.frontiers = frontiers;
+                self.done_since = None;
+                // A late answer (a slow allocator on the wall clock) has a path from where the
+                // drone was, not where it is: the way back to its start may not be clear. Asked
+                // again instead; the drone flies on meanwhile.
+                if (ctx.position() - self.asked_from).xy().norm() > STALE_ANSWER_M {
+                    return Ok(false);
+                }
+                let same = self
+                    .target
+                    .is_some_and(|t| (t - goal_enu_m).norm() < 0.3 && self.child.is_some());
+                let (here, had_child) = (ctx.position(), self.child.is_some());
+                trace(ctx, if same { "same" } else { "fly" }, || {
+                    format!(
+                        "goal={:.2},{:.2} dist={:.2} had_child={}",
+                        goal_enu_m.x,
+                        goal_enu_m.y,
+                        (goal_enu_m - here).xy().norm(),
+                        had_child
+                    )
+                });
+                if !same {
+                    self.fly(ctx, goal_enu_m, &path_enu_m)?;
+                }
+                Ok(false)
+            }
+        }
+    }
+}
+
+/// Around each drone another Kestrel flew that fell silent: where it could be (its
+/// uncertainty) plus what the safety stage keeps from it, and room to turn there. The
+/// allocator neither sends a drone into these discs nor routes through them; the safety stage
+/// would stop it at their edge, and the frontier would hold it there.
+fn silent_keep_out(ctx: &BehaviorContext) -> Vec<KeepOut> {
+    ctx.fleet
+        .drones
+        .iter()
+        .filter(|d| d.silent && !d.local && &*d.id != ctx.drone_id)
+        .map(|d| KeepOut {
+            centre_enu_m: d.position_enu_m.xy(),
+            radius_m: d.uncertainty_m + SILENT_KEEP_OUT_M,
+        })
+        .collect()
+}
