@@ -106,22 +106,6 @@ fn write_mcap(text: &[u8]) -> (f64, u64) {
     (started.elapsed().as_secs_f64(), out.written)
 }
 
-impl Write for &mut Counting {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        (**self).write(buf)
-    }
-
-    fn flush(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
-
-impl Seek for &mut Counting {
-    fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
-        (**self).seek(pos)
-    }
-}
-
 fn main() {
     // `cargo test --all-targets` runs bench binaries too: only `cargo bench` measures.
     if !std::env::args().any(|a| a == "--bench") {
