@@ -454,10 +454,15 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
         simulated_s: host.now().as_secs_f64(),
         wall_s: wall.elapsed().as_secs_f64(),
     };
-    // The host owns the log's writer: dropping it lets the writer thread finish the file
-    // (an MCAP log's summary) before the process ends.
+    close_log(host, options.log.as_ref());
+    Ok(outcome)
+}
+
+/// Drops the host, which owns the log's writer, so the writer thread finishes the file (an
+/// MCAP log's summary) before the process ends; waits for it.
+fn close_log(host: Host, log: Option<&LogFile>) {
     drop(host);
-    if let Some(log) = &options.log {
+    if let Some(log) = log {
         if !log.wait_closed(LOG_CLOSE) {
             tracing::warn!(
                 "the flight log {} was not closed in time",
@@ -465,5 +470,4 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
             );
         }
     }
-    Ok(outcome)
 }
