@@ -137,7 +137,8 @@ fn an_exploration_logged_as_mcap_is_evaluated_as_its_records() {
             "world", "generate", "--size-m", "12", "--poles", "4", "--seed", "1", "--out", &world,
         ],
     );
-    kestrel_ok(
+    // 20 s of the exploration (it ends unfinished, non-zero): enough for the log, fast.
+    kestrel(
         d,
         &[
             "explore",
@@ -145,6 +146,8 @@ fn an_exploration_logged_as_mcap_is_evaluated_as_its_records() {
             &world,
             "--drones",
             "2",
+            "--max-sim-time-s",
+            "20",
             "--log",
             "ex.mcap",
             "--log-format",
@@ -152,7 +155,8 @@ fn an_exploration_logged_as_mcap_is_evaluated_as_its_records() {
         ],
     );
     let summary = python_check(&d.join("ex.mcap"), false);
-    assert!(count(&summary, "/drone_1/pose") > 10, "{summary}");
+    assert!(count(&summary, "/drone_1/pose") > 100, "{summary}");
+    assert_eq!(summary["world"], 1, "the world's obstacles: {summary}");
     as_json_lines(&d.join("ex.mcap"), "ex.jsonl");
     for log in ["ex.mcap", "ex.jsonl"] {
         let out = format!("{log}.metrics.json");
@@ -167,7 +171,7 @@ fn an_exploration_logged_as_mcap_is_evaluated_as_its_records() {
     let from_mcap = metrics("ex.mcap.metrics.json");
     assert_eq!(from_mcap, metrics("ex.jsonl.metrics.json"));
     assert!(
-        from_mcap["area_pct"].as_f64().unwrap() > 50.0,
+        from_mcap["area_pct"].as_f64().unwrap() > 10.0,
         "{from_mcap}"
     );
 }
