@@ -14,6 +14,7 @@ Prints a JSON summary on stdout (channels with schema and count, records, poses,
 complete); exits non-zero with the failed check on stderr.
 """
 
+import base64
 import json
 import math
 import os
@@ -35,6 +36,17 @@ FIELDS = {
     },
     "foxglove.Log": {"timestamp", "level", "message", "name", "file", "line"},
     "foxglove.SceneUpdate": {"deletions", "entities"},
+    "foxglove.Grid": {
+        "timestamp",
+        "frame_id",
+        "pose",
+        "column_count",
+        "cell_size",
+        "row_stride",
+        "cell_stride",
+        "fields",
+        "data",
+    },
 }
 
 
@@ -149,6 +161,22 @@ def check_world(by_topic, header, log_dir):
         check(near(p["x"], xy[0]) and near(p["y"], xy[1]), f"pole at {p}, not {xy}")
 
 
+def check_grid(by_topic, header, cut):
+    """A log with a world ends with its known map (one UINT8 grid); the known cells."""
+    grids = [b for _, b in by_topic.get("/map/known", [])]
+    if cut or not header.get("world"):
+        check(not grids, "a known map in a log without a world or an end")
+        return None
+    check(len(grids) == 1, f"{len(grids)} known maps")
+    g = grids[0]
+    cells = base64.b64decode(g["data"])
+    check(g["fields"] == [{"name": "known", "offset": 0, "type": 1}], f"fields {g['fields']}")
+    check(g["cell_stride"] == 1 and g["row_stride"] == g["column_count"], "strides")
+    check(len(cells) % g["column_count"] == 0 and cells, f"{len(cells)} cells")
+    check(set(cells) <= {0, 100}, "cells other than 0 and 100")
+    return sum(1 for c in cells if c == 100)
+
+
 def main():
     path = sys.argv[1]
     cut = "--cut" in sys.argv[2:]
@@ -213,6 +241,7 @@ def main():
 
     check_plans(by_topic, header, records, slack)
     check_world(by_topic, header, os.path.dirname(os.path.abspath(path)))
+    known_cells = check_grid(by_topic, header, cut)
 
     if not cut:
         check(summary is not None, "no summary")
@@ -230,6 +259,7 @@ def main():
             "events": len(events),
             "plans": sum(len(v) for k, v in by_topic.items() if k.endswith("/plan")),
             "world": len(by_topic.get("/world", [])),
+            "known_cells": known_cells,
             "complete": complete,
             "last_t": records[-1].get("t"),
         },

@@ -169,6 +169,10 @@ fn an_exploration_logged_as_mcap_is_evaluated_as_its_records() {
         serde_json::from_str(&std::fs::read_to_string(d.join(f)).unwrap()).unwrap()
     };
     let from_mcap = metrics("ex.mcap.metrics.json");
+    assert_eq!(
+        summary["known_cells"], from_mcap["known_cells"],
+        "the log's /map/known grid is the evaluator's known map"
+    );
     assert_eq!(from_mcap, metrics("ex.jsonl.metrics.json"));
     assert!(
         from_mcap["area_pct"].as_f64().unwrap() > 10.0,

@@ -26,6 +26,7 @@ pub enum Schema {
     FrameTransform,
     Log,
     SceneUpdate,
+    Grid,
 }
 
 impl Schema {
@@ -36,6 +37,7 @@ impl Schema {
             Schema::FrameTransform => "foxglove.FrameTransform",
             Schema::Log => "foxglove.Log",
             Schema::SceneUpdate => "foxglove.SceneUpdate",
+            Schema::Grid => "foxglove.Grid",
         }
     }
 
@@ -65,6 +67,30 @@ impl Schema {
                 "name": { "type": "string" },
                 "file": { "type": "string" },
                 "line": { "type": "integer", "minimum": 0 },
+            }),
+            Schema::Grid => json!({
+                "timestamp": time(),
+                "frame_id": { "type": "string" },
+                "pose": pose(),
+                "column_count": { "type": "integer", "minimum": 0 },
+                "cell_size": {
+                    "type": "object",
+                    "properties": { "x": { "type": "number" }, "y": { "type": "number" } },
+                },
+                "row_stride": { "type": "integer", "minimum": 0 },
+                "cell_stride": { "type": "integer", "minimum": 0 },
+                "fields": {
+                    "type": "array",
+                    "items": {
+                        "type": "object",
+                        "properties": {
+                            "name": { "type": "string" },
+                            "offset": { "type": "integer", "minimum": 0 },
+                            "type": { "type": "integer", "description": "1 is UINT8" },
+                        },
+                    },
+                },
+                "data": { "type": "string", "contentEncoding": "base64" },
             }),
             Schema::SceneUpdate => json!({
                 "deletions": {

@@ -8,7 +8,9 @@
 //!   `/events`, `/<drone>/plan`), JSON-encoded with JSON schemas;
 //! - `/world`: the obstacles of the header's world (a simulated run's), once after the header,
 //!   when the world file loads (its path as the header gives it, tried from each of
-//!   [`McapLog::world_dirs`]'s directories).
+//!   [`McapLog::world_dirs`]'s directories);
+//! - `/map/known`: with that world, the area known at the end (`grid`, one `foxglove.Grid`
+//!   written when the log is finished; a killed process leaves none).
 //!
 //! Message times are the run's wall-clock start (the header's `start_time`) plus the record's
 //! `t`. The file is chunked without compression (the mcap crate is built without zstd and lz4);
@@ -18,7 +20,8 @@
 
 use super::files;
 use super::foxglove::{self, Schema};
-use super::scene;
+use super::{grid, scene};
+use crate::exploration::evaluate::PoseSample;
 use crate::sim::world::World;
 use mcap::records::MessageHeader;
 use mcap::{WriteOptions, Writer};
@@ -64,6 +67,10 @@ pub struct McapLog<W: Write + Seek> {
     sequence: u32,
     /// Where a relative world path of the header is looked for, in order.
     world_dirs: Vec<PathBuf>,
+    /// The header's world, once loaded, and the poses flown in it (for the known map).
+    world: Option<World>,
+    samples: Vec<PoseSample>,
+    finished: bool,
 }
 
 impl<W: Write + Seek> McapLog<W> {
@@ -83,6 +90,9 @@ impl<W: Write + Seek> McapLog<W> {
             last_ns: 0,
             sequence: 0,
             world_dirs: vec![PathBuf::new()],
+            world: None,
+            samples: Vec::new(),
+            finished: false,
         })
     }
 
@@ -109,14 +119,23 @@ impl<W: Write + Seek> McapLog<W> {
             self.derived(&derived.topic, derived.schema, &derived.message)?;
         }
         if value.get("type").and_then(Value::as_str) == Some("header") {
-            if let Some(world) = self.world_of(&value) {
-                let stamp = serde_json::json!({
-                    "sec": self.last_ns / 1_000_000_000, "nsec": self.last_ns % 1_000_000_000,
-                });
-                self.derived("/world", Schema::SceneUpdate, &scene::world(&world, &stamp))?;
+            self.world = self.world_of(&value);
+            if let Some(world) = &self.world {
+                let update = scene::world(world, &self.stamp_json());
+                self.derived("/world", Schema::SceneUpdate, &update)?;
             }
         }
+        if self.world.is_some() {
+            self.samples.extend(grid::sample(&value));
+        }
         Ok(())
+    }
+
+    /// The last record's time as Foxglove's `{sec, nsec}`.
+    fn stamp_json(&self) -> Value {
+        serde_json::json!({
+            "sec": self.last_ns / 1_000_000_000, "nsec": self.last_ns % 1_000_000_000,
+        })
     }
 
     fn derived(
@@ -141,9 +160,23 @@ impl<W: Write + Seek> McapLog<W> {
             .find_map(|dir| World::load(&dir.join(path)).ok())
     }
 
-    /// Writes what is left (a last record without its newline), the summary and the footer.
+    /// Writes what is left (a last record without its newline), the known map, the summary
+    /// and the footer. Dropping the log does the same, without the errors.
     pub fn finish(mut self) -> Result<(), McapLogError> {
+        self.close()
+    }
+
+    fn close(&mut self) -> Result<(), McapLogError> {
+        if std::mem::replace(&mut self.finished, true) {
+            return Ok(());
+        }
         self.end_pending()?;
+        if let Some(world) = self.world.take() {
+            let stamp = self.stamp_json();
+            if let Some(known) = grid::known(&world, &self.samples, &stamp) {
+                self.derived("/map/known", Schema::Grid, &known)?;
+            }
+        }
         self.writer.finish()?;
         Ok(())
     }
@@ -224,6 +257,14 @@ fn records_schema() -> Value {
             "type": { "type": "string" },
         },
     })
+}
+
+impl<W: Write + Seek> Drop for McapLog<W> {
+    fn drop(&mut self) {
+        if let Err(e) = self.close() {
+            tracing::error!("flight log: {e}");
+        }
+    }
 }
 
 impl<W: Write + Seek> Write for McapLog<W> {

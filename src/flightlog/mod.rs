@@ -28,6 +28,7 @@
 
 pub mod files;
 pub mod foxglove;
+pub mod grid;
 pub mod mcap_log;
 pub mod reader;
 pub mod scene;
