@@ -7,6 +7,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use kestrel::exploration::offline::evaluate::{self, EvalParams, ExplorationMetrics, MergeError};
+use kestrel::flightlog::reader;
 use kestrel::sim::world::World;
 use std::path::PathBuf;
 
@@ -18,7 +19,7 @@ pub struct EvaluateArgs {
     /// World file the flight was flown in (JSON).
     #[arg(long)]
     world: PathBuf,
-    /// Flight log (JSON lines, `pose` records). Several (`--log A --log B`): the logs of one
+    /// Flight log (JSON lines or MCAP, `pose` records). Several (`--log A --log B`): the logs of one
     /// fleet's nodes, evaluated as one flight.
     #[arg(long, required = true)]
     log: Vec<PathBuf>,
@@ -46,7 +47,8 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
             path.display()
         );
         texts.push(
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?,
+            reader::read_to_string(path, MAX_LOG_BYTES)
+                .with_context(|| format!("reading {}", path.display()))?,
         );
     }
     let names: Vec<String> = args.log.iter().map(|p| p.display().to_string()).collect();

@@ -17,7 +17,8 @@ use kestrel::config::Config;
 use kestrel::exploration::offline::evaluate::{self, EvalParams};
 use kestrel::exploration::online::allocation::AllocatorKind;
 use kestrel::flightlog::files;
-use kestrel::flightlog::FlightLog;
+use kestrel::flightlog::mcap_log::McapLog;
+use kestrel::flightlog::{reader, FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
 use kestrel::host::sim::{sim_world, simulated_host_in};
 use kestrel::host::Host;
@@ -41,13 +42,19 @@ pub struct ExploreArgs {
     /// Seed for sensor noise; the same seed gives the same run.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Flight log (JSON lines) at this path, which must not exist yet (see --log-overwrite).
-    /// Default: a new kestrel-explore-<world>-<N>-<seed>-<UTC start time>.jsonl.
+    /// Flight log at this path, which must not exist yet (see --log-overwrite).
+    /// Default: a new kestrel-explore-<world>-<N>-<seed>-<UTC start time>.jsonl (.mcap with
+    /// --log-format mcap).
     #[arg(long)]
     log: Option<PathBuf>,
     /// With --log: replace the file if it exists.
     #[arg(long, requires = "log")]
     log_overwrite: bool,
+    /// Flight-log format: jsonl (JSON lines) or mcap (MCAP with Foxglove's channels: poses,
+    /// frames, events, goals and paths, a world's obstacles and known area, and every
+    /// record). Default: the config's `drone.log_format` (jsonl).
+    #[arg(long, value_name = "FORMAT")]
+    log_format: Option<LogFormat>,
     /// Report (JSON) with every metric. Default: the log's name with `.report.json`.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -100,7 +107,14 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     if host.map().is_none() {
         bail!("exploration needs mapping: the config's [map] plugin is \"none\"");
     }
-    let mut log = FlightLog::new(Box::new(std::io::BufWriter::new(file)), 20.0);
+    let out = std::io::BufWriter::new(file);
+    // Written on this thread (a simulation: no control loop to keep free), closed (for MCAP:
+    // its summary written) before the log is read back below.
+    let out: Box<dyn std::io::Write + Send> = match log_format(&args, &config) {
+        LogFormat::Jsonl => Box::new(out),
+        LogFormat::Mcap => Box::new(McapLog::new(out).context("starting the MCAP flight log")?),
+    };
+    let mut log = FlightLog::new(out, 20.0);
     log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
         command: "explore",
         config: &config,
@@ -124,7 +138,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     );
     let started = Instant::now();
     let outcome = fly(&mut host, &flights, &args, pace, started);
-    host.flush_log();
+    host.close_log();
     let wall_s = started.elapsed().as_secs_f64();
     let sim_s = host.now().as_secs_f64();
     let failures: Vec<String> = match &outcome {
@@ -139,7 +153,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         Err(e) => vec![e.clone()],
     };
     // The run judged as an outside evaluator would: from the flight log and the true world.
-    let text = std::fs::read_to_string(&log_path)
+    let text = reader::read_to_string(&log_path, u64::MAX)
         .with_context(|| format!("reading back {}", log_path.display()))?;
     let samples = evaluate::poses_from_log(&text)?;
     let metrics = evaluate::evaluate(&world, &samples, &EvalParams::default())?;
@@ -169,6 +183,10 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     } else {
         bail!("exploration failed: {}", failures.join("; "))
     }
+}
+
+fn log_format(args: &ExploreArgs, config: &Config) -> LogFormat {
+    args.log_format.unwrap_or(config.drone.log_format)
 }
 
 /// The config as an exploration of `world` needs it, where the file leaves it open.
@@ -205,7 +223,8 @@ fn open_log(
         .map_or("world".into(), |s| s.to_string_lossy().into_owned());
     let kind = format!("kestrel-explore-{stem}-{}-{}", args.drones, args.seed);
     let dir = config.drone.log_dir.clone().unwrap_or_default();
-    let (file, path) = files::create(&dir, &kind, start)
+    let ext = log_format(args, config).extension();
+    let (file, path) = files::create(&dir, &kind, ext, start)
         .with_context(|| format!("creating a flight log in {}", dir.display()))?;
     files::prune(&dir, &kind, config.drone.log_keep, &path).context("pruning old flight logs")?;
     Ok((file, path))

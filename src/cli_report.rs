@@ -1,6 +1,6 @@
 //! `kestrel report`: a flight log made into a page of figures (the thesis's figures).
 //!
-//! In: a flight log (JSON lines), optionally `--out DIR` and `--world FILE` (the true world of
+//! In: a flight log (JSON lines or MCAP), optionally `--out DIR` and `--world FILE` (the true world of
 //! an exploration log, when its header's is missing or moved). Out: DIR (default
 //! `<log stem>-report/` beside the log) with `index.html`, every figure as SVG and PNG,
 //! `poses.csv`, and `area.csv` for an evaluated exploration; the files written on stdout.
@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct ReportArgs {
-    /// Flight log (JSON lines) to report on.
+    /// Flight log to report on (JSON lines or MCAP, told apart by the file's first bytes).
     flight_log: PathBuf,
     /// Directory to write into (created if missing). Default: <log stem>-report/ beside the log.
     #[arg(long)]

@@ -27,7 +27,7 @@ use kestrel::control::{AcceptedSetpoints, Setpoint};
 use kestrel::core::{CoreConfig, DroneCore};
 use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
-use kestrel::flightlog::FlightLog;
+use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
 use kestrel::host::vehicle::{vehicle_host, virtual_world_host};
 use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform, TextSender};
@@ -63,13 +63,19 @@ pub struct RunArgs {
     /// Exit when the plan is over: 0 if it succeeded, non-zero with the reason if not.
     #[arg(long)]
     exit_when_done: bool,
-    /// Flight log (JSON lines) at this path, which must not exist yet (see --log-overwrite).
-    /// Default: a new kestrel-run-<UTC start time>.jsonl in `drone.log_dir` or here.
+    /// Flight log at this path, which must not exist yet (see --log-overwrite).
+    /// Default: a new kestrel-run-<UTC start time>.jsonl (.mcap with --log-format mcap) in
+    /// `drone.log_dir` or here.
     #[arg(long)]
     log: Option<PathBuf>,
     /// With --log: replace the file if it exists.
     #[arg(long, requires = "log")]
     log_overwrite: bool,
+    /// Flight-log format: jsonl (JSON lines) or mcap (MCAP with Foxglove's channels: poses,
+    /// frames, events, goals and paths, a world's obstacles and known area, and every
+    /// record). Default: the config's `drone.log_format` (jsonl).
+    #[arg(long, value_name = "FORMAT")]
+    log_format: Option<LogFormat>,
     /// With `--exit-when-done` or `--no-api`: stop after this many seconds whatever happens.
     #[arg(long, default_value_t = 900.0)]
     max_time_s: f64,
@@ -436,6 +442,7 @@ async fn serve_vehicles(
         kind: "kestrel-run".into(),
         keep: config.drone.log_keep,
         start,
+        format: args.log_format.unwrap_or(config.drone.log_format),
     })?;
     let log_path = log_file.path.clone();
     let mut log = FlightLog::new(Box::new(writer), 10.0);

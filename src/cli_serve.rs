@@ -5,7 +5,7 @@ use crate::cli_flights::{self, Flights};
 use anyhow::{Context, Result};
 use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
-use kestrel::flightlog::files;
+use kestrel::flightlog::{files, LogFormat};
 use kestrel::host::logwriter::{self, LogFile};
 use kestrel::host::runtime::{self, HostHandle, Pace, RuntimeOptions};
 use kestrel::host::status::{EventBody, HostEvent, SharedEvent};
@@ -43,6 +43,8 @@ pub struct ServeOptions {
 /// How long an exiting Kestrel waits for its last texts to the ground station (a few at the
 /// session's pace; longer only when the link is down, and then they cannot go anyway).
 pub const TEXTS_FLUSH: Duration = Duration::from_secs(3);
+/// How long the end of a run waits for the flight log's writer to close the file.
+const LOG_CLOSE: Duration = Duration::from_secs(10);
 
 /// See [`ServeOptions::on_event`].
 pub type EventTap = Box<dyn FnMut(&HostEvent) + Send>;
@@ -154,13 +156,15 @@ pub struct LogChoice {
     pub explicit: Option<PathBuf>,
     /// `--log-overwrite`: an existing `--log FILE` is replaced.
     pub overwrite: bool,
-    /// Otherwise a new file in this directory, named `<kind>-<start time>.jsonl`.
+    /// Otherwise a new file in this directory, named `<kind>-<start time>.<jsonl or mcap>`.
     pub dir: PathBuf,
     pub kind: String,
     /// Logs of this kind kept in `dir` (the oldest beyond are deleted).
     pub keep: usize,
     /// Wall-clock start of the run: the log's name and its header's `start_time`.
     pub start: std::time::SystemTime,
+    /// JSON lines or MCAP.
+    pub format: LogFormat,
 }
 
 /// What the flight log's header says about the run (see `kestrel::flightlog`).
@@ -204,7 +208,8 @@ pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile
             (file, path.clone())
         }
         None => {
-            let (file, path) = files::create(&choice.dir, &choice.kind, choice.start)
+            let ext = choice.format.extension();
+            let (file, path) = files::create(&choice.dir, &choice.kind, ext, choice.start)
                 .with_context(|| format!("creating a flight log in {}", choice.dir.display()))?;
             match files::prune(&choice.dir, &choice.kind, choice.keep, &path) {
                 Ok(deleted) if !deleted.is_empty() => println!(
@@ -218,7 +223,7 @@ pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile
             (file, path)
         }
     };
-    logwriter::open(file, &path)
+    logwriter::open(file, &path, choice.format)
         .with_context(|| format!("starting the writer of {}", path.display()))
 }
 
@@ -444,9 +449,25 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
             tracing::warn!("some texts for the ground station were not sent (is the link down?)");
         }
     }
-    Ok(Outcome {
+    let outcome = Outcome {
         results: outcomes(&host, &flights),
         simulated_s: host.now().as_secs_f64(),
         wall_s: wall.elapsed().as_secs_f64(),
-    })
+    };
+    close_log(host, options.log.as_ref());
+    Ok(outcome)
+}
+
+/// Drops the host, which owns the log's writer, so the writer thread finishes the file (an
+/// MCAP log's summary) before the process ends; waits for it.
+fn close_log(host: Host, log: Option<&LogFile>) {
+    drop(host);
+    if let Some(log) = log {
+        if !log.wait_closed(LOG_CLOSE) {
+            tracing::warn!(
+                "the flight log {} was not closed in time",
+                log.path.display()
+            );
+        }
+    }
 }

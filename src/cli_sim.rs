@@ -7,7 +7,7 @@ use crate::cli_serve::{self, LogChoice, ServeOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
-use kestrel::flightlog::FlightLog;
+use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::demo::demo_missions;
 use kestrel::host::runtime::Pace;
 use kestrel::host::scenario::Scenario;
@@ -36,14 +36,19 @@ pub struct SimArgs {
     /// Seed for noise and sensors; the same seed gives the same flight.
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
-    /// Flight log (JSON lines) at this path, which must not exist yet (see --log-overwrite).
-    /// Default: a new kestrel-sim-<UTC start time>.jsonl in the config's `drone.log_dir` or
-    /// the current directory.
+    /// Flight log at this path, which must not exist yet (see --log-overwrite).
+    /// Default: a new kestrel-sim-<UTC start time>.jsonl (.mcap with --log-format mcap) in the
+    /// config's `drone.log_dir` or the current directory.
     #[arg(long)]
     pub(crate) log: Option<PathBuf>,
     /// With --log: replace the file if it exists.
     #[arg(long, requires = "log")]
     pub(crate) log_overwrite: bool,
+    /// Flight-log format: jsonl (JSON lines) or mcap (MCAP with Foxglove's channels: poses,
+    /// frames, events, goals and paths, a world's obstacles and known area, and every
+    /// record). Default: the config's `drone.log_format` (jsonl).
+    #[arg(long, value_name = "FORMAT")]
+    pub(crate) log_format: Option<LogFormat>,
     /// Exit when the flight is over: 0 if it succeeded, non-zero with the reason if not.
     #[arg(long)]
     pub(crate) exit_when_done: bool,
@@ -185,6 +190,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         kind: "kestrel-sim".into(),
         keep: config.drone.log_keep,
         start,
+        format: args.log_format.unwrap_or(config.drone.log_format),
     })?;
     let log_path = log_file.path.clone();
     let split = scenario

@@ -9,6 +9,7 @@ mod cli_console;
 mod cli_evaluate;
 mod cli_explore;
 mod cli_flights;
+mod cli_log;
 mod cli_map;
 mod cli_mission;
 mod cli_remote;
@@ -49,6 +50,9 @@ enum Command {
     World(cli_world::WorldCommand),
     /// Exploration metrics of a flight log against the true world.
     Evaluate(cli_evaluate::EvaluateArgs),
+    /// Flight-log files: convert a JSON-lines log to MCAP.
+    #[command(subcommand)]
+    Log(cli_log::LogCommand),
     /// A flight log as a report: index.html with figures (SVG, PNG), a table and poses.csv.
     Report(cli_report::ReportArgs),
     /// Check a config file as `kestrel run` does at start (platform, token, listen address,
@@ -75,6 +79,7 @@ fn main() -> Result<()> {
         Command::World(command) => cli_world::run(command),
         Command::Evaluate(args) => cli_evaluate::run(args),
         Command::Report(args) => cli_report::run(args),
+        Command::Log(command) => cli_log::run(command),
         Command::CheckConfig {
             config,
             virtual_world,

@@ -75,7 +75,7 @@ pub async fn download(
         buf.truncate(n);
         Ok(Some((buf, file)))
     });
-    // Listed names are `kestrel-...Z.jsonl` or the file name given to `--log`; only printable
+    // Listed names are `kestrel-...Z.jsonl` (or `.mcap`) or the file name given to `--log`; only printable
     // ASCII other than quote and backslash is kept, so the header is valid whatever that was.
     let filename: String = entry
         .name
@@ -84,7 +84,7 @@ pub async fn download(
         .collect();
     Ok((
         [
-            (header::CONTENT_TYPE, "application/x-ndjson".to_string()),
+            (header::CONTENT_TYPE, content_type(&entry.name).to_string()),
             (
                 header::CONTENT_DISPOSITION,
                 format!("attachment; filename=\"{filename}\""),
@@ -93,4 +93,13 @@ pub async fn download(
         Body::from_stream(chunks),
     )
         .into_response())
+}
+
+/// An MCAP log is binary; every other log is JSON lines.
+fn content_type(name: &str) -> &'static str {
+    if name.ends_with(".mcap") {
+        "application/octet-stream"
+    } else {
+        "application/x-ndjson"
+    }
 }

@@ -81,6 +81,9 @@ pub struct DroneSection {
     /// Logs of one kind (`kestrel-run`, `kestrel-sim`, ...) kept in `log_dir`: at each start the
     /// oldest beyond this many are deleted (never the current one). 1 to 100000.
     pub log_keep: usize,
+    /// Format of the flight logs: `jsonl` (JSON lines) or `mcap` (MCAP with Foxglove's
+    /// channels); `--log-format` overrides it.
+    pub log_format: crate::flightlog::LogFormat,
 }
 
 impl Default for DroneSection {
@@ -91,6 +94,7 @@ impl Default for DroneSection {
             geodetic_origin: None,
             log_dir: None,
             log_keep: crate::flightlog::files::DEFAULT_KEEP,
+            log_format: crate::flightlog::LogFormat::Jsonl,
         }
     }
 }

@@ -1,7 +1,8 @@
 //! Flight-log files: one per run, named by its start time, never overwritten, pruned to a limit.
 //!
-//! In: a directory, a kind (`kestrel-sim`, `kestrel-run`, ...) and the wall-clock start. Out: a
-//! file created exclusively as `<kind>-YYYY-MM-DDTHH-MM-SSZ.jsonl` (UTC; `-2`, `-3` ... appended
+//! In: a directory, a kind (`kestrel-sim`, `kestrel-run`, ...), the format's extension (`jsonl`
+//! or `mcap`) and the wall-clock start. Out: a file created exclusively as
+//! `<kind>-YYYY-MM-DDTHH-MM-SSZ.<ext>` (UTC; `-2`, `-3` ... appended
 //! when two runs start in the same second), the oldest logs of that kind beyond the limit
 //! deleted (never the current one), and the list `GET /api/logs` serves. PX4 and ArduPilot keep
 //! their logs the same way: a new file per flight, the oldest removed when too many.
@@ -49,19 +50,51 @@ fn civil(t: SystemTime) -> (String, [u64; 3]) {
     )
 }
 
+/// Seconds since 1970 of an RFC 3339 UTC time as [`rfc3339`] writes it (`YYYY-MM-DDTHH:MM:SSZ`).
+pub fn parse_rfc3339(s: &str) -> Option<u64> {
+    let b = s.as_bytes();
+    let shape = b.len() == 20
+        && [4, 7].iter().all(|&i| b.get(i) == Some(&b'-'))
+        && b.get(10) == Some(&b'T')
+        && [13, 16].iter().all(|&i| b.get(i) == Some(&b':'))
+        && b.get(19) == Some(&b'Z');
+    if !shape {
+        return None;
+    }
+    let num = |r: std::ops::Range<usize>| s.get(r)?.parse::<i64>().ok();
+    let (year, month, day) = (num(0..4)?, num(5..7)?, num(8..10)?);
+    let (h, m, sec) = (num(11..13)?, num(14..16)?, num(17..19)?);
+    if !(1..=12).contains(&month) || !(1..=31).contains(&day) || h > 23 || m > 59 || sec > 60 {
+        return None;
+    }
+    // Days from civil (the inverse of `civil`).
+    let y = if month <= 2 { year - 1 } else { year };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (month + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + day - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days = era * 146_097 + doe - 719_468;
+    u64::try_from(days * 86_400 + h * 3600 + m * 60 + sec).ok()
+}
+
 /// Creates a new log of `kind` in `dir` (made if missing), exclusively: an existing file is
-/// never opened. Returns the file and its path.
-pub fn create(dir: &Path, kind: &str, start: SystemTime) -> io::Result<(File, PathBuf)> {
+/// never opened. `ext` is the format's extension (`jsonl`, `mcap`); logs of both formats count
+/// as one kind for naming and pruning. Returns the file and its path.
+pub fn create(dir: &Path, kind: &str, ext: &str, start: SystemTime) -> io::Result<(File, PathBuf)> {
     if !dir.as_os_str().is_empty() {
         std::fs::create_dir_all(dir)?;
     }
     let base = format!("{kind}-{}", stamp(start));
     for n in 1..1000 {
         let name = if n == 1 {
-            format!("{base}.jsonl")
+            format!("{base}.{ext}")
         } else {
-            format!("{base}-{n}.jsonl")
+            format!("{base}-{n}.{ext}")
         };
+        if taken_in_other_format(dir, &name, ext) {
+            continue;
+        }
         let path = dir.join(name);
         match OpenOptions::new().write(true).create_new(true).open(&path) {
             Ok(file) => return Ok((file, path)),
@@ -73,6 +106,18 @@ pub fn create(dir: &Path, kind: &str, start: SystemTime) -> io::Result<(File, Pa
         io::ErrorKind::AlreadyExists,
         format!("999 logs named {base} already in {}", dir.display()),
     ))
+}
+
+/// Whether the same-second name `name` is already used by a log of the other format (so that
+/// `-2`, `-3` ... number a second's runs whatever their formats).
+fn taken_in_other_format(dir: &Path, name: &str, ext: &str) -> bool {
+    let Some(stem) = name.strip_suffix(ext) else {
+        return false;
+    };
+    ["jsonl", "mcap"]
+        .iter()
+        .filter(|&&other| other != ext)
+        .any(|other| dir.join(format!("{stem}{other}")).exists())
 }
 
 /// Opens a log at a path the user chose: a new file, or with `overwrite` the file truncated.
@@ -99,7 +144,9 @@ pub fn create_at(path: &Path, overwrite: bool) -> io::Result<File> {
 
 /// A log named by [`create`]: its kind, start stamp and same-second number.
 fn parse(name: &str) -> Option<(&str, &str, u32)> {
-    let stem = name.strip_suffix(".jsonl")?;
+    let stem = name
+        .strip_suffix(".jsonl")
+        .or_else(|| name.strip_suffix(".mcap"))?;
     let (head, n) = match stem.rsplit_once('-') {
         Some((head, n)) if head.ends_with('Z') && n.bytes().all(|b| b.is_ascii_digit()) => {
             (head, n.parse().ok()?)
@@ -214,10 +261,10 @@ mod tests {
     #[test]
     fn same_second_starts_get_their_own_files_and_pruning_keeps_the_current() {
         let dir = tempfile::tempdir().unwrap();
-        let (_, a) = create(dir.path(), "kestrel-sim", at(100)).unwrap();
-        let (_, b) = create(dir.path(), "kestrel-sim", at(100)).unwrap();
-        let (_, c) = create(dir.path(), "kestrel-sim", at(200)).unwrap();
-        let (_, run) = create(dir.path(), "kestrel-run", at(50)).unwrap();
+        let (_, a) = create(dir.path(), "kestrel-sim", "jsonl", at(100)).unwrap();
+        let (_, b) = create(dir.path(), "kestrel-sim", "jsonl", at(100)).unwrap();
+        let (_, c) = create(dir.path(), "kestrel-sim", "jsonl", at(200)).unwrap();
+        let (_, run) = create(dir.path(), "kestrel-run", "jsonl", at(50)).unwrap();
         assert_ne!(a, b);
         let names: Vec<String> = list(dir.path(), Some(&c))
             .unwrap()
@@ -230,7 +277,7 @@ mod tests {
         assert_eq!(deleted, vec![a.clone(), b.clone()]);
         assert!(c.exists() && run.exists());
         // The current log survives even when older than the limit allows.
-        let (_, d) = create(dir.path(), "kestrel-sim", at(300)).unwrap();
+        let (_, d) = create(dir.path(), "kestrel-sim", "jsonl", at(300)).unwrap();
         prune(dir.path(), "kestrel-sim", 1, &c).unwrap();
         assert!(c.exists() && d.exists());
     }
@@ -245,5 +292,32 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "{}\n");
         create_at(&path, true).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "");
+    }
+
+    #[test]
+    fn both_formats_share_the_names_of_a_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let (_, a) = create(dir.path(), "kestrel-sim", "jsonl", at(100)).unwrap();
+        let (_, b) = create(dir.path(), "kestrel-sim", "mcap", at(100)).unwrap();
+        assert!(b.to_string_lossy().ends_with("00-01-40Z-2.mcap"), "{b:?}");
+        let (_, c) = create(dir.path(), "kestrel-sim", "mcap", at(200)).unwrap();
+        let names: Vec<String> = list(dir.path(), None)
+            .unwrap()
+            .into_iter()
+            .map(|e| e.name)
+            .collect();
+        assert_eq!(names.len(), 3, "{names:?}");
+        let deleted = prune(dir.path(), "kestrel-sim", 1, &c).unwrap();
+        assert_eq!(deleted, vec![a, b]);
+    }
+
+    #[test]
+    fn rfc3339_reads_back_what_it_wrote() {
+        for secs in [0u64, 951_782_400, 1_767_323_045, 4_102_444_799] {
+            let t = UNIX_EPOCH + std::time::Duration::from_secs(secs);
+            assert_eq!(parse_rfc3339(&rfc3339(t)), Some(secs));
+        }
+        assert_eq!(parse_rfc3339("2026-13-01T00:00:00Z"), None);
+        assert_eq!(parse_rfc3339("2026-01-01 00:00:00Z"), None);
     }
 }

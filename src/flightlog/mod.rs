@@ -21,8 +21,17 @@
 //!
 //! Outside tools read it line by line; later records never change earlier ones. The files
 //! themselves (one per run, named by its start, pruned to a limit) are [`files`]'s.
+//!
+//! With [`LogFormat::Mcap`] the same records go into an MCAP file instead ([`mcap_log`]: the
+//! records unchanged on their own channel, plus Foxglove's channels made of them by
+//! [`foxglove`]); [`reader`] reads either format back as JSON lines.
 
 pub mod files;
+pub mod foxglove;
+pub mod grid;
+pub mod mcap_log;
+pub mod reader;
+pub mod scene;
 
 use crate::behavior::BehaviorEvent;
 use crate::types::{Setpoint, VehicleState};
@@ -30,6 +39,44 @@ use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::io::Write;
 use std::time::Duration;
+
+/// The file format of a flight log (`--log-format`, `[drone] log_format`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    /// One JSON record a line (`.jsonl`).
+    #[default]
+    Jsonl,
+    /// MCAP with Foxglove's channels (`.mcap`).
+    Mcap,
+}
+
+impl LogFormat {
+    /// The file extension of the format, without its dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            LogFormat::Jsonl => "jsonl",
+            LogFormat::Mcap => "mcap",
+        }
+    }
+}
+
+/// A `--log-format` that is neither `jsonl` nor `mcap`.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown log format {0:?} (jsonl or mcap)")]
+pub struct UnknownLogFormat(String);
+
+impl std::str::FromStr for LogFormat {
+    type Err = UnknownLogFormat;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "jsonl" => Ok(LogFormat::Jsonl),
+            "mcap" => Ok(LogFormat::Mcap),
+            other => Err(UnknownLogFormat(other.to_string())),
+        }
+    }
+}
 
 pub struct FlightLog {
     out: Box<dyn Write + Send>,

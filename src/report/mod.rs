@@ -22,6 +22,7 @@ mod tracks;
 use crate::exploration::offline::evaluate::{
     self, EvalParams, ExplorationMetrics, KnownMap, PoseSample,
 };
+use crate::flightlog::reader;
 use crate::sim::world::World;
 use figures::Figure;
 use read::Flight;
@@ -84,11 +85,11 @@ pub struct Report {
     pub exploration: Exploration,
 }
 
-/// Reads a log file, refusing one over [`MAX_LOG_BYTES`].
+/// Reads a log file of either format (JSON lines or MCAP, `flightlog::reader`), refusing one
+/// over [`MAX_LOG_BYTES`].
 pub fn read_file(path: &Path) -> Result<Flight, ReportError> {
     let io = |e: std::io::Error| ReportError::Io(format!("reading {}: {e}", path.display()));
-    let file = std::fs::File::open(path).map_err(io)?;
-    let size = file.metadata().map_err(io)?.len();
+    let size = std::fs::metadata(path).map_err(io)?.len();
     if size > MAX_LOG_BYTES {
         return Err(ReportError::TooLarge {
             path: path.display().to_string(),
@@ -96,7 +97,7 @@ pub fn read_file(path: &Path) -> Result<Flight, ReportError> {
             max: MAX_LOG_BYTES,
         });
     }
-    read::read(std::io::BufReader::new(file))
+    read::read(reader::open(path, MAX_LOG_BYTES).map_err(io)?)
 }
 
 /// Computes the table and, for an exploration log, the evaluator's metrics and map.

@@ -410,6 +410,13 @@ impl Host {
             log.flush();
         }
     }
+
+    /// Flushes the flight log and lets it go: nothing is logged after this, and a log written
+    /// in place (an MCAP log's summary) is finished.
+    pub fn close_log(&mut self) {
+        self.flush_log();
+        self.log = None;
+    }
 }
 
 /// Known cells of a grid, in percent of all its cells.
