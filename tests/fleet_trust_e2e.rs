@@ -2,7 +2,10 @@
 //! no autopilot). The test process is the attacker: a Zenoh peer holding the fleet's
 //! `user:password` (a stolen credentials file, or a member gone rogue), but not node_1's key.
 //! - item 1: a state written on node_1's key, signed with another key, and one of a made-up node,
-//!   are refused and counted; nothing of them reaches the fleet view.
+//!   are refused and counted; nothing of them reaches the fleet view;
+//! - item 5: a 96 MB put is dropped by Zenoh's transport as its fragments arrive (the node never
+//!   reassembles more than `fleet_bus::node::MAX_REASSEMBLED_BYTES`): the node's peak memory
+//!   does not grow by the put's size.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod mavlink_support;
@@ -14,6 +17,16 @@ use kestrel::types::LinkHealth;
 use mavlink_support::bus::{bus_only_node, credentials, start_bus_only, Identities};
 use mavlink_support::{alongside, free_tcp_port, Api, Kestrel};
 use std::time::{Duration, Instant};
+
+/// A kB figure of /proc/PID/status (`VmHWM`: peak resident memory).
+fn status_kb(pid: u32, field: &str) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix(field))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap()
+}
 
 struct Target {
     _dir: tempfile::TempDir,
@@ -145,4 +158,27 @@ fn a_peer_speaking_for_another_node_or_a_made_up_one_is_refused_and_counted() {
         .filter(|l| l.contains("fleet bus: refused a `state` message"))
         .count();
     assert_eq!(lines, 1, "{out}");
+}
+
+#[test]
+fn a_huge_put_is_dropped_by_the_transport_without_the_node_growing() {
+    let _beside = alongside();
+    let t = target();
+    std::thread::sleep(Duration::from_secs(1));
+    let pid = t.node.pid();
+    let before_kb = status_kb(pid, "VmHWM:");
+    let huge = vec![7u8; 96 << 20];
+    let started = Instant::now();
+    t.put(&format!("kestrel/{}/node_1/map", t.fleet), huge);
+    // Sent (every fragment queued); what arrives, arrives within this.
+    std::thread::sleep(Duration::from_secs(3));
+    let grew_mb = status_kb(pid, "VmHWM:").saturating_sub(before_kb) / 1024;
+    println!(
+        "96 MB put in {:?}; node_0's peak memory grew {grew_mb} MB",
+        started.elapsed()
+    );
+    assert!(grew_mb < 32, "node_0's peak memory grew {grew_mb} MB");
+    // Dropped before Kestrel saw it: not even received.
+    assert_eq!(t.bus()["received"], 0, "{}", t.bus());
+    assert_eq!(t.node.pid(), pid);
 }

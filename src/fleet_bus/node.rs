@@ -26,6 +26,12 @@ use super::wire::{MapMsg, StateMsg};
 const QUEUE: usize = 256;
 /// How soon a link that stopped answering is dropped (ms): Wi-Fi drops are noticed quickly.
 const LEASE_MS: u64 = 3000;
+/// Largest message Zenoh reassembles from its fragments (bytes): the largest a peer may send
+/// (a map message and its signature) and a little room. Zenoh's own default is 1 GiB, and it
+/// reassembles before anything of Kestrel's sees the message: one 500 MB put made a node peak
+/// at 1.15 GB. A bigger message is dropped by the transport as its fragments arrive.
+pub const MAX_REASSEMBLED_BYTES: usize =
+    super::wire::MAX_MAP_BYTES + super::identity::ENVELOPE_BYTES + 4096;
 /// How often what the join watch has to say is logged.
 const JOIN_LINES_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
 
@@ -132,7 +138,8 @@ fn spawn_join_lines(join: &'static JoinWatch) {
 }
 
 /// The Zenoh configuration for a section: peer mode, the endpoints, scouting only if asked,
-/// user/password authentication when a credentials file is given.
+/// messages reassembled up to [`MAX_REASSEMBLED_BYTES`], user/password authentication when a
+/// credentials file is given.
 fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
     let mut json = serde_json::json!({
         "mode": "peer",
@@ -145,7 +152,10 @@ fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
             "multicast": { "enabled": section.scouting },
             "gossip": { "enabled": section.scouting },
         },
-        "transport": { "link": { "tx": { "lease": LEASE_MS } } },
+        "transport": { "link": {
+            "tx": { "lease": LEASE_MS },
+            "rx": { "max_message_size": MAX_REASSEMBLED_BYTES },
+        } },
     });
     if let Some(path) = &section.credentials_file {
         let own = super::credentials::read_credentials(path)?;
