@@ -40,6 +40,8 @@ pub struct BusLink {
     last_keyframe: Option<Instant>,
     last_report: Option<Instant>,
     last_warning: Option<Instant>,
+    /// Refusals not said since the last warning.
+    held_warnings: u64,
     state_seq: u64,
     map_seq: u64,
     latencies_ms: VecDeque<f64>,
@@ -72,6 +74,7 @@ impl BusLink {
             last_keyframe: None,
             last_report: None,
             last_warning: None,
+            held_warnings: 0,
             state_seq: 0,
             map_seq: 0,
             latencies_ms: VecDeque::with_capacity(LATENCY_SAMPLES),
@@ -88,9 +91,14 @@ impl BusLink {
     fn refuse(&mut self, messages: u64, what: &str) {
         self.refused_here += messages;
         let now = Instant::now();
-        if due(self.last_warning, WARN_EVERY, now) {
-            self.last_warning = Some(now);
-            tracing::warn!("fleet bus: {what}");
+        if !due(self.last_warning, WARN_EVERY, now) {
+            self.held_warnings += 1;
+            return;
+        }
+        self.last_warning = Some(now);
+        match std::mem::take(&mut self.held_warnings) {
+            0 => tracing::warn!("fleet bus: {what}"),
+            n => tracing::warn!("fleet bus: {what} ({n} more refused since the last line)"),
         }
     }
 
