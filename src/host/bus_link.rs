@@ -19,10 +19,11 @@ use crate::host::status::BusReport;
 /// Most peer states taken in between two ticks (the rest wait for the next).
 pub const MAX_IN_PER_TICK: usize = 64;
 /// Map work done between two ticks, in cell visits (writing a cell of a peer's layer and
-/// re-fusing it visits it once per layer): about half a millisecond on the reference machine
+/// re-fusing it visits it once per layer): a quarter of the first try's 100 000, which left a
+/// p99 of 27 ms under a flood; 14 ms with this one
 /// (BENCHMARKS.md, "Control tick under a flood of map messages"). A peer's full grid takes a few
 /// ticks to land; the rest waits, coalesced, in the map inbox.
-pub const MAP_WORK_PER_TICK: usize = 100_000;
+pub const MAP_WORK_PER_TICK: usize = 25_000;
 /// Latency samples kept for the percentiles.
 const LATENCY_SAMPLES: usize = 2048;
 /// Shortest time between two warnings about refused peer messages.
