@@ -517,20 +517,32 @@ async fn join_fleet_bus(
         return Ok(None);
     }
     let node = fleet.node_name(&host.drone_ids());
+    let (signer, members) = crate::cli_fleet::identity(fleet, &node)?;
+    let roster = members
+        .iter()
+        .map(|(n, m)| (n.clone(), m.drones.clone()))
+        .collect();
     let port = start(NodeConfig {
         section: fleet.clone(),
         node: node.clone(),
         max_map_cells: host.map_cells(),
+        signer,
+        members,
     })
     .await?;
-    host.enable_fleet_bus(SilencePolicy {
-        peer_timeout: Duration::from_secs_f64(fleet.peer_timeout_s),
-        lost_after: Duration::from_secs_f64(fleet.lost_after_s),
-        keepout_m: fleet.silent_keepout_m,
-    });
+    host.enable_fleet_bus(
+        SilencePolicy {
+            peer_timeout: Duration::from_secs_f64(fleet.peer_timeout_s),
+            lost_after: Duration::from_secs_f64(fleet.lost_after_s),
+            keepout_m: fleet.silent_keepout_m,
+        },
+        roster,
+    );
     println!(
-        "fleet bus: fleet `{}` as node `{node}`, listening on [{}], connecting to [{}]",
+        "fleet bus: fleet `{}` as node `{node}` of {} members, listening on [{}], connecting \
+         to [{}]",
         fleet.name,
+        fleet.roster.len(),
         fleet.listen.join(", "),
         fleet.connect.join(", ")
     );

@@ -162,7 +162,7 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         .with_context(|| format!("{file}: [map]"))?;
     let (listen, token) = api(&config, overrides, &file)?;
     let mut warnings = token_warnings(&config);
-    fleet(&config, &file, &mut warnings)?;
+    crate::cli_fleet::check(&config, &file, &mut warnings)?;
     let log_dir = config.drone.log_dir.clone().unwrap_or_default();
     directory(&log_dir, &format!("{file}: drone.log_dir"))?;
     let state_dir = kestrel::host::vehicle::state_dir(overrides.state_dir.clone(), &config);
@@ -295,32 +295,6 @@ fn token_warnings(config: &Config) -> Vec<String> {
             path.display()
         )],
     }
-}
-
-/// `[fleet]`: the bus must be built in, and its credentials file readable and well formed (the
-/// bus would refuse it at start); without one, anyone can join, which is said.
-fn fleet(config: &Config, file: &str, warnings: &mut Vec<String>) -> Result<()> {
-    let fleet = &config.fleet;
-    if !fleet.enabled {
-        return Ok(());
-    }
-    if cfg!(not(feature = "fleet-bus")) {
-        bail!(
-            "{file}: fleet.enabled: this kestrel was built without the fleet bus (cargo \
-             feature `fleet-bus`)"
-        );
-    }
-    match &fleet.credentials_file {
-        Some(path) => {
-            kestrel::fleet_bus::credentials::read_credentials(path)
-                .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-        }
-        None => warnings.push(format!(
-            "fleet bus without `credentials_file`: anyone on the network can join fleet `{}`",
-            fleet.name
-        )),
-    }
-    Ok(())
 }
 
 /// A directory `run` writes in, created if missing: it must be a directory, or be creatable,
@@ -508,6 +482,9 @@ pub fn check(config_path: &Path, virtual_world: Option<PathBuf>) -> Result<()> {
     );
     println!("  log dir    {}", shown(&s.log_dir));
     println!("  state dir  {}", shown(&s.state_dir));
+    if let Some(line) = crate::cli_fleet::summary(&s.config) {
+        println!("  fleet      {line}");
+    }
     for w in &s.warnings {
         println!("  warning    {w}");
     }

@@ -8,6 +8,7 @@ mod cli_announce;
 mod cli_console;
 mod cli_evaluate;
 mod cli_explore;
+mod cli_fleet;
 mod cli_flights;
 mod cli_log;
 mod cli_map;
@@ -65,6 +66,13 @@ enum Command {
         #[arg(long)]
         virtual_world: Option<PathBuf>,
     },
+    /// Make this node's fleet-bus key in FILE (never replacing one) and print its public key
+    /// for the fleet's roster; with --public, print the public key of an existing FILE.
+    FleetKey {
+        file: PathBuf,
+        #[arg(long)]
+        public: bool,
+    },
 }
 
 fn main() -> Result<()> {
@@ -84,5 +92,6 @@ fn main() -> Result<()> {
             config,
             virtual_world,
         } => cli_startup::check(&config, virtual_world),
+        Command::FleetKey { file, public } => cli_fleet::key(&file, public),
     }
 }

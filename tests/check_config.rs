@@ -243,12 +243,82 @@ fn a_state_dir_that_cannot_be_created_is_refused() {
     );
 }
 
+/// `kestrel fleet-key` makes a key in the site; its public key.
+fn fleet_key(site: &Site, name: &str) -> (PathBuf, String) {
+    let path = site.path(name);
+    let out = site
+        .command(&["fleet-key", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    let public = text(&out)
+        .lines()
+        .find_map(|l| l.strip_prefix("public key: "))
+        .expect("the public key printed")
+        .to_string();
+    (path, public)
+}
+
+/// A `[fleet]` section that `run` would open: node `kestrel-a` with its key and a roster of
+/// two, and `extra` lines.
+fn fleet_section(site: &Site, extra: &str) -> String {
+    let (key, public) = fleet_key(site, "fleet.key");
+    let (_, other) = fleet_key(site, "other.key");
+    format!(
+        "[fleet]\nenabled = true\nname = \"farm\"\nnode = \"kestrel-a\"\n\
+         listen = [\"tcp/127.0.0.1:0\"]\nkey_file = \"{}\"\n{extra}\n\
+         [fleet.roster.kestrel-a]\nkeys = [\"{public}\"]\ndrones = [\"drone_0\"]\n\
+         [fleet.roster.kestrel-b]\nkeys = [\"{other}\"]\ndrones = [\"drone_1\"]\n",
+        key.display()
+    )
+}
+
 /// A `[fleet]` section that `run` would open, with this credentials file.
 fn fleet_with_credentials(site: &Site, credentials: &Path) -> PathBuf {
-    site.config(&format!(
-        "[fleet]\nenabled = true\nname = \"farm\"\nlisten = [\"tcp/127.0.0.1:0\"]\ncredentials_file = \"{}\"\n",
-        credentials.display()
-    ))
+    let extra = format!("credentials_file = \"{}\"", credentials.display());
+    site.config(&fleet_section(site, &extra))
+}
+
+/// Issue 29: every node signs with its own key, listed in the roster. A config of before (one
+/// shared credentials file, no key) is refused saying what to do.
+#[test]
+fn a_fleet_without_a_key_and_roster_is_refused_saying_how_to_make_them() {
+    let site = Site::new();
+    let config =
+        site.config("[fleet]\nenabled = true\nname = \"farm\"\nlisten = [\"tcp/127.0.0.1:0\"]\n");
+    both_refuse(&site, &config, &["fleet.key_file", "kestrel fleet-key"]);
+}
+
+#[test]
+fn a_key_that_is_not_this_nodes_in_the_roster_is_refused() {
+    let site = Site::new();
+    let section = fleet_section(&site, "");
+    let (stranger, _) = fleet_key(&site, "stranger.key");
+    let own = site.path("fleet.key");
+    let config = site.config(&section.replace(own.to_str().unwrap(), stranger.to_str().unwrap()));
+    both_refuse(
+        &site,
+        &config,
+        &["is not among [fleet.roster.kestrel-a] keys"],
+    );
+}
+
+#[test]
+fn a_fleet_with_its_key_in_the_roster_is_checked_ok() {
+    let site = Site::new();
+    let config = site.config(&fleet_section(&site, ""));
+    let out = site.check(&config);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("fleet      `farm` as node `kestrel-a`, 2 members in the roster"),
+        "{}",
+        text(&out)
+    );
+    assert!(
+        !text(&out).contains("readable by other users"),
+        "{}",
+        text(&out)
+    );
 }
 
 #[test]

@@ -16,7 +16,7 @@ mod mavlink_support;
 mod support;
 
 use kestrel::sim::world::World;
-use mavlink_support::bus::{config, credentials, Fleet, BAYS};
+use mavlink_support::bus::{config, credentials, Fleet, Identities, BAYS};
 use mavlink_support::room::{
     assert_no_collision, judge_map, judge_tracks, position, MIN_SEPARATION_M,
 };
@@ -379,6 +379,7 @@ fn a_node_without_the_fleets_credentials_is_not_heard() {
     let wrong = credentials(creds.path(), "wrong", "farm:battery-staple");
     let name = format!("auth-{}", std::process::id());
     let bus: Vec<u16> = (0..3).map(|_| free_tcp_port()).collect();
+    let ids = Identities::new(3);
     let mut apis = Vec::new();
     let mut nodes = Vec::new();
     for (id, file) in [(0, &right), (1, &wrong), (2, &right)] {
@@ -390,9 +391,10 @@ fn a_node_without_the_fleets_credentials_is_not_heard() {
             .collect();
         let fleet = format!(
             "\n[fleet]\nenabled = true\nname = \"{name}\"\nnode = \"node_{id}\"\n\
-             listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n",
+             listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n{}",
             bus[id],
-            serde_json::to_string(&connect).unwrap()
+            serde_json::to_string(&connect).unwrap(),
+            ids.section_end(id)
         );
         let api_port = free_tcp_port();
         let listen = format!("127.0.0.1:{api_port}");

@@ -10,7 +10,7 @@
 mod mavlink_support;
 mod support;
 
-use mavlink_support::bus::{bus_only_node, credentials, start_bus_only};
+use mavlink_support::bus::{bus_only_node, credentials, start_bus_only, Identities};
 use mavlink_support::{alongside, free_tcp_port, Kestrel};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
@@ -26,10 +26,17 @@ fn a_refused_node_says_why_on_both_sides_and_does_not_take_off() {
     let right = credentials(dir.path(), "right", "farm:the-fleet-secret");
     let wrong = credentials(dir.path(), "wrong", "farm:an-old-secret");
     let fleet = format!("join-{}", std::process::id());
+    let ids = Identities::new(2);
     let bus_0 = free_tcp_port();
-    let (node_0, _api_0) = start_bus_only(&bus_only_node(0, &fleet, bus_0, &[], &right));
-    let (node_1, api_1) =
-        start_bus_only(&bus_only_node(1, &fleet, free_tcp_port(), &[bus_0], &wrong));
+    let (node_0, _api_0) = start_bus_only(&bus_only_node(0, &fleet, bus_0, &[], &right, &ids));
+    let (node_1, api_1) = start_bus_only(&bus_only_node(
+        1,
+        &fleet,
+        free_tcp_port(),
+        &[bus_0],
+        &wrong,
+        &ids,
+    ));
     let said_1 = format!("fleet bus: peer at 127.0.0.1:{bus_0} refused: credentials do not match");
     let said_0 = "fleet bus: refused a peer from 127.0.0.1:";
 

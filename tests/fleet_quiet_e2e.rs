@@ -9,7 +9,7 @@
 mod mavlink_support;
 mod support;
 
-use mavlink_support::bus::{bus_only_node, credentials, start_bus_only};
+use mavlink_support::bus::{bus_only_node, credentials, start_bus_only, Identities};
 use mavlink_support::{alongside, free_tcp_port};
 use serde_json::json;
 use std::time::{Duration, Instant};
@@ -21,10 +21,11 @@ fn three_nodes_connecting_to_each_other_join_without_an_error() {
     let creds = credentials(dir.path(), "creds", "farm:the-fleet-secret");
     let fleet = format!("quiet-{}", std::process::id());
     let ports: Vec<u16> = (0..3).map(|_| free_tcp_port()).collect();
+    let ids = Identities::new(3);
     let mut nodes: Vec<_> = (0..3)
         .map(|i| {
             let others: Vec<u16> = (0..3).filter(|&j| j != i).map(|j| ports[j]).collect();
-            start_bus_only(&bus_only_node(i, &fleet, ports[i], &others, &creds))
+            start_bus_only(&bus_only_node(i, &fleet, ports[i], &others, &creds, &ids))
         })
         .collect();
     let output = |nodes: &[(mavlink_support::Kestrel, mavlink_support::Api)]| {

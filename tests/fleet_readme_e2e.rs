@@ -3,8 +3,8 @@
 //! `sitl/` process, hear each other's drone and agree on where it is in the shared frame.
 //!
 //! Only what differs from machine to machine is replaced in the pasted text: the autopilot's
-//! UDP port, the bus addresses (two drones' IPs become two loopback ports) and the credentials
-//! file's path. Everything else (`[map]`, `origin_enu_m`, node names, the fleet name, which side
+//! UDP port, the bus addresses (two drones' IPs become two loopback ports), the key files' paths
+//! and the roster's two public keys (the test makes its keys with `kestrel fleet-key`). Everything else (`[map]`, `origin_enu_m`, node names, the fleet name, which side
 //! connects) is the README's. Needs `sitl/.venv` (`bash sitl/setup.sh`).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -15,14 +15,14 @@ use mavlink_support::{alongside, free_tcp_port, repo, Api, Fake, Kestrel};
 use serde_json::Value;
 use std::time::{Duration, Instant};
 
-/// The README's indented blocks between "Two drones, step by step" and "What an operator sees":
-/// the credentials file, drone A's config, drone B's config.
+/// The README's indented blocks between "Two drones, step by step" and "Rotating a key": the
+/// roster, drone A's config, drone B's config.
 fn readme_example() -> [String; 3] {
     let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
     let from = readme
         .find("**Two drones, step by step.**")
         .expect("README has the two-node example");
-    let to = from + readme[from..].find("**What an operator sees.**").unwrap();
+    let to = from + readme[from..].find("**Rotating a key.**").unwrap();
     let mut blocks: Vec<String> = Vec::new();
     let mut current: Option<String> = None;
     for line in readme[from..to].lines() {
@@ -41,7 +41,7 @@ fn readme_example() -> [String; 3] {
     blocks.extend(current);
     blocks
         .try_into()
-        .expect("three blocks: credentials, drone A, drone B")
+        .expect("three blocks: the roster, drone A, drone B")
 }
 
 /// Replaces `from` (which must be there) by `to`.
@@ -66,23 +66,39 @@ fn heard(api: &Api, drone: &str) -> Option<Value> {
 #[test]
 fn the_readme_two_node_example_forms_a_fleet_on_loopback() {
     let _beside = alongside();
-    let [credentials, a, b] = readme_example();
-    assert!(credentials.trim().contains(':'), "{credentials}");
+    let [roster, a, b] = readme_example();
     let dir = tempfile::tempdir().unwrap();
-    let creds = dir.path().join("fleet-credentials");
-    std::fs::write(&creds, &credentials).unwrap();
-    let creds = creds.to_str().unwrap();
+    // Each drone's key, made as the README says; its public key replaces the README's.
+    let mut roster = roster;
+    let mut keys = Vec::new();
+    for (node, readme_key) in [
+        ("a", "DnS4T4W9PWKg5AXhs1OAlsANUZgGwdrgjLyo6GLS+9k="),
+        ("b", "x60jo213YLRB1bDZr8pzyXt9hJJ0i9sIphTjLKQO34k="),
+    ] {
+        let path = dir.path().join(format!("fleet-{node}.key"));
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_kestrel"))
+            .args(["fleet-key", path.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let printed = String::from_utf8_lossy(&out.stdout).to_string();
+        let public = printed
+            .lines()
+            .find_map(|l| l.strip_prefix("public key: "))
+            .unwrap_or_else(|| panic!("no public key printed: {printed}"));
+        roster = must_replace(&roster, readme_key, public);
+        keys.push(path.to_str().unwrap().to_string());
+    }
 
     let (fake, connections) = Fake::start_px4_fleet(2, &[]);
     let (bus_a, bus_b) = (free_tcp_port(), free_tcp_port());
-    let paste = |text: &str, autopilot: &str, bus: u16| {
+    let paste = |text: &str, autopilot: &str, bus: u16, key: &str| {
         let text = must_replace(text, "udpin:0.0.0.0:14540", autopilot);
         let text = must_replace(&text, "tcp/0.0.0.0:7447", &format!("tcp/127.0.0.1:{bus}"));
-        must_replace(&text, "/etc/kestrel/fleet-credentials", creds)
+        must_replace(&text, "/etc/kestrel/fleet.key", key) + "\n" + &roster
     };
-    let a = paste(&a, &connections[0], bus_a);
+    let a = paste(&a, &connections[0], bus_a, &keys[0]);
     let b = must_replace(
-        &paste(&b, &connections[1], bus_b),
+        &paste(&b, &connections[1], bus_b, &keys[1]),
         "tcp/192.168.1.11:7447",
         &format!("tcp/127.0.0.1:{bus_a}"),
     );

@@ -466,11 +466,14 @@ fn a_mission_for_a_remote_drone_is_refused_as_remote_not_invalid() {
     use std::time::Duration;
 
     let mut rig = Rig::new();
-    rig.host.enable_fleet_bus(SilencePolicy {
-        peer_timeout: Duration::from_secs(3),
-        lost_after: Duration::from_secs(10),
-        keepout_m: 2.0,
-    });
+    rig.host.enable_fleet_bus(
+        SilencePolicy {
+            peer_timeout: Duration::from_secs(3),
+            lost_after: Duration::from_secs(10),
+            keepout_m: 2.0,
+        },
+        [("kestrel-b".to_string(), vec!["drone_7".to_string()])].into(),
+    );
     let drone = DroneState {
         id: "drone_7".into(),
         position_enu_m: [5.0, 0.0, 0.0],

@@ -169,20 +169,29 @@ pub fn config(data: &[u8]) {
     black_box(Profile::parse(text, "fuzz").is_ok());
 }
 
-/// A fleet-bus payload: decoded as a state and as a map message; what decodes is applied to a
-/// remote fleet and to a merged map on the open-field grid, as the host does.
+/// A fleet-bus payload (what is left once the intake opened its signed envelope; the envelope
+/// itself needs the `fleet-bus` feature, which this crate leaves out): decoded as a state and as
+/// a map message; what decodes is applied as the host does: to a remote fleet whose roster gives the message's
+/// node its drones, and through the map inbox (coalesced, taken a few rows at a time) to a
+/// merged map on the open-field grid.
 pub fn fleet_wire(data: &[u8]) {
+    use kestrel::fleet_bus::inbox::MapInbox;
     use kestrel::fleet_bus::remote::{RemoteFleet, SilencePolicy};
     use kestrel::fleet_bus::wire::{MapMsg, StateMsg};
     use kestrel::mapping::config::MapConfig;
     use kestrel::mapping::merged::{FleetMap, LayerRegion};
     use std::time::Duration;
     if let Ok(msg) = StateMsg::decode(data) {
-        let mut remote = RemoteFleet::new(SilencePolicy {
-            peer_timeout: Duration::from_millis(1500),
-            lost_after: Duration::from_secs(10),
-            keepout_m: 0.5,
-        });
+        let drones = msg.drones.iter().map(|d| d.id.clone()).collect();
+        let roster = [(msg.node.clone(), drones)].into();
+        let mut remote = RemoteFleet::new(
+            SilencePolicy {
+                peer_timeout: Duration::from_millis(1500),
+                lost_after: Duration::from_secs(10),
+                keepout_m: 0.5,
+            },
+            roster,
+        );
         black_box(remote.apply(msg, Duration::from_secs(1), &["drone_0".to_string()]));
         black_box(remote.views(Duration::from_secs(3)).count());
         black_box(remote.claims());
@@ -195,12 +204,17 @@ pub fn fleet_wire(data: &[u8]) {
     };
     let cells = map.merged().spec().cell_count();
     if let Ok(msg) = MapMsg::decode(data, cells) {
-        let region = LayerRegion {
-            drone: msg.header.drone,
-            grid: msg.header.grid,
-            region: msg.header.region,
-            cells: msg.cells,
-        };
-        black_box(map.apply_remote(&region).is_ok());
+        let inbox = MapInbox::default();
+        black_box(inbox.offer(msg.clone()).is_ok());
+        black_box(inbox.offer(msg).is_ok());
+        while let Some(slice) = inbox.take(4096) {
+            let region = LayerRegion {
+                drone: slice.drone,
+                grid: slice.grid,
+                region: slice.region,
+                cells: slice.cells,
+            };
+            black_box(map.apply_remote(&region).is_ok());
+        }
     }
 }

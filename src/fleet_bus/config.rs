@@ -4,16 +4,36 @@
 //!
 //! In: TOML (unknown keys refused). Out: [`FleetSection::validate`] → `Err((field, message))`
 //! naming the field for a name that cannot be a key (only letters, digits, `-`, `_`), an
-//! endpoint that is not `tcp/HOST:PORT`, a rate out of bounds, or a bus with nothing to find
-//! peers by.
+//! endpoint that is not `tcp/HOST:PORT`, a rate out of bounds, a bus with nothing to find peers
+//! by, or a roster that does not name this node and its drones.
+//!
+//! The roster (`[fleet.roster.NODE]`, the same on every node) is the fleet: each member's
+//! public keys (what it signs with, `fleet_bus::identity`) and the drones it flies. Nothing
+//! else is heard, and the majority of the lost-peer rules is counted over it.
 
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Longest fleet, node or drone name on the bus.
 pub const MAX_NAME_LEN: usize = 64;
 /// Most endpoints in `listen` or `connect`.
 pub const MAX_ENDPOINTS: usize = 32;
+/// Most members of a roster.
+pub const MAX_MEMBERS: usize = 64;
+/// Most keys a member lists (the new one beside the old while keys are rotated).
+pub const MAX_KEYS_PER_MEMBER: usize = 4;
+
+/// One node of the fleet, as every node's roster lists it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Member {
+    /// Its public keys (base64, as `kestrel fleet-key` prints them): what it sends must be
+    /// signed by one of them.
+    pub keys: Vec<String>,
+    /// The drones it flies: it may speak for these only (at most 32).
+    pub drones: Vec<String>,
+}
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -50,8 +70,16 @@ pub struct FleetSection {
     /// Kept from such a drone on top of `[safety] min_separation_m` (m): how far its failsafe
     /// may have carried it.
     pub silent_keepout_m: f64,
-    /// `user:password` lines: the first is this node's, all are accepted from peers. Without it
-    /// the bus is open to anyone on the network (a warning says so).
+    /// This node's signing key: one line, made by `kestrel fleet-key FILE` (keep it readable by
+    /// Kestrel only). Required on a bus.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub key_file: Option<PathBuf>,
+    /// The fleet's members by node name, this node included; the same table on every node.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub roster: BTreeMap<String, Member>,
+    /// `user:password` lines: the first is this node's, all are accepted from peers. Optional:
+    /// it keeps strangers from opening a Zenoh session at all; who may say what is the
+    /// roster's business.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub credentials_file: Option<PathBuf>,
     /// With peers in `connect`, refuse missions and explorations (`409 fleet_not_joined`) until
@@ -76,6 +104,8 @@ impl Default for FleetSection {
             peer_timeout_s: 1.5,
             lost_after_s: 10.0,
             silent_keepout_m: 0.5,
+            key_file: None,
+            roster: BTreeMap::new(),
             credentials_file: None,
             require_join: true,
         }
@@ -93,6 +123,14 @@ pub fn valid_name(name: &str) -> bool {
 
 fn name_error(what: &str, name: &str) -> String {
     format!("{what} `{name}` must be 1 to {MAX_NAME_LEN} letters, digits, `-` or `_`")
+}
+
+/// The base64 of 32 bytes: a public key of the roster.
+pub fn valid_public_key(text: &str) -> bool {
+    use base64::Engine as _;
+    base64::engine::general_purpose::STANDARD
+        .decode(text.trim())
+        .is_ok_and(|b| b.len() == 32)
 }
 
 /// `tcp/HOST:PORT` with a port number. Zenoh's UDP links are not built: they bring a QUIC and
@@ -148,6 +186,7 @@ impl FleetSection {
                 }
             }
         }
+        self.validate_roster(drones)?;
         if self.listen.is_empty() && self.connect.is_empty() && !self.scouting {
             return Err((
                 "fleet".into(),
@@ -195,6 +234,92 @@ impl FleetSection {
         Ok(())
     }
 
+    /// The key file and the roster: every member named and keyed, each drone flown by one
+    /// member, this node a member listing the drones it flies.
+    fn validate_roster(&self, drones: &[String]) -> Result<(), (String, String)> {
+        if self.key_file.is_none() {
+            return Err((
+                "fleet.key_file".into(),
+                "every node of a fleet bus signs what it sends with a key of its own, and the \
+                 fleet's [fleet.roster] lists each node's public key and drones: make this \
+                 node's key with `kestrel fleet-key /etc/kestrel/fleet.key`, set key_file to it \
+                 and add the roster (README, \"A fleet of Kestrels\")"
+                    .into(),
+            ));
+        }
+        let me = self.node_name(drones);
+        if self.roster.len() > MAX_MEMBERS {
+            return Err((
+                "fleet.roster".into(),
+                format!("{} members, at most {MAX_MEMBERS}", self.roster.len()),
+            ));
+        }
+        let mut flown_by: BTreeMap<&str, &str> = BTreeMap::new();
+        for (node, member) in &self.roster {
+            let at = format!("fleet.roster.{node}");
+            if !valid_name(node) {
+                return Err((at, name_error("the node name", node)));
+            }
+            if member.keys.is_empty() || member.keys.len() > MAX_KEYS_PER_MEMBER {
+                return Err((
+                    format!("{at}.keys"),
+                    format!("1 to {MAX_KEYS_PER_MEMBER} public keys"),
+                ));
+            }
+            if let Some(bad) = member.keys.iter().find(|k| !valid_public_key(k)) {
+                return Err((
+                    format!("{at}.keys"),
+                    format!("`{bad}` is not a public key (the base64 of 32 bytes, as `kestrel fleet-key` prints it)"),
+                ));
+            }
+            if member.drones.len() > super::wire::MAX_DRONES_PER_NODE {
+                return Err((
+                    format!("{at}.drones"),
+                    format!("at most {} drones", super::wire::MAX_DRONES_PER_NODE),
+                ));
+            }
+            for d in &member.drones {
+                if !valid_name(d) {
+                    return Err((format!("{at}.drones"), name_error("the drone id", d)));
+                }
+                if let Some(other) = flown_by.insert(d, node) {
+                    return Err((
+                        format!("{at}.drones"),
+                        format!("`{d}` is node `{other}`'s already: a drone has one node"),
+                    ));
+                }
+            }
+        }
+        if flown_by.len() > super::remote::MAX_REMOTE_DRONES {
+            return Err((
+                "fleet.roster".into(),
+                format!(
+                    "{} drones, at most {}",
+                    flown_by.len(),
+                    super::remote::MAX_REMOTE_DRONES
+                ),
+            ));
+        }
+        let Some(own) = self.roster.get(&me) else {
+            return Err((
+                "fleet.roster".into(),
+                format!("this node, `{me}`, is not a member: add [fleet.roster.{me}]"),
+            ));
+        };
+        if let Some(d) = drones.iter().find(|d| !own.drones.contains(d)) {
+            return Err((
+                format!("fleet.roster.{me}.drones"),
+                format!("this node flies `{d}`: list it"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The other members' names.
+    pub fn peers(&self, me: &str) -> Vec<String> {
+        self.roster.keys().filter(|n| *n != me).cloned().collect()
+    }
+
     /// This node's name on the bus.
     pub fn node_name(&self, drones: &[String]) -> String {
         self.node
@@ -208,12 +333,63 @@ impl FleetSection {
 mod tests {
     use super::*;
 
+    const KEY: &str = "AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA=";
+
+    fn member(drones: &[&str]) -> Member {
+        Member {
+            keys: vec![KEY.into()],
+            drones: drones.iter().map(|d| d.to_string()).collect(),
+        }
+    }
+
     fn on() -> FleetSection {
         FleetSection {
             enabled: true,
             listen: vec!["tcp/0.0.0.0:7447".into()],
+            key_file: Some("/etc/kestrel/fleet.key".into()),
+            roster: [
+                ("kestrel".to_string(), member(&[])),
+                ("drone_0".to_string(), member(&["drone_0"])),
+            ]
+            .into(),
             ..FleetSection::default()
         }
+    }
+
+    #[test]
+    fn a_bus_needs_a_key_and_a_roster_naming_this_node_and_its_drones() {
+        let err = |s: FleetSection, drones: &[&str]| {
+            let drones: Vec<String> = drones.iter().map(|d| d.to_string()).collect();
+            s.validate(&drones).unwrap_err()
+        };
+        let old = FleetSection {
+            key_file: None,
+            roster: BTreeMap::new(),
+            ..on()
+        };
+        let (field, message) = err(old, &["drone_0"]);
+        assert_eq!(field, "fleet.key_file");
+        assert!(message.contains("kestrel fleet-key"), "{message}");
+        assert_eq!(err(on(), &["drone_9"]).0, "fleet.roster");
+        let mut unlisted = on();
+        unlisted.node = Some("drone_0".into());
+        assert_eq!(
+            err(unlisted, &["drone_0", "drone_5"]).0,
+            "fleet.roster.drone_0.drones"
+        );
+        let mut twice = on();
+        twice.roster.insert("other".into(), member(&["drone_0"]));
+        assert!(err(twice, &["drone_0"]).1.contains("a drone has one node"));
+        let mut bad_key = on();
+        bad_key.roster.insert(
+            "other".into(),
+            Member {
+                keys: vec!["bm90IGEga2V5".into()],
+                drones: vec![],
+            },
+        );
+        assert_eq!(err(bad_key, &["drone_0"]).0, "fleet.roster.other.keys");
+        assert_eq!(on().peers("drone_0"), ["kestrel"]);
     }
 
     #[test]

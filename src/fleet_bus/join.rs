@@ -19,6 +19,10 @@ pub const REPEAT_EVERY: Duration = Duration::from_secs(30);
 const MAX_LINES: usize = 32;
 /// Rate-limited kinds of lines remembered (peers, endpoints, Zenoh messages).
 const MAX_KEYS: usize = 256;
+/// Most lines said in one [`REPEAT_EVERY`] whatever their kind: an outsider can vary what it
+/// makes Zenoh say (addresses, ports), so each kind being rate-limited is not enough. The
+/// lines held back are counted and the count said once the window ends.
+const MAX_LINES_PER_WINDOW: u32 = 12;
 
 /// What one of Zenoh's handshake reports says.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -100,6 +104,8 @@ pub struct JoinState {
     said: HashMap<String, (Instant, u64)>,
     lines: VecDeque<(Severity, String)>,
     revision: u64,
+    /// The current window of [`MAX_LINES_PER_WINDOW`]: when it began, lines said, lines held.
+    window: Option<(Instant, u32, u64)>,
 }
 
 impl JoinState {
@@ -222,18 +228,48 @@ impl JoinState {
             };
             *last = now;
             *held = 0;
-            self.push(severity, text);
+            self.push(severity, text, now);
             return;
         }
         if self.said.len() >= MAX_KEYS {
             self.said
                 .retain(|_, (last, _)| now.duration_since(*last) < REPEAT_EVERY);
         }
-        self.said.insert(key.to_string(), (now, 0));
-        self.push(severity, text);
+        // Still full: the line is said (within the window's budget) but its kind not kept.
+        if self.said.len() < MAX_KEYS {
+            self.said.insert(key.to_string(), (now, 0));
+        }
+        self.push(severity, text, now);
     }
 
-    fn push(&mut self, severity: Severity, text: String) {
+    /// Queues a line within the window's budget; the first line of a new window says how many
+    /// the last one held back.
+    fn push(&mut self, severity: Severity, text: String, now: Instant) {
+        let (start, said, held) = self.window.get_or_insert((now, 0, 0));
+        if now.duration_since(*start) >= REPEAT_EVERY {
+            let held_back = std::mem::take(held);
+            *start = now;
+            *said = 0;
+            if held_back > 0 {
+                self.queue(
+                    Severity::Warn,
+                    format!("fleet bus: {held_back} more lines about peers were held back (at most {MAX_LINES_PER_WINDOW} every {} s)", REPEAT_EVERY.as_secs()),
+                );
+                return self.push(severity, text, now);
+            }
+        }
+        let Some((_, said, held)) = self.window.as_mut() else {
+            return;
+        };
+        if *said >= MAX_LINES_PER_WINDOW {
+            *held += 1;
+            return;
+        }
+        *said += 1;
+        self.queue(severity, text);
+    }
+
+    fn queue(&mut self, severity: Severity, text: String) {
         if self.lines.len() == MAX_LINES {
             self.lines.pop_front();
         }
@@ -394,6 +430,36 @@ mod tests {
             again[0].1.ends_with("(4 more since it was last said)"),
             "{again:?}"
         );
+    }
+
+    /// Issue 29, item 7: an outsider who varies what Zenoh reports (a new address each time)
+    /// gets at most MAX_LINES_PER_WINDOW lines a window, then one line with the count.
+    #[test]
+    fn varied_refusals_are_capped_per_window_and_counted() {
+        let t0 = Instant::now();
+        let mut s = JoinState::default();
+        s.expect("farm-7", &[], true);
+        for k in 0..500u32 {
+            s.hear(
+                Heard::RefusedPeer {
+                    addr: Some(format!("10.0.{}.{}:5000", k / 250, k % 250)),
+                    why: "wrong credentials",
+                },
+                t0 + Duration::from_millis(u64::from(k)),
+            );
+        }
+        assert_eq!(s.status().refused_joins, 500);
+        assert!(s.said.len() <= MAX_KEYS);
+        assert_eq!(s.take_lines().len(), MAX_LINES_PER_WINDOW as usize);
+        s.hear(
+            Heard::Other {
+                text: "something new".into(),
+            },
+            t0 + REPEAT_EVERY + Duration::from_secs(1),
+        );
+        let next: Vec<String> = s.take_lines().into_iter().map(|(_, l)| l).collect();
+        assert_eq!(next.len(), 2, "{next:?}");
+        assert!(next[0].contains("488 more lines"), "{next:?}");
     }
 
     #[test]

@@ -7,12 +7,17 @@
 //! Out: remote drones in the fleet view (`local: false`, with a position uncertainty that grows
 //! while their node is silent), their map layers in the merged map, their claims in the
 //! allocator. `config`, `credentials` and `wire` (formats and checks), `remote` (what was
-//! heard) and `join` (whether this node joined its peers, who refused whom) are plain code;
+//! heard), `inbox` (peers' map regions coalesced for the control loop) and `join` (whether this node joined its peers, who refused whom) are plain code;
 //! `zenoh_log` reads Zenoh's log lines for `join`; `node` (the Zenoh session) is built with the
 //! `fleet-bus` feature.
 
 pub mod config;
 pub mod credentials;
+#[cfg(feature = "fleet-bus")]
+pub mod identity;
+pub mod inbox;
+#[cfg(feature = "fleet-bus")]
+pub mod intake;
 pub mod join;
 #[cfg(feature = "fleet-bus")]
 pub mod node;

@@ -3,8 +3,9 @@
 //!
 //! In: a [`NodeConfig`] and [`Outbound`] messages from the control loop (bounded queue: when the
 //! bus is slower than the loop, the oldest are not kept; the next state and the next keyframe
-//! repair it). Out: [`Inbound`] messages (decoded and bounds-checked; anything else is counted
-//! and dropped with a warning) and [`BusStats`]. Keys: `kestrel/<fleet>/<node>/state` (JSON) and
+//! repair it). Out: peers' states (decoded and bounds-checked; anything else is counted and
+//! dropped, said at most every few seconds), their map regions coalesced in a [`MapInbox`]
+//! (decoded here, on Zenoh's threads, never on the control loop's), and [`BusStats`]. Keys: `kestrel/<fleet>/<node>/state` (JSON) and
 //! `kestrel/<fleet>/<node>/map` (binary, see `wire`). The control loop never waits on the bus:
 //! it only `try_send`s and `try_recv`s.
 
@@ -15,6 +16,9 @@ use serde::Serialize;
 use tokio::sync::mpsc;
 
 use super::config::FleetSection;
+use super::identity::Signer;
+use super::inbox::MapInbox;
+use super::intake::{Intake, Member};
 use super::join::{JoinWatch, Severity};
 use super::wire::{MapMsg, StateMsg};
 
@@ -22,26 +26,30 @@ use super::wire::{MapMsg, StateMsg};
 const QUEUE: usize = 256;
 /// How soon a link that stopped answering is dropped (ms): Wi-Fi drops are noticed quickly.
 const LEASE_MS: u64 = 3000;
+/// Largest message Zenoh reassembles from its fragments (bytes): the largest a peer may send
+/// (a map message and its signature) and a little room. Zenoh's own default is 1 GiB, and it
+/// reassembles before anything of Kestrel's sees the message: one 500 MB put made a node peak
+/// at 1.15 GB. A bigger message is dropped by the transport as its fragments arrive.
+pub const MAX_REASSEMBLED_BYTES: usize =
+    super::wire::MAX_MAP_BYTES + super::identity::ENVELOPE_BYTES + 4096;
 /// How often what the join watch has to say is logged.
 const JOIN_LINES_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// What the bus needs to start.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct NodeConfig {
     pub section: FleetSection,
     pub node: String,
     /// Cells of this Kestrel's map grid: no peer's map region may be larger.
     pub max_map_cells: usize,
+    /// This node's key (`[fleet] key_file`).
+    pub signer: Signer,
+    /// The roster's other members, with their keys parsed.
+    pub members: std::collections::BTreeMap<String, Member>,
 }
 
 #[derive(Debug)]
 pub enum Outbound {
-    State(StateMsg),
-    Map(MapMsg),
-}
-
-#[derive(Debug)]
-pub enum Inbound {
     State(StateMsg),
     Map(MapMsg),
 }
@@ -57,7 +65,7 @@ pub struct BusStats {
     pub received_bytes: AtomicU64,
     /// Messages from peers that did not decode or check.
     pub refused: AtomicU64,
-    /// Messages dropped because a queue was full.
+    /// Messages dropped because a queue (or the map inbox) was full.
     pub dropped: AtomicU64,
 }
 
@@ -92,7 +100,10 @@ impl BusStats {
 
 /// The control loop's end of the bus.
 pub struct BusPort {
-    pub inbound: mpsc::Receiver<Inbound>,
+    /// Peers' states, checked.
+    pub inbound: mpsc::Receiver<StateMsg>,
+    /// Peers' map regions, checked and coalesced.
+    pub maps: Arc<MapInbox>,
     pub outbound: mpsc::Sender<Outbound>,
     pub stats: Arc<BusStats>,
     /// Whether this node joined its peers (fed by Zenoh's log lines, `zenoh_log`).
@@ -127,7 +138,8 @@ fn spawn_join_lines(join: &'static JoinWatch) {
 }
 
 /// The Zenoh configuration for a section: peer mode, the endpoints, scouting only if asked,
-/// user/password authentication when a credentials file is given.
+/// messages reassembled up to [`MAX_REASSEMBLED_BYTES`], user/password authentication when a
+/// credentials file is given.
 fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
     let mut json = serde_json::json!({
         "mode": "peer",
@@ -140,7 +152,10 @@ fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
             "multicast": { "enabled": section.scouting },
             "gossip": { "enabled": section.scouting },
         },
-        "transport": { "link": { "tx": { "lease": LEASE_MS } } },
+        "transport": { "link": {
+            "tx": { "lease": LEASE_MS },
+            "rx": { "max_message_size": MAX_REASSEMBLED_BYTES },
+        } },
     });
     if let Some(path) = &section.credentials_file {
         let own = super::credentials::read_credentials(path)?;
@@ -152,15 +167,6 @@ fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
         .map_err(|e| anyhow::anyhow!("fleet bus configuration: {e}"))
 }
 
-/// The peer node a key comes from, if the key is `kestrel/<fleet>/<node>/<kind>`.
-fn key_parts<'a>(key: &'a str, fleet: &str) -> Option<(&'a str, &'a str)> {
-    let rest = key
-        .strip_prefix("kestrel/")?
-        .strip_prefix(fleet)?
-        .strip_prefix('/')?;
-    rest.split_once('/')
-}
-
 /// Opens the session on the current (multi-thread) tokio runtime and starts the tasks. The
 /// configuration is checked at once; peers are reached in the background.
 pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
@@ -170,76 +176,42 @@ pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
         .await
         .map_err(|e| anyhow::anyhow!("fleet bus: cannot open the Zenoh session: {e}"))?;
     let stats = Arc::new(BusStats::default());
+    let maps = Arc::new(MapInbox::default());
     let (in_tx, inbound) = mpsc::channel(QUEUE);
     let (outbound, mut out_rx) = mpsc::channel::<Outbound>(QUEUE);
     let fleet = config.section.name.clone();
-    let me = config.node.clone();
-    let max_cells = config.max_map_cells;
-    let sub_stats = stats.clone();
+    let intake = Intake::new(
+        &fleet,
+        &config.node,
+        config.members,
+        config.max_map_cells,
+        stats.clone(),
+        in_tx,
+        maps.clone(),
+    );
     let subscriber = session
         .declare_subscriber(format!("kestrel/{fleet}/*/*"))
         .callback(move |sample| {
-            let key = sample.key_expr().as_str();
-            let Some((node, kind)) = key_parts(key, &fleet) else {
-                return;
-            };
-            if node == me {
-                return;
-            }
-            let bytes = sample.payload().to_bytes();
-            sub_stats.received.fetch_add(1, Ordering::Relaxed);
-            sub_stats
-                .received_bytes
-                .fetch_add(bytes.len() as u64, Ordering::Relaxed);
-            let decoded = match kind {
-                "state" => StateMsg::decode(&bytes).and_then(|m| {
-                    if m.node == node {
-                        Ok(Inbound::State(m))
-                    } else {
-                        Err(super::wire::WireError::Malformed(format!(
-                            "sent on `{node}`'s key as node `{}`",
-                            m.node
-                        )))
-                    }
-                }),
-                "map" => MapMsg::decode(&bytes, max_cells).and_then(|m| {
-                    if m.header.node == node {
-                        Ok(Inbound::Map(m))
-                    } else {
-                        Err(super::wire::WireError::Malformed(format!(
-                            "sent on `{node}`'s key as node `{}`",
-                            m.header.node
-                        )))
-                    }
-                }),
-                _ => return,
-            };
-            match decoded {
-                Ok(msg) => {
-                    if in_tx.try_send(msg).is_err() {
-                        sub_stats.dropped.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-                Err(e) => {
-                    sub_stats.refused.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!("fleet bus: refused a `{kind}` message from `{node}`: {e}");
-                }
-            }
+            // Refusals are counted and said (rate-limited) by the intake.
+            let _ = intake.take(sample.key_expr().as_str(), &sample.payload().to_bytes());
         })
         .await
         .map_err(|e| anyhow::anyhow!("fleet bus: cannot subscribe: {e}"))?;
     let fleet = config.section.name.clone();
     let node = config.node.clone();
     let pub_stats = stats.clone();
+    let mut signer = config.signer;
     tokio::spawn(async move {
         // The subscriber lives as long as this task: until the control loop drops its port.
         let _subscriber = subscriber;
         let state_key = format!("kestrel/{fleet}/{node}/state");
         let map_key = format!("kestrel/{fleet}/{node}/map");
+        let mut not_sent = NotSent::default();
         while let Some(msg) = out_rx.recv().await {
-            let (key, bytes, count, sent) = match msg {
+            let (key, kind, bytes, count, sent) = match msg {
                 Outbound::State(m) => (
                     &state_key,
+                    "state",
                     m.encode(),
                     &pub_stats.state_sent,
                     &pub_stats.state_sent_bytes,
@@ -252,12 +224,14 @@ pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
                     };
                     (
                         &map_key,
+                        "map",
                         bytes,
                         &pub_stats.map_sent,
                         &pub_stats.map_sent_bytes,
                     )
                 }
             };
+            let bytes = signer.seal(&fleet, &node, kind, &bytes);
             let len = bytes.len() as u64;
             let put = session
                 .put(key.as_str(), bytes)
@@ -268,30 +242,42 @@ pub async fn start(config: NodeConfig) -> anyhow::Result<BusPort> {
                     count.fetch_add(1, Ordering::Relaxed);
                     sent.fetch_add(len, Ordering::Relaxed);
                 }
-                Err(e) => tracing::warn!("fleet bus: not sent: {e}"),
+                Err(e) => not_sent.say(&e.to_string()),
             }
         }
         let _ = session.close().await;
     });
     Ok(BusPort {
         inbound,
+        maps,
         outbound,
         stats,
         join,
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// "Not sent" said once, then at most every [`super::intake::SAY_EVERY`] with a count.
+#[derive(Default)]
+struct NotSent {
+    last: Option<std::time::Instant>,
+    held: u64,
+}
 
-    #[test]
-    fn keys_name_the_fleet_and_the_node() {
-        assert_eq!(
-            key_parts("kestrel/farm/pi-2/state", "farm"),
-            Some(("pi-2", "state"))
-        );
-        assert_eq!(key_parts("kestrel/other/pi-2/state", "farm"), None);
-        assert_eq!(key_parts("kestrel/farmx/pi-2/state", "farm"), None);
+impl NotSent {
+    fn say(&mut self, why: &str) {
+        let now = std::time::Instant::now();
+        if self
+            .last
+            .is_some_and(|t| now.duration_since(t) < super::intake::SAY_EVERY)
+        {
+            self.held += 1;
+            return;
+        }
+        let more = match std::mem::take(&mut self.held) {
+            0 => String::new(),
+            n => format!(" ({n} more since the last line)"),
+        };
+        self.last = Some(now);
+        tracing::warn!("fleet bus: not sent: {why}{more}");
     }
 }

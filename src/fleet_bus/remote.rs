@@ -3,16 +3,18 @@
 //!
 //! In: checked [`StateMsg`]s with the host time they arrived, and this host's own drone ids.
 //! Out: fleet-view entries (`local: false`), the exploration claims they hold, and a status per
-//! remote drone for the API. A state that names one of this host's own drones is refused (a peer
-//! cannot move our drones in our view), and at most [`MAX_REMOTE_DRONES`] are kept.
+//! remote drone for the API. Only the roster's members are heard, each for the drones the roster
+//! gives it: a state from any other node, or naming a drone that is not its node's (one of this
+//! host's own included), is refused. The roster holds at most [`MAX_REMOTE_DRONES`] drones.
 //!
 //! Silence, and why it is safe. A peer's drone not heard for `peer_timeout` is `silent`. While a
 //! silent drone was flying and is not accounted for, nobody knows where it goes, so every Kestrel
 //! holds its flying drones where they are (`unaccounted`: the safety stage holds) — and a peer
 //! that is alive but cut off does the same, since it hears us fall silent too: nothing moves
 //! toward anything. A silent drone is accounted for once it has been silent for `lost_after` and
-//! this Kestrel still hears more than half of the fleet's nodes (itself included): the
-//! majority. Either the peer is dead (its autopilot's failsafe has landed or held the drone where
+//! this Kestrel still hears more than half of the roster's nodes (itself included): the
+//! majority. It is counted over the roster, never over the names heard, so made-up nodes can
+//! neither join the count nor hold anything. Either the peer is dead (its autopilot's failsafe has landed or held the drone where
 //! it was) or it is cut off in a minority, where it keeps holding (it never hears a majority).
 //! Both leave the drone where it was last heard: from then on the majority flies again and keeps
 //! `[safety] min_separation_m` plus `keepout_m` from that point. An isolated Kestrel (no
@@ -28,8 +30,7 @@ use super::wire::{DroneState, StateMsg};
 use crate::types::DroneView;
 use crate::types::{LinkHealth, Vec3};
 
-/// Most remote drones, and remote nodes, kept (a flood of made-up ids cannot grow the host's
-/// memory).
+/// Most drones a roster may give the other nodes (each has a map layer on every node).
 pub const MAX_REMOTE_DRONES: usize = 128;
 
 /// How the host treats silence on the bus.
@@ -76,63 +77,68 @@ pub struct RemoteDroneStatus {
     pub unaccounted: bool,
 }
 
+/// The other members of the fleet: node name → the drones it flies.
+pub type Roster = BTreeMap<String, Vec<String>>;
+
 #[derive(Debug, Clone)]
 pub struct RemoteFleet {
     drones: BTreeMap<String, Heard>,
-    /// Every peer node heard since start, and when last: the fleet's size for the majority.
-    nodes: BTreeMap<String, Duration>,
+    /// The roster's other nodes, and when each was last heard: the fleet's size for the
+    /// majority.
+    nodes: BTreeMap<String, Option<Duration>>,
+    roster: Roster,
     policy: SilencePolicy,
 }
 
 impl RemoteFleet {
-    pub fn new(policy: SilencePolicy) -> Self {
+    /// `roster`: the other members (this node left out).
+    pub fn new(policy: SilencePolicy, roster: Roster) -> Self {
         Self {
             drones: BTreeMap::new(),
-            nodes: BTreeMap::new(),
+            nodes: roster.keys().map(|n| (n.clone(), None)).collect(),
+            roster,
             policy,
         }
     }
 
-    /// Whether this Kestrel hears more than half of the fleet's nodes, itself included.
+    /// Whether this Kestrel hears more than half of the roster's nodes, itself included.
     pub fn in_majority(&self, now: Duration) -> bool {
         let heard = self
             .nodes
             .values()
+            .flatten()
             .filter(|&&at| now.saturating_sub(at) <= self.policy.peer_timeout)
             .count();
         2 * (1 + heard) > 1 + self.nodes.len()
     }
 
+    /// The member that flies `drone`, by the roster.
+    pub fn owner_of(&self, drone: &str) -> Option<&str> {
+        self.roster
+            .iter()
+            .find(|(_, drones)| drones.iter().any(|d| d == drone))
+            .map(|(node, _)| node.as_str())
+    }
+
     /// Takes in one node's state. Returns why drones were refused, if any were.
     pub fn apply(&mut self, msg: StateMsg, now: Duration, local: &[String]) -> Vec<String> {
+        let Some(heard) = self.nodes.get_mut(&msg.node) else {
+            return vec![format!(
+                "node `{}` is not in the roster: its state is ignored",
+                msg.node
+            )];
+        };
+        *heard = Some(now);
         let mut refused = Vec::new();
-        if self.nodes.contains_key(&msg.node) || self.nodes.len() < MAX_REMOTE_DRONES {
-            self.nodes.insert(msg.node.clone(), now);
-        }
         // A node decides which drones it flies: one it no longer announces is gone.
         let announced: Vec<&str> = msg.drones.iter().map(|d| d.id.as_str()).collect();
         self.drones
             .retain(|id, h| h.node != msg.node || announced.contains(&id.as_str()));
         for state in msg.drones {
-            if local.contains(&state.id) {
+            if local.contains(&state.id) || self.owner_of(&state.id) != Some(msg.node.as_str()) {
                 refused.push(format!(
-                    "node `{}` announces `{}`, which this Kestrel flies: ignored",
+                    "node `{}` announces `{}`, which the roster does not give it: ignored",
                     msg.node, state.id
-                ));
-                continue;
-            }
-            if let Some(h) = self.drones.get(&state.id) {
-                if h.node != msg.node && now.saturating_sub(h.at) < self.policy.peer_timeout {
-                    refused.push(format!(
-                        "node `{}` announces `{}`, which node `{}` flies: ignored",
-                        msg.node, state.id, h.node
-                    ));
-                    continue;
-                }
-            } else if self.drones.len() >= MAX_REMOTE_DRONES {
-                refused.push(format!(
-                    "more than {MAX_REMOTE_DRONES} remote drones: `{}` ignored",
-                    state.id
                 ));
                 continue;
             }
@@ -150,6 +156,11 @@ impl RemoteFleet {
 
     pub fn is_empty(&self) -> bool {
         self.drones.is_empty()
+    }
+
+    /// Remote drones kept.
+    pub fn len(&self) -> usize {
+        self.drones.len()
     }
 
     /// Whether `id` is a remote drone, and which node flies it.
@@ -260,6 +271,13 @@ mod tests {
         }
     }
 
+    fn roster(members: &[(&str, &[&str])]) -> Roster {
+        members
+            .iter()
+            .map(|(n, ds)| (n.to_string(), ds.iter().map(|d| d.to_string()).collect()))
+            .collect()
+    }
+
     fn msg(node: &str, drones: Vec<DroneState>) -> StateMsg {
         StateMsg {
             v: WIRE_VERSION,
@@ -272,7 +290,10 @@ mod tests {
 
     #[test]
     fn a_silent_flying_drone_holds_the_fleet_until_the_majority_accounts_for_it() {
-        let mut r = RemoteFleet::new(policy());
+        let mut r = RemoteFleet::new(
+            policy(),
+            roster(&[("b", &["drone_1"]), ("c", &["drone_2", "drone_3"])]),
+        );
         let t0 = Duration::from_secs(10);
         let s = Duration::from_secs_f64;
         assert!(r
@@ -295,7 +316,8 @@ mod tests {
         }
         let quiet = view(&r, 5.0, "drone_1");
         assert!(quiet.silent && quiet.unaccounted);
-        // Then, with `c` (two of three nodes heard: the majority), it is where it was heard.
+        // Then, with `c` (two of the roster's three nodes heard: the majority), it is where it
+        // was heard.
         assert!(r.in_majority(t0 + s(12.0)));
         let accounted = view(&r, 12.0, "drone_1");
         assert!(accounted.silent && !accounted.unaccounted);
@@ -307,14 +329,17 @@ mod tests {
         // A drone on the ground that falls silent holds nobody.
         let mut landed = drone("drone_3", 0.0);
         landed.flying = false;
-        r.apply(msg("d", vec![landed]), t0 + s(60.0), &[]);
+        r.apply(msg("c", vec![landed]), t0 + s(60.0), &[]);
         assert!(!view(&r, 65.0, "drone_3").unaccounted);
-        assert_eq!(r.claims().len(), 3);
+        assert_eq!(r.claims().len(), 2);
     }
 
     #[test]
-    fn a_peer_cannot_announce_our_drones_or_steal_anothers() {
-        let mut r = RemoteFleet::new(policy());
+    fn a_node_speaks_only_for_the_drones_the_roster_gives_it() {
+        let mut r = RemoteFleet::new(
+            policy(),
+            roster(&[("b", &["drone_1"]), ("c", &["drone_2"])]),
+        );
         let t = Duration::from_secs(1);
         let refused = r.apply(
             msg("b", vec![drone("drone_0", 0.0)]),
@@ -324,28 +349,47 @@ mod tests {
         assert_eq!(refused.len(), 1);
         assert!(r.is_empty());
         r.apply(msg("b", vec![drone("drone_1", 0.0)]), t, &[]);
-        let refused = r.apply(msg("c", vec![drone("drone_1", 5.0)]), t, &[]);
-        assert_eq!(refused.len(), 1);
+        // Not even once `b` fell silent may `c` take `drone_1` over.
+        let later = t + Duration::from_secs(30);
+        let refused = r.apply(msg("c", vec![drone("drone_1", 5.0)]), later, &[]);
+        assert_eq!(refused.len(), 1, "{refused:?}");
         assert_eq!(r.node_of("drone_1"), Some("b"));
-        // Once `b` fell silent, `c` may take the id over (a drone moved to another computer).
-        r.apply(
-            msg("c", vec![drone("drone_1", 5.0)]),
-            t + Duration::from_secs(5),
-            &[],
-        );
-        assert_eq!(r.node_of("drone_1"), Some("c"));
+        assert_eq!(r.owner_of("drone_2"), Some("c"));
         // A node that stops announcing a drone drops it.
-        r.apply(msg("c", vec![]), t + Duration::from_secs(6), &[]);
+        r.apply(msg("b", vec![]), later, &[]);
         assert!(r.is_empty());
     }
 
+    /// Issue 29, item 2: names heard are not the fleet. 1 500 made-up nodes announcing flying
+    /// drones are refused, hold nobody and never change the majority; a member's drone that
+    /// fell silent in flight holds the fleet no longer than `lost_after`.
     #[test]
-    fn the_number_of_remote_drones_is_bounded() {
-        let mut r = RemoteFleet::new(policy());
-        for n in 0..(MAX_REMOTE_DRONES / 16 + 2) {
-            let drones = (0..16).map(|i| drone(&format!("d{n}_{i}"), 0.0)).collect();
-            r.apply(msg(&format!("n{n}"), drones), Duration::ZERO, &[]);
+    fn made_up_nodes_never_hold_the_fleet_longer_than_lost_after() {
+        let mut r = RemoteFleet::new(
+            policy(),
+            roster(&[("b", &["drone_1"]), ("c", &["drone_2"])]),
+        );
+        let t0 = Duration::from_secs(1);
+        let s = Duration::from_secs_f64;
+        r.apply(msg("b", vec![drone("drone_1", 0.0)]), t0, &[]);
+        for n in 0..1500 {
+            let refused = r.apply(
+                msg(&format!("made-up-{n}"), vec![drone(&format!("x{n}"), 1.0)]),
+                t0,
+                &[],
+            );
+            assert_eq!(refused.len(), 1);
         }
-        assert_eq!(r.statuses(Duration::ZERO).len(), MAX_REMOTE_DRONES);
+        assert_eq!(r.len(), 1);
+        assert_eq!(r.nodes.len(), 2);
+        // `b` falls silent in flight; `c` is heard all along.
+        let mut t = 0.0;
+        while t < 20.0 {
+            t += 0.5;
+            r.apply(msg("c", vec![drone("drone_2", 5.0)]), t0 + s(t), &[]);
+            let holds = r.views(t0 + s(t)).any(|v| v.unaccounted);
+            let lost_after = policy().lost_after.as_secs_f64();
+            assert_eq!(holds, t > 1.5 && t < lost_after, "at {t} s");
+        }
     }
 }

@@ -2,7 +2,8 @@
 //! hands the bus what is due, never waiting on the network.
 //!
 //! In: the bus port (`fleet_bus::node`), the `[fleet]` rates, the host. Out: remote states and
-//! map regions applied to the host; this host's state (`state_rate_hz`), changed map regions
+//! map regions applied to the host (at most [`MAX_IN_PER_TICK`] states and about
+//! [`MAP_WORK_PER_TICK`] cell visits of map work a tick, whatever peers send); this host's state (`state_rate_hz`), changed map regions
 //! (`map_rate_hz`) and keyframes (`map_keyframe_period_s`) queued for sending; a
 //! [`BusReport`] (traffic, refusals, and the latency from a peer's send to this host's fleet
 //! view) put into the host's snapshot once a second.
@@ -11,12 +12,18 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use crate::fleet_bus::config::FleetSection;
-use crate::fleet_bus::node::{BusPort, Inbound, Outbound};
+use crate::fleet_bus::node::{BusPort, Outbound};
 use crate::host::engine::Host;
 use crate::host::status::BusReport;
 
-/// Most peer messages taken in between two ticks (the rest wait for the next).
-const MAX_IN_PER_TICK: usize = 64;
+/// Most peer states taken in between two ticks (the rest wait for the next).
+pub const MAX_IN_PER_TICK: usize = 64;
+/// Map work done between two ticks, in cell visits (writing a cell of a peer's layer and
+/// re-fusing it visits it once per layer): a quarter of the first try's 100 000, which left a
+/// p99 of 27 ms under a flood; 14 ms with this one
+/// (BENCHMARKS.md, "Control tick under a flood of map messages"). A peer's full grid takes a few
+/// ticks to land; the rest waits, coalesced, in the map inbox.
+pub const MAP_WORK_PER_TICK: usize = 25_000;
 /// Latency samples kept for the percentiles.
 const LATENCY_SAMPLES: usize = 2048;
 /// Shortest time between two warnings about refused peer messages.
@@ -34,6 +41,8 @@ pub struct BusLink {
     last_keyframe: Option<Instant>,
     last_report: Option<Instant>,
     last_warning: Option<Instant>,
+    /// Refusals not said since the last warning.
+    held_warnings: u64,
     state_seq: u64,
     map_seq: u64,
     latencies_ms: VecDeque<f64>,
@@ -66,6 +75,7 @@ impl BusLink {
             last_keyframe: None,
             last_report: None,
             last_warning: None,
+            held_warnings: 0,
             state_seq: 0,
             map_seq: 0,
             latencies_ms: VecDeque::with_capacity(LATENCY_SAMPLES),
@@ -75,11 +85,21 @@ impl BusLink {
     }
 
     fn warn(&mut self, what: &str) {
-        self.refused_here += 1;
+        self.refuse(1, what);
+    }
+
+    /// Counts `messages` refused here and says why, at most every [`WARN_EVERY`].
+    fn refuse(&mut self, messages: u64, what: &str) {
+        self.refused_here += messages;
         let now = Instant::now();
-        if due(self.last_warning, WARN_EVERY, now) {
-            self.last_warning = Some(now);
-            tracing::warn!("fleet bus: {what}");
+        if !due(self.last_warning, WARN_EVERY, now) {
+            self.held_warnings += 1;
+            return;
+        }
+        self.last_warning = Some(now);
+        match std::mem::take(&mut self.held_warnings) {
+            0 => tracing::warn!("fleet bus: {what}"),
+            n => tracing::warn!("fleet bus: {what} ({n} more refused since the last line)"),
         }
     }
 
@@ -87,31 +107,21 @@ impl BusLink {
     pub fn exchange(&mut self, host: &mut Host) {
         let mut heard = false;
         for _ in 0..MAX_IN_PER_TICK {
-            let Ok(msg) = self.port.inbound.try_recv() else {
+            let Ok(m) = self.port.inbound.try_recv() else {
                 break;
             };
-            match msg {
-                Inbound::State(m) => {
-                    heard = true;
-                    let sent = m.sent_unix_us;
-                    for why in host.apply_bus_state(m) {
-                        self.warn(&why);
-                    }
-                    let latency_ms = unix_us().saturating_sub(sent) as f64 / 1000.0;
-                    if self.latencies_ms.len() == LATENCY_SAMPLES {
-                        self.latencies_ms.pop_front();
-                    }
-                    self.latencies_ms.push_back(latency_ms);
-                }
-                Inbound::Map(m) => {
-                    if let Err(why) = host.apply_bus_map(m) {
-                        // A map can come before its drone's first state: the next keyframe
-                        // brings it again.
-                        tracing::debug!("fleet bus: {why}");
-                    }
-                }
+            heard = true;
+            let sent = m.sent_unix_us;
+            for why in host.apply_bus_state(m) {
+                self.warn(&why);
             }
+            let latency_ms = unix_us().saturating_sub(sent) as f64 / 1000.0;
+            if self.latencies_ms.len() == LATENCY_SAMPLES {
+                self.latencies_ms.pop_front();
+            }
+            self.latencies_ms.push_back(latency_ms);
         }
+        self.take_maps(host);
         let now = Instant::now();
         let revision = {
             let mut join = self.port.join.lock();
@@ -144,6 +154,23 @@ impl BusLink {
         if due(self.last_report, Duration::from_secs(1), now) {
             self.last_report = Some(now);
             host.set_bus_report(self.report());
+        }
+    }
+
+    /// Peers' waiting map regions into their layers, for at most about [`MAP_WORK_PER_TICK`]
+    /// cell visits.
+    fn take_maps(&mut self, host: &mut Host) {
+        let mut work = MAP_WORK_PER_TICK;
+        while work > 0 {
+            let per_cell = host.map_layers() + 1;
+            let Some(slice) = self.port.maps.take(work / per_cell) else {
+                break;
+            };
+            work = work.saturating_sub(slice.cells.len() * per_cell);
+            let messages = slice.messages;
+            if let Err(why) = host.apply_bus_region(slice) {
+                self.refuse(messages, &why.to_string());
+            }
         }
     }
 

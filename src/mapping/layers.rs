@@ -15,6 +15,10 @@ use super::grid::{Cell, CellBox, GridSpec, InsertParams, OccupancyGrid, UNKNOWN}
 use super::scan::RangeScan;
 use super::MapError;
 
+/// In the cells of a region written with [`LayeredMap::set_region`]: this cell is left as it is
+/// (regions from the fleet bus are coalesced, and a union of two boxes has cells neither set).
+pub const KEEP: i8 = i8::MIN;
+
 /// How layer values combine into the global grid (unknown layers are ignored).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -75,7 +79,8 @@ impl LayeredMap {
     }
 
     /// Writes a region of a drone's layer (row-major `cells` from `region.min`, on the global
-    /// spec) and re-fuses the cells that changed. Returns the changed box of the global grid.
+    /// spec; [`KEEP`] leaves a cell as it is) and re-fuses the cells that changed. Returns the
+    /// changed box of the global grid.
     pub fn set_region(
         &mut self,
         drone: &str,
@@ -98,7 +103,7 @@ impl LayeredMap {
                 x: region.min.x + (k % w) as u32,
                 y: region.min.y + (k / w) as u32,
             };
-            if layer.get(c) != Some(v) {
+            if v != KEEP && layer.get(c) != Some(v) {
                 layer.set(c, v)?;
                 match changed.as_mut() {
                     Some(b) => b.include(c),

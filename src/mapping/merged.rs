@@ -193,6 +193,11 @@ impl FleetMap {
         Ok(())
     }
 
+    /// Layers kept (each drone's, the known map's).
+    pub fn layer_count(&self) -> usize {
+        self.layers.layers.len()
+    }
+
     fn changed(&mut self, drone: &str, region: CellBox) {
         for regions in [&mut self.pending, &mut self.unsynced] {
             let slot = regions.entry(drone.to_string()).or_insert(region);

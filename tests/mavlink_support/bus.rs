@@ -130,6 +130,38 @@ pub fn config(arena: &Arena, id: usize, connection: &str, fleet: Option<&str>) -
     text
 }
 
+/// The fleet's identities: one key per node (`node_{i}`, flying `drone_{i}`) and the roster
+/// every node's config lists.
+pub struct Identities {
+    dir: tempfile::TempDir,
+    roster: String,
+}
+
+impl Identities {
+    pub fn new(nodes: usize) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let mut roster = String::new();
+        for i in 0..nodes {
+            let key = kestrel::fleet_bus::identity::Signer::generate(
+                &dir.path().join(format!("node_{i}.key")),
+            )
+            .unwrap()
+            .public()
+            .to_base64();
+            roster.push_str(&format!(
+                "\n[fleet.roster.node_{i}]\nkeys = [\"{key}\"]\ndrones = [\"drone_{i}\"]\n"
+            ));
+        }
+        Identities { dir, roster }
+    }
+
+    /// Node `id`'s key file and the roster: the end of its `[fleet]` section.
+    pub fn section_end(&self, id: usize) -> String {
+        let key = self.dir.path().join(format!("node_{id}.key"));
+        format!("key_file = \"{}\"\n{}", key.to_str().unwrap(), self.roster)
+    }
+}
+
 /// A credentials file the nodes of a fleet share (first line: this node's).
 pub fn credentials(dir: &std::path::Path, name: &str, line: &str) -> String {
     let path = dir.join(name);
@@ -145,6 +177,7 @@ pub struct Fleet {
     pub apis: Vec<Api>,
     pub proxies: Vec<BusProxy>,
     _creds: tempfile::TempDir,
+    _ids: Option<Identities>,
 }
 
 impl Fleet {
@@ -153,6 +186,7 @@ impl Fleet {
         let file = credentials(creds.path(), "fleet-credentials", "bays:s3cret-shared");
         let name = format!("bays-{}", std::process::id());
         let n = connections.len();
+        let ids = Identities::new(n);
         let bus_ports: Vec<u16> = (0..n).map(|_| free_tcp_port()).collect();
         let proxies: Vec<BusProxy> = bus_ports[..n - 1]
             .iter()
@@ -164,9 +198,10 @@ impl Fleet {
             let connect: Vec<String> = proxies[..id].iter().map(|p| p.endpoint()).collect();
             let fleet = format!(
                 "\n[fleet]\nenabled = true\nname = \"{name}\"\nnode = \"node_{id}\"\n\
-                 listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n",
+                 listen = [\"tcp/127.0.0.1:{}\"]\nconnect = {}\ncredentials_file = \"{file}\"\n{}",
                 bus_ports[id],
-                serde_json::to_string(&connect).unwrap()
+                serde_json::to_string(&connect).unwrap(),
+                ids.section_end(id)
             );
             let api_port = free_tcp_port();
             let listen = format!("127.0.0.1:{api_port}");
@@ -182,6 +217,7 @@ impl Fleet {
             apis,
             proxies,
             _creds: creds,
+            _ids: Some(ids),
         }
     }
 
@@ -197,6 +233,7 @@ impl Fleet {
             apis: vec![Api::connect(api_port)],
             proxies: Vec::new(),
             _creds: tempfile::tempdir().unwrap(),
+            _ids: None,
         }
     }
 
@@ -304,8 +341,15 @@ impl Fleet {
 }
 
 /// A Kestrel on a bus without an autopilot (its drone `drone_{id}` waits on a UDP port where
-/// nothing answers): node `node_{id}` listening on `listen`, connecting to `connect`.
-pub fn bus_only_node(id: usize, fleet: &str, listen: u16, connect: &[u16], creds: &str) -> String {
+/// nothing answers): node `node_{id}` of `ids` listening on `listen`, connecting to `connect`.
+pub fn bus_only_node(
+    id: usize,
+    fleet: &str,
+    listen: u16,
+    connect: &[u16],
+    creds: &str,
+    ids: &Identities,
+) -> String {
     let connect: Vec<String> = connect
         .iter()
         .map(|p| format!("tcp/127.0.0.1:{p}"))
@@ -313,9 +357,10 @@ pub fn bus_only_node(id: usize, fleet: &str, listen: u16, connect: &[u16], creds
     format!(
         "[[vehicle]]\nid = \"drone_{id}\"\nconnection = \"udpin:127.0.0.1:{}\"\n\n\
          [fleet]\nenabled = true\nname = \"{fleet}\"\nnode = \"node_{id}\"\n\
-         listen = [\"tcp/127.0.0.1:{listen}\"]\nconnect = {}\ncredentials_file = \"{creds}\"\n",
+         listen = [\"tcp/127.0.0.1:{listen}\"]\nconnect = {}\ncredentials_file = \"{creds}\"\n{}",
         super::free_udp_port(),
-        serde_json::to_string(&connect).unwrap()
+        serde_json::to_string(&connect).unwrap(),
+        ids.section_end(id)
     )
 }
 

@@ -305,6 +305,11 @@ pub struct Kestrel {
 }
 
 impl Kestrel {
+    /// The process's id (to read its memory in /proc).
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// `kestrel run --platform P --connection C --log L <extra>`; `config` is written to a file.
     pub fn run(personality: Personality, connection: &str, config: &str, extra: &[&str]) -> Self {
         Self::run_with_platform(personality.profile(), connection, config, extra)

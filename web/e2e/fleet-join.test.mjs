@@ -4,46 +4,15 @@
 // the unit tests (web/test/remote.test.ts) check that it goes once joined.
 
 import assert from 'node:assert/strict';
-import dgram from 'node:dgram';
 import fs from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
 import { after, before, describe, test } from 'node:test';
-import { freePort, openBrowser, startKestrel } from './harness.mjs';
-
-function freeUdpPort() {
-  return new Promise((resolve, reject) => {
-    const sock = dgram.createSocket('udp4');
-    sock.on('error', reject);
-    sock.bind(0, '127.0.0.1', () => {
-      const { port } = sock.address();
-      sock.close(() => resolve(port));
-    });
-  });
-}
-
-/** One Kestrel: its drone (no autopilot answers) and its place on the bus. */
-function config(id, fleet, busPorts, udpPort, credentials) {
-  const connect = busPorts.slice(0, id).map((p) => `tcp/127.0.0.1:${p}`);
-  return [
-    '[[vehicle]]',
-    `id = "drone_${id}"`,
-    `connection = "udpin:127.0.0.1:${udpPort}"`,
-    '',
-    '[fleet]',
-    'enabled = true',
-    `name = "${fleet}"`,
-    `node = "node_${id}"`,
-    `listen = ["tcp/127.0.0.1:${busPorts[id]}"]`,
-    `connect = ${JSON.stringify(connect)}`,
-    `credentials_file = "${credentials}"`,
-    '',
-  ].join('\n');
-}
+import { fleetOf, freePort, freeUdpPort, openBrowser, startKestrel } from './harness.mjs';
 
 describe('a Kestrel its fleet refused', { timeout: 60_000 }, () => {
   const fleet = `join-${process.pid}`;
-  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-creds-'));
+  const identities = fleetOf(2, fleet);
+  const dir = identities.dir;
   const nodes = [];
   let busPorts;
   let browser;
@@ -56,7 +25,8 @@ describe('a Kestrel its fleet refused', { timeout: 60_000 }, () => {
     });
     busPorts = [await freePort(), await freePort()];
     for (const id of [0, 1]) {
-      nodes.push(await startKestrel({ config: config(id, fleet, busPorts, await freeUdpPort(), creds[id]) }));
+      const udpPort = await freeUdpPort();
+      nodes.push(await startKestrel({ config: identities.config(id, busPorts, { udpPort, credentials: creds[id] }) }));
     }
     browser = await openBrowser(nodes[1].base, { width: 1024, height: 768 });
   });
@@ -64,7 +34,7 @@ describe('a Kestrel its fleet refused', { timeout: 60_000 }, () => {
   after(async () => {
     await browser?.close();
     for (const n of nodes) await n?.stop();
-    fs.rmSync(dir, { recursive: true, force: true });
+    identities.remove();
   });
 
   test('its ground station shows a banner naming the peer that refused it and why', async () => {

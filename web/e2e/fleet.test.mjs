@@ -4,48 +4,21 @@
 // the bus line, and shows the drone silent within seconds of node_1 being killed.
 
 import assert from 'node:assert/strict';
-import dgram from 'node:dgram';
 import { after, before, describe, test } from 'node:test';
-import { freePort, openBrowser, startKestrel, until } from './harness.mjs';
-
-function freeUdpPort() {
-  return new Promise((resolve, reject) => {
-    const sock = dgram.createSocket('udp4');
-    sock.on('error', reject);
-    sock.bind(0, '127.0.0.1', () => {
-      const { port } = sock.address();
-      sock.close(() => resolve(port));
-    });
-  });
-}
-
-/** One Kestrel's config: its drone (no autopilot answers) and its place on the bus. */
-function config(id, fleet, busPorts, udpPort) {
-  const connect = busPorts.slice(0, id).map((p) => `tcp/127.0.0.1:${p}`);
-  return [
-    '[[vehicle]]',
-    `id = "drone_${id}"`,
-    `connection = "udpin:127.0.0.1:${udpPort}"`,
-    '',
-    '[fleet]',
-    'enabled = true',
-    `name = "${fleet}"`,
-    `node = "node_${id}"`,
-    `listen = ["tcp/127.0.0.1:${busPorts[id]}"]`,
-    `connect = ${JSON.stringify(connect)}`,
-    '',
-  ].join('\n');
-}
+import { fleetOf, freePort, freeUdpPort, openBrowser, startKestrel, until } from './harness.mjs';
 
 describe('two Kestrels on one fleet bus', { timeout: 180_000 }, () => {
   const fleet = `gs-${process.pid}`;
   let nodes = [];
   let browser;
 
+  let identities;
+
   before(async () => {
+    identities = fleetOf(2, fleet);
     const busPorts = [await freePort(), await freePort()];
     for (const id of [0, 1]) {
-      nodes.push(await startKestrel({ config: config(id, fleet, busPorts, await freeUdpPort()) }));
+      nodes.push(await startKestrel({ config: identities.config(id, busPorts, { udpPort: await freeUdpPort() }) }));
     }
     browser = await openBrowser(nodes[0].base, { width: 1024, height: 768 });
   });
@@ -53,6 +26,7 @@ describe('two Kestrels on one fleet bus', { timeout: 180_000 }, () => {
   after(async () => {
     await browser?.close();
     for (const n of nodes) await n?.stop();
+    identities?.remove();
   });
 
   test("node_1's drone is shown on node_0's map and fleet list, marked remote with its node", async () => {

@@ -3,7 +3,8 @@
 // serves in Debian's chromium (playwright-core, never a downloaded browser), blocks and records
 // every request that is not to the loopback interface, and saves screenshots as artifacts.
 
-import { spawn } from 'node:child_process';
+import { execFileSync, spawn } from 'node:child_process';
+import dgram from 'node:dgram';
 import fs from 'node:fs';
 import net from 'node:net';
 import os from 'node:os';
@@ -39,6 +40,55 @@ export function freePort() {
       srv.close(() => resolve(port));
     });
   });
+}
+
+export function freeUdpPort() {
+  return new Promise((resolve, reject) => {
+    const sock = dgram.createSocket('udp4');
+    sock.on('error', reject);
+    sock.bind(0, '127.0.0.1', () => {
+      const { port } = sock.address();
+      sock.close(() => resolve(port));
+    });
+  });
+}
+
+/**
+ * A fleet of `nodes` Kestrels on one bus: each node's signing key (`kestrel fleet-key`) in a
+ * temporary folder, and `config(id, busPorts, { udpPort, credentials })`, node `node_{id}`'s
+ * config (its drone `drone_{id}` on a UDP port where no autopilot answers, its bus port, the
+ * earlier nodes to connect to, its key and the roster). `remove()` deletes the folder.
+ */
+export function fleetOf(nodes, fleet) {
+  const bin = path.resolve(process.env.KESTREL_BIN ?? '');
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'kestrel-e2e-fleet-'));
+  const roster = [];
+  for (let id = 0; id < nodes; id++) {
+    const out = execFileSync(bin, ['fleet-key', path.join(dir, `node_${id}.key`)], { encoding: 'utf8' });
+    const key = /public key: (\S+)/.exec(out)?.[1];
+    if (!key) throw new Error(`kestrel fleet-key printed no public key: ${out}`);
+    roster.push('', `[fleet.roster.node_${id}]`, `keys = ["${key}"]`, `drones = ["drone_${id}"]`);
+  }
+  const config = (id, busPorts, { udpPort, credentials = null }) => {
+    const connect = busPorts.slice(0, id).map((p) => `tcp/127.0.0.1:${p}`);
+    return [
+      '[[vehicle]]',
+      `id = "drone_${id}"`,
+      `connection = "udpin:127.0.0.1:${udpPort}"`,
+      '',
+      '[fleet]',
+      'enabled = true',
+      `name = "${fleet}"`,
+      `node = "node_${id}"`,
+      `listen = ["tcp/127.0.0.1:${busPorts[id]}"]`,
+      `connect = ${JSON.stringify(connect)}`,
+      ...(credentials ? [`credentials_file = "${credentials}"`] : []),
+      `key_file = "${path.join(dir, `node_${id}.key`)}"`,
+      ...roster,
+      '',
+    ].join('\n');
+  };
+  return { dir, config, remove: () => fs.rmSync(dir, { recursive: true, force: true }) };
 }
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));

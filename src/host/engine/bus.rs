@@ -1,16 +1,18 @@
 //! The host's side of the fleet bus: what it tells other Kestrels and what it takes from them.
 //!
-//! In: checked [`StateMsg`]s and [`MapMsg`]s from peers. Out: this host's drones as a
-//! [`StateMsg`] (state, behavior, mission, exploration claim) and its drones' changed map
-//! regions (or, for keyframes, everything they know) as [`MapMsg`]s. Remote drones join the
-//! fleet view, their map layers the merged map and their claims the frontier allocator; a
-//! peer's message that names one of this host's drones, or a map of a drone it does not fly, is
-//! refused and counted.
+//! In: checked [`StateMsg`]s and slices of peers' coalesced map regions ([`Slice`]). Out: this
+//! host's drones as a [`StateMsg`] (state, behavior, mission, exploration claim) and its
+//! drones' changed map regions (or, for keyframes, everything they know) as [`MapMsg`]s. Remote
+//! drones join the fleet view, their map layers the merged map and their claims the frontier
+//! allocator; a peer's message that names one of this host's drones, or a map of a drone it does
+//! not fly, is refused and counted. Remote layers exist only for the drones the roster gives the
+//! other members, so the fleet's configuration bounds them.
 
 use std::time::Duration;
 
 use super::{Host, HostError};
-use crate::fleet_bus::remote::{RemoteFleet, SilencePolicy};
+use crate::fleet_bus::inbox::Slice;
+use crate::fleet_bus::remote::{RemoteFleet, Roster, SilencePolicy};
 use crate::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
 use crate::mapping::merged::LayerRegion;
 use crate::mapping::MapError;
@@ -20,9 +22,8 @@ use crate::types::Vec3;
 /// Why a peer's map region was not taken in.
 #[derive(Debug, thiserror::Error)]
 pub enum BusMapError {
-    /// The drone's state has not yet come from that node (a map can come first: the next
-    /// keyframe brings it again).
-    #[error("map of `{drone}` from node `{node}`, which does not fly it (yet)")]
+    /// The roster does not give that drone to that node.
+    #[error("map of `{drone}` from node `{node}`, which does not fly it")]
     NotItsDrone { drone: String, node: String },
     /// The region does not fit this Kestrel's merged map.
     #[error(transparent)]
@@ -32,8 +33,9 @@ pub enum BusMapError {
 impl Host {
     /// Joins a fleet bus: from now on remote drones are heard and this host's map regions kept
     /// for sending.
-    pub fn enable_fleet_bus(&mut self, policy: SilencePolicy) {
-        self.remote = Some(RemoteFleet::new(policy));
+    /// `roster`: the other members of the fleet and their drones.
+    pub fn enable_fleet_bus(&mut self, policy: SilencePolicy, roster: Roster) {
+        self.remote = Some(RemoteFleet::new(policy, roster));
         if let Some(map) = self.map.as_mut() {
             map.enable_bus();
         }
@@ -92,25 +94,31 @@ impl Host {
         refused
     }
 
-    /// Takes in a region of a peer's drone's map layer.
-    pub fn apply_bus_map(&mut self, msg: MapMsg) -> Result<(), BusMapError> {
-        let h = &msg.header;
-        if self.remote_node_of(&h.drone) != Some(h.node.as_str()) {
+    /// Writes a slice of a peer's drone's waiting map regions into its layer (a drone the
+    /// roster gives that node: its map may come before its first state).
+    pub fn apply_bus_region(&mut self, slice: Slice) -> Result<(), BusMapError> {
+        let owner = self.remote.as_ref().and_then(|r| r.owner_of(&slice.drone));
+        if owner != Some(slice.node.as_str()) {
             return Err(BusMapError::NotItsDrone {
-                drone: h.drone.clone(),
-                node: h.node.clone(),
+                drone: slice.drone,
+                node: slice.node,
             });
         }
         let Some(map) = self.map.as_mut() else {
             return Ok(());
         };
         let region = LayerRegion {
-            drone: msg.header.drone,
-            grid: msg.header.grid,
-            region: msg.header.region,
-            cells: msg.cells,
+            drone: slice.drone,
+            grid: slice.grid,
+            region: slice.region,
+            cells: slice.cells,
         };
         Ok(map.apply_remote(&region)?)
+    }
+
+    /// Layers of the merged map (a re-fused cell visits each).
+    pub fn map_layers(&self) -> usize {
+        self.map.as_ref().map_or(0, |m| m.layer_count())
     }
 
     /// This host's drones as the bus carries them.

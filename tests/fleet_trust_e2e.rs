@@ -1,0 +1,184 @@
+//! Issue 29: who may speak on the fleet bus, and how much, against a real `kestrel run` (bus only,
+//! no autopilot). The test process is the attacker: a Zenoh peer holding the fleet's
+//! `user:password` (a stolen credentials file, or a member gone rogue), but not node_1's key.
+//! - item 1: a state written on node_1's key, signed with another key, and one of a made-up node,
+//!   are refused and counted; nothing of them reaches the fleet view;
+//! - item 5: a 96 MB put is dropped by Zenoh's transport as its fragments arrive (the node never
+//!   reassembles more than `fleet_bus::node::MAX_REASSEMBLED_BYTES`): the node's peak memory
+//!   does not grow by the put's size.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod mavlink_support;
+mod support;
+
+use kestrel::fleet_bus::identity::Signer;
+use kestrel::fleet_bus::wire::{DroneState, StateMsg, WIRE_VERSION};
+use kestrel::types::LinkHealth;
+use mavlink_support::bus::{bus_only_node, credentials, start_bus_only, Identities};
+use mavlink_support::{alongside, free_tcp_port, Api, Kestrel};
+use std::time::{Duration, Instant};
+
+/// A kB figure of /proc/PID/status (`VmHWM`: peak resident memory).
+fn status_kb(pid: u32, field: &str) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix(field))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap()
+}
+
+struct Target {
+    _dir: tempfile::TempDir,
+    _ids: Identities,
+    node: Kestrel,
+    api: Api,
+    fleet: String,
+    zenoh: tokio::runtime::Runtime,
+    session: zenoh::Session,
+}
+
+/// node_0 of a roster of two, listening; the attacker's Zenoh session joined to it.
+fn target() -> Target {
+    let dir = tempfile::tempdir().unwrap();
+    let creds = credentials(dir.path(), "creds", "farm:the-fleet-secret");
+    let fleet = format!("trust-{}", std::process::id());
+    let ids = Identities::new(2);
+    let port = free_tcp_port();
+    let (node, api) = start_bus_only(&bus_only_node(0, &fleet, port, &[], &creds, &ids));
+    let zenoh = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let config = serde_json::json!({
+        "mode": "peer",
+        "connect": { "endpoints": [format!("tcp/127.0.0.1:{port}")] },
+        "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
+        "transport": { "auth": { "usrpwd": { "user": "farm", "password": "the-fleet-secret" } } },
+    });
+    let session = zenoh.block_on(async {
+        let config = zenoh::Config::from_json5(&config.to_string()).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            let s = zenoh::open(config.clone()).await.unwrap();
+            if s.info().peers_zid().await.count() > 0 {
+                break s;
+            }
+            assert!(Instant::now() < deadline, "never joined node_0");
+            let _ = s.close().await;
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    });
+    Target {
+        _dir: dir,
+        _ids: ids,
+        node,
+        api,
+        fleet,
+        zenoh,
+        session,
+    }
+}
+
+impl Target {
+    /// Puts `bytes`, waiting for room in Zenoh's queue rather than dropping (a put's default):
+    /// every fragment goes out.
+    fn put(&self, key: &str, bytes: Vec<u8>) {
+        self.zenoh
+            .block_on(async {
+                self.session
+                    .put(key, bytes)
+                    .congestion_control(zenoh::qos::CongestionControl::Block)
+                    .await
+            })
+            .unwrap();
+    }
+
+    fn bus(&self) -> serde_json::Value {
+        self.api.get("/api/status")["fleet_bus"].clone()
+    }
+}
+
+fn state(node: &str, drone: &str) -> Vec<u8> {
+    StateMsg {
+        v: WIRE_VERSION,
+        node: node.into(),
+        seq: 1,
+        sent_unix_us: 0,
+        drones: vec![DroneState {
+            id: drone.into(),
+            position_enu_m: [1.0, 0.0, 1.0],
+            velocity_enu_mps: [0.0; 3],
+            yaw_rad: 0.0,
+            flying: true,
+            link: LinkHealth::Ok,
+            battery_pct: None,
+            behavior: None,
+            goal_enu_m: None,
+            mission: None,
+            claim_enu_m: None,
+        }],
+    }
+    .encode()
+}
+
+#[test]
+fn a_peer_speaking_for_another_node_or_a_made_up_one_is_refused_and_counted() {
+    let _beside = alongside();
+    let t = target();
+    let mut stranger = Signer::from_seed(&[42; 32]).unwrap();
+    let on = |node: &str| format!("kestrel/{}/{node}/state", t.fleet);
+    // Several of each: every one refused, counted, and said at most once per 5 s.
+    for _ in 0..5 {
+        let forged = stranger.seal(&t.fleet, "node_1", "state", &state("node_1", "drone_1"));
+        t.put(&on("node_1"), forged);
+        let made_up = stranger.seal(&t.fleet, "ghost", "state", &state("ghost", "drone_9"));
+        t.put(&on("ghost"), made_up);
+        t.put(&on("node_1"), state("node_1", "drone_1"));
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while t.bus()["refused"].as_u64().unwrap_or(0) < 15 {
+        assert!(
+            Instant::now() < deadline,
+            "not refused: {}\n{}",
+            t.bus(),
+            t.node.output()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let status = t.api.get("/api/status");
+    assert!(
+        status["remote"].as_array().is_none_or(|r| r.is_empty()),
+        "{status}"
+    );
+    let out = t.node.output();
+    let lines = out
+        .lines()
+        .filter(|l| l.contains("fleet bus: refused a `state` message"))
+        .count();
+    assert_eq!(lines, 1, "{out}");
+}
+
+#[test]
+fn a_huge_put_is_dropped_by_the_transport_without_the_node_growing() {
+    let _beside = alongside();
+    let t = target();
+    std::thread::sleep(Duration::from_secs(1));
+    let pid = t.node.pid();
+    let before_kb = status_kb(pid, "VmHWM:");
+    let huge = vec![7u8; 96 << 20];
+    let started = Instant::now();
+    t.put(&format!("kestrel/{}/node_1/map", t.fleet), huge);
+    // Sent (every fragment queued); what arrives, arrives within this.
+    std::thread::sleep(Duration::from_secs(3));
+    let grew_mb = status_kb(pid, "VmHWM:").saturating_sub(before_kb) / 1024;
+    println!(
+        "96 MB put in {:?}; node_0's peak memory grew {grew_mb} MB",
+        started.elapsed()
+    );
+    assert!(grew_mb < 32, "node_0's peak memory grew {grew_mb} MB");
+    // Dropped before Kestrel saw it: not even received.
+    assert_eq!(t.bus()["received"], 0, "{}", t.bus());
+    assert_eq!(t.node.pid(), pid);
+}
