@@ -414,8 +414,9 @@ mod tests {
         );
     }
 
-    #[test]
-    fn native_takeoff_is_requested_after_arming() {
+    /// On the ground with an autopilot that takes off by itself (NAV_TAKEOFF), a 5 m takeoff
+    /// activated.
+    fn native_takeoff() -> (Scene, Takeoff) {
         let mut scene = on_the_ground();
         scene.capabilities.native_takeoff = true;
         let mut takeoff = Takeoff::new(TakeoffGoal {
@@ -423,6 +424,12 @@ mod tests {
             speed: 1.0,
         });
         takeoff.activate(&scene.ctx(0)).unwrap();
+        (scene, takeoff)
+    }
+
+    #[test]
+    fn native_takeoff_is_requested_after_arming() {
+        let (mut scene, mut takeoff) = native_takeoff();
         let (_, requests) = run(&mut takeoff, &scene, Duration::ZERO);
         assert_eq!(
             requests,
@@ -445,13 +452,7 @@ mod tests {
 
     #[test]
     fn native_takeoff_is_asked_again_while_the_vehicle_sits_on_the_ground() {
-        let mut scene = on_the_ground();
-        scene.capabilities.native_takeoff = true;
-        let mut takeoff = Takeoff::new(TakeoffGoal {
-            height: 5.0,
-            speed: 1.0,
-        });
-        takeoff.activate(&scene.ctx(0)).unwrap();
+        let (mut scene, mut takeoff) = native_takeoff();
         run(&mut takeoff, &scene, Duration::ZERO);
         scene.platform.armed = true;
         scene.platform.flight = FlightStatus::Landed;
