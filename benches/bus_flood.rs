@@ -29,7 +29,6 @@ use kestrel::host::sim::simulated_host;
 use kestrel::mapping::grid::GridSpec;
 use kestrel::mission::{Action, MissionUpdate};
 use kestrel::sim::world::World;
-use kestrel::types::LinkHealth;
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -73,19 +72,7 @@ fn rss_mb() -> f64 {
 }
 
 fn drone(id: &str) -> DroneState {
-    DroneState {
-        id: id.into(),
-        position_enu_m: [20.0, 20.0, 0.0],
-        velocity_enu_mps: [0.0; 3],
-        yaw_rad: 0.0,
-        flying: false,
-        link: LinkHealth::Ok,
-        battery_pct: None,
-        behavior: None,
-        goal_enu_m: None,
-        mission: None,
-        claim_enu_m: None,
-    }
+    DroneState::at_rest(id, [20.0, 20.0, 0.0], false)
 }
 
 fn state(node: &str, drones: &[String], seq: u64) -> StateMsg {

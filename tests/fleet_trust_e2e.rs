@@ -13,7 +13,6 @@ mod support;
 
 use kestrel::fleet_bus::identity::Signer;
 use kestrel::fleet_bus::wire::{DroneState, StateMsg, WIRE_VERSION};
-use kestrel::types::LinkHealth;
 use mavlink_support::bus::{bus_only_node, credentials, start_bus_only, Identities};
 use mavlink_support::{alongside, free_tcp_port, Api, Kestrel};
 use std::time::{Duration, Instant};
@@ -106,19 +105,7 @@ fn state(node: &str, drone: &str) -> Vec<u8> {
         node: node.into(),
         seq: 1,
         sent_unix_us: 0,
-        drones: vec![DroneState {
-            id: drone.into(),
-            position_enu_m: [1.0, 0.0, 1.0],
-            velocity_enu_mps: [0.0; 3],
-            yaw_rad: 0.0,
-            flying: true,
-            link: LinkHealth::Ok,
-            battery_pct: None,
-            behavior: None,
-            goal_enu_m: None,
-            mission: None,
-            claim_enu_m: None,
-        }],
+        drones: vec![DroneState::at_rest(drone, [1.0, 0.0, 1.0], true)],
     }
     .encode()
 }

@@ -462,7 +462,6 @@ fn a_mission_for_a_remote_drone_is_refused_as_remote_not_invalid() {
     use kestrel::api::error::ApiError;
     use kestrel::fleet_bus::remote::SilencePolicy;
     use kestrel::fleet_bus::wire::{DroneState, StateMsg, WIRE_VERSION};
-    use kestrel::types::LinkHealth;
     use std::time::Duration;
 
     let mut rig = Rig::new();
@@ -474,19 +473,7 @@ fn a_mission_for_a_remote_drone_is_refused_as_remote_not_invalid() {
         },
         [("kestrel-b".to_string(), vec!["drone_7".to_string()])].into(),
     );
-    let drone = DroneState {
-        id: "drone_7".into(),
-        position_enu_m: [5.0, 0.0, 0.0],
-        velocity_enu_mps: [0.0; 3],
-        yaw_rad: 0.0,
-        flying: false,
-        link: LinkHealth::Ok,
-        battery_pct: None,
-        behavior: None,
-        goal_enu_m: None,
-        mission: None,
-        claim_enu_m: None,
-    };
+    let drone = DroneState::at_rest("drone_7", [5.0, 0.0, 0.0], false);
     let refused = rig.host.apply_bus_state(StateMsg {
         v: WIRE_VERSION,
         node: "kestrel-b".into(),

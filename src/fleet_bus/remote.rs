@@ -257,17 +257,9 @@ mod tests {
 
     fn drone(id: &str, x: f64) -> DroneState {
         DroneState {
-            id: id.into(),
-            position_enu_m: [x, 0.0, 1.0],
             velocity_enu_mps: [0.5, 0.0, 0.0],
-            yaw_rad: 0.0,
-            flying: true,
-            link: LinkHealth::Ok,
-            battery_pct: None,
-            behavior: None,
-            goal_enu_m: None,
-            mission: None,
             claim_enu_m: Some([x + 1.0, 0.0]),
+            ..DroneState::at_rest(id, [x, 0.0, 1.0], true)
         }
     }
 

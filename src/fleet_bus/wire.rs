@@ -137,6 +137,24 @@ fn finite_within(v: &[f64], bound: f64) -> bool {
 }
 
 impl DroneState {
+    /// A drone at rest at `position_enu_m`, its link ok, with nothing else to say (no battery,
+    /// behavior, goal, mission or claim): the base other states are built on.
+    pub fn at_rest(id: &str, position_enu_m: [f64; 3], flying: bool) -> Self {
+        DroneState {
+            id: id.into(),
+            position_enu_m,
+            velocity_enu_mps: [0.0; 3],
+            yaw_rad: 0.0,
+            flying,
+            link: LinkHealth::Ok,
+            battery_pct: None,
+            behavior: None,
+            goal_enu_m: None,
+            mission: None,
+            claim_enu_m: None,
+        }
+    }
+
     fn check(&self) -> Result<(), (&'static str, String)> {
         if !valid_name(&self.id) {
             return Err(("id", "not a valid drone id".into()));
