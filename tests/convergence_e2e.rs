@@ -231,7 +231,11 @@ fn px4_driven_by_position_targets_converges_too() {
     fly_with(Personality::Px4, profile.to_str().unwrap(), 1, &[], HOLDS);
 }
 
-/// PX4 whose own hold wanders as real PX4 SIH's did: every goal still reached (`WANDERS`). It
+/// PX4 whose own hold wanders as real PX4 SIH's did: its velocity estimate is off by the wander
+/// (its velocity loop holds the estimate at the command, so the vehicle flies command plus
+/// wander while the reported velocity shows the command; the position stays true). Kestrel's
+/// velocity check (`[drive] velocity_check_s`) finds that from the position: every goal still
+/// reached (`WANDERS`). It
 /// lands on Kestrel's setpoints (`land = "setpoints"`, the profile's option): PX4's own
 /// AUTO.LAND drifts with the wander (up to 0.6 m), which Kestrel cannot correct.
 fn fly_wandering(seed: u64) {
@@ -247,7 +251,11 @@ fn fly_wandering(seed: u64) {
         Personality::Px4,
         profile.to_str().unwrap(),
         seed,
-        &["--velocity-wander-mps", WANDER_MPS],
+        &[
+            "--velocity-wander-mps",
+            WANDER_MPS,
+            "--velocity-wander-in-estimate",
+        ],
         WANDERS,
     );
 }

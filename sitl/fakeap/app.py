@@ -57,6 +57,9 @@ def parse_args(argv=None):
     ap.add_argument("--latency-ms", type=float, default=0.0, help="added one-way latency, both ways")
     ap.add_argument("--velocity-wander-mps", type=float, default=0.0,
                     help="the autopilot's own velocity-tracking error in the air (OU process, std m/s, 3 s)")
+    ap.add_argument("--velocity-wander-in-estimate", action="store_true",
+                    help="the wander is the velocity estimate's error (as real PX4 SIH's): the reported "
+                         "velocity shows the command while the vehicle flies command + wander")
     ap.add_argument("--telemetry-jitter-ms", type=float, default=0.0,
                     help="telemetry (autopilot to companion) delayed a further 0..J ms at random, order kept")
     ap.add_argument("--reject", action="append", default=[], metavar="CMD:RESULT[:COUNT]",

@@ -64,9 +64,13 @@ class Wander:
     tau_s. Real PX4 SIH holds its own position only to p50 0.2-0.3 m, p95 0.5 m, at up to
     0.65 m/s (BENCHMARKS.md, "Driving PX4"); sigma 0 (the default) turns it off."""
 
-    def __init__(self, sigma_mps=0.0, tau_s=3.0, seed=1):
+    def __init__(self, sigma_mps=0.0, tau_s=3.0, seed=1, in_estimate=False):
         import random
         self.sigma, self.tau = sigma_mps, tau_s
+        # In the estimate (as real PX4 SIH's, by its ground truth): the velocity loop holds the
+        # *estimate* at the command, so the vehicle flies command + wander while the reported
+        # velocity shows the command; the position stays true (telemetry.estimated_vel).
+        self.in_estimate = in_estimate
         self.rng = random.Random(seed)
         self.v = [0.0, 0.0, 0.0]
 

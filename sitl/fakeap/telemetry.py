@@ -41,10 +41,19 @@ class TelemetryMixin:
     def position_valid(self):
         return True
 
+    def estimated_vel(self):
+        """The velocity the estimator reports (ENU): the truth, or with the wander in the
+        estimate (`--velocity-wander-in-estimate`) the truth less the horizontal wander."""
+        b, w = self.model.body, self.model.wander
+        if not w.in_estimate:
+            return list(b.vel)
+        return [b.vel[0] - w.v[0], b.vel[1] - w.v[1], b.vel[2]]
+
     def _ned_state(self):
         b = self.model.body
         n, e, d = self.enu_to_ned(b.pos)
-        vn, ve, vd = b.vel[1], b.vel[0], -b.vel[2]
+        v = self.estimated_vel()
+        vn, ve, vd = v[1], v[0], -v[2]
         return n, e, d, vn, ve, vd
 
     def msg_attitude(self):
@@ -81,12 +90,13 @@ class TelemetryMixin:
             return M.MAVLink_global_position_int_message(self.boot_ms(), 0, 0, 0, 0, 0, 0, 0,
                                                          int(math.degrees(self.yaw_enu_to_ned(self.model.body.yaw_rad)) % 360 * 100))
         b = self.model.body
+        v = self.estimated_vel()
         lat, lon, alt = self.geo()
         rel = b.pos[2] - self.home_enu[2]
         hdg = int((math.degrees(self.yaw_enu_to_ned(b.yaw_rad)) % 360) * 100)
         return M.MAVLink_global_position_int_message(self.boot_ms(), int(lat * 1e7), int(lon * 1e7),
                                                      int(alt * 1000), int(rel * 1000),
-                                                     int(b.vel[1] * 100), int(b.vel[0] * 100), int(-b.vel[2] * 100), hdg)
+                                                     int(v[1] * 100), int(v[0] * 100), int(-v[2] * 100), hdg)
 
     def gps_fix(self):
         return 3, 10

@@ -49,7 +49,8 @@ class Vehicle(TelemetryMixin, SetpointMixin):
         self.boot_count = 0
         x, y, yaw = start_pose
         self.model = Multirotor(x, y, yaw, self.limits(),
-                                wander=Wander(getattr(opts, "velocity_wander_mps", 0.0), seed=opts.seed + 7 * index))
+                                wander=Wander(getattr(opts, "velocity_wander_mps", 0.0), seed=opts.seed + 7 * index,
+                                              in_estimate=getattr(opts, "velocity_wander_in_estimate", False)))
         self.boot()
 
     # ------------------------------------------------------------------ lifecycle

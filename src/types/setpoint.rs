@@ -60,3 +60,28 @@ impl PositionLoop {
         )
     }
 }
+
+impl Setpoint {
+    /// The same setpoint with `offset_enu_mps` added to its velocity (a position target's
+    /// feed-forward): what an autopilot whose velocity estimate is off by that much must hear.
+    pub fn with_velocity_added(self, offset_enu_mps: Vec3) -> Self {
+        match self {
+            Setpoint::Velocity {
+                velocity_enu_mps,
+                yaw,
+            } => Setpoint::Velocity {
+                velocity_enu_mps: velocity_enu_mps + offset_enu_mps,
+                yaw,
+            },
+            Setpoint::Position {
+                position_enu_m,
+                velocity_ff_enu_mps,
+                yaw,
+            } => Setpoint::Position {
+                position_enu_m,
+                velocity_ff_enu_mps: velocity_ff_enu_mps + offset_enu_mps,
+                yaw,
+            },
+        }
+    }
+}

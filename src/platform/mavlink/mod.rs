@@ -44,6 +44,7 @@ pub mod takeover;
 mod testutil;
 pub mod tlog;
 pub mod udp_in;
+pub mod velocity_check;
 
 pub use facade::{start_hub, LinkConfig, LinkError, MavlinkPlatform, TextSender};
 pub use hub::LinkHub;

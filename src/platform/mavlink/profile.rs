@@ -96,6 +96,10 @@ struct RawDrive {
     position_gain_xy_per_s: f64,
     #[serde(default = "unit_gain")]
     position_gain_z_per_s: f64,
+    /// Low-pass time constant of the velocity check (s; absent: no check). See
+    /// [`super::velocity_check`].
+    #[serde(default)]
+    velocity_check_s: Option<f64>,
 }
 
 fn unit_gain() -> f64 {
@@ -113,6 +117,7 @@ impl Default for RawDrive {
             velocity_lag_s: default_lag(),
             position_gain_xy_per_s: 1.0,
             position_gain_z_per_s: 1.0,
+            velocity_check_s: None,
         }
     }
 }
@@ -270,6 +275,9 @@ pub struct Profile {
     pub position_loop: Option<PositionLoop>,
     /// Time constant of the autopilot's velocity response (`[drive] velocity_lag_s`).
     pub velocity_lag: Duration,
+    /// The velocity estimate is checked against the position over this time constant
+    /// (`[drive] velocity_check_s`); `None`: taken as reported.
+    pub velocity_check: Option<Duration>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -465,6 +473,11 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
         message_intervals,
         position_loop,
         velocity_lag: seconds("drive.velocity_lag_s", raw.drive.velocity_lag_s, 0.0, 5.0)?,
+        velocity_check: raw
+            .drive
+            .velocity_check_s
+            .map(|s| seconds("drive.velocity_check_s", s, 0.0, 5.0))
+            .transpose()?,
     })
 }
 

@@ -106,9 +106,16 @@ impl VehicleModel {
     fn local_position(&mut self, now: Duration, p: &LOCAL_POSITION_NED_DATA) {
         let v = [p.x, p.y, p.z, p.vx, p.vy, p.vz];
         if v.iter().all(|x| x.is_finite()) {
+            let position_enu_m = frames::ned_to_enu(p.x.into(), p.y.into(), p.z.into());
+            let mut velocity_enu_mps = frames::ned_to_enu(p.vx.into(), p.vy.into(), p.vz.into());
+            if let Some(check) = self.velocity_check.as_mut() {
+                let time_s = f64::from(p.time_boot_ms) / 1000.0;
+                check.observe(time_s, position_enu_m, velocity_enu_mps);
+                velocity_enu_mps -= check.bias_enu_mps();
+            }
             self.position = Some(LocalPosition {
-                position_enu_m: frames::ned_to_enu(p.x.into(), p.y.into(), p.z.into()),
-                velocity_enu_mps: frames::ned_to_enu(p.vx.into(), p.vy.into(), p.vz.into()),
+                position_enu_m,
+                velocity_enu_mps,
                 at: now,
                 stale: false,
             });

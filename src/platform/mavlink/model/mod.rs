@@ -11,6 +11,7 @@ mod ingest;
 use super::boot_clock::BootClock;
 use super::events::AutopilotText;
 use super::profile::Profile;
+use super::velocity_check::VelocityCheck;
 use crate::types::scan::RangeScan;
 use crate::types::Measurement;
 use crate::types::{Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3};
@@ -99,12 +100,13 @@ pub struct VehicleModel {
     last_error: Option<String>,
     scans: VecDeque<RangeScan>,
     dropped_scans: u64,
+    /// The velocity estimate against the position (the profile's `velocity_check`).
+    velocity_check: Option<VelocityCheck>,
 }
 
 impl VehicleModel {
     pub fn new(profile: Profile, wanted_system: Option<u8>) -> Self {
         Self {
-            profile,
             wanted_system,
             autopilot: None,
             wrong_autopilot: None,
@@ -129,6 +131,10 @@ impl VehicleModel {
             last_error: None,
             scans: VecDeque::new(),
             dropped_scans: 0,
+            velocity_check: profile
+                .velocity_check
+                .map(|t| VelocityCheck::new(t.as_secs_f64())),
+            profile,
         }
     }
 
@@ -316,6 +322,17 @@ impl VehicleModel {
         self.landed_state = None;
         self.origin_seen = false;
         self.reset_counter += 1;
+        if let Some(check) = self.velocity_check.as_mut() {
+            check.reset();
+        }
+    }
+
+    /// What to add to a velocity sent so the vehicle flies it: the bias of the autopilot's
+    /// velocity estimate (ENU, m/s; zero without the check).
+    pub fn velocity_bias_enu_mps(&self) -> Vec3 {
+        self.velocity_check
+            .as_ref()
+            .map_or_else(Vec3::zeros, VelocityCheck::bias_enu_mps)
     }
 
     /// The vehicle is in the air by its landed state (taking off, flying or landing).
@@ -366,6 +383,38 @@ mod tests {
         m.ingest(Duration::ZERO, &ap(), &h);
         let reason = m.readiness(Duration::ZERO).unwrap_err().to_string();
         assert!(reason.contains("expects MAV_AUTOPILOT 12"), "{reason}");
+    }
+
+    /// PX4's profile checks the velocity estimate against the position: a vehicle standing
+    /// still whose estimate says 0.6 m/s north is read as standing still, and a velocity sent
+    /// to it gets the bias added (PX4 holds its estimate at what it hears).
+    #[test]
+    fn a_velocity_estimate_the_position_contradicts_is_corrected_both_ways() {
+        let mut m = VehicleModel::new(px4_profile(), None);
+        m.ingest(Duration::ZERO, &ap(), &hb(0, false));
+        for i in 0..50 {
+            let lp = MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+                time_boot_ms: 1000 + 20 * i,
+                x: 2.0,
+                y: 1.0,
+                z: -3.0,
+                vx: 0.6,
+                ..LOCAL_POSITION_NED_DATA::DEFAULT
+            });
+            m.ingest(Duration::from_millis(u64::from(20 * i)), &ap(), &lp);
+        }
+        let Some(Measurement::AutopilotOdometry {
+            velocity_enu_mps, ..
+        }) = m.odometry(Duration::from_millis(1000))
+        else {
+            panic!("no odometry");
+        };
+        assert!(velocity_enu_mps.norm() < 0.01, "{velocity_enu_mps:?}");
+        let bias = m.velocity_bias_enu_mps();
+        assert!((bias - Vec3::new(0.0, 0.6, 0.0)).norm() < 0.01, "{bias:?}");
+        // ArduPilot's profile takes the velocity as reported.
+        let m = VehicleModel::new(testutil::ardupilot_profile(), None);
+        assert!(m.velocity_check.is_none());
     }
 
     #[test]

@@ -412,6 +412,7 @@ impl Session {
             let boot_ms = u32::try_from(now.as_millis()).unwrap_or(u32::MAX);
             self.stats.setpoints_sent += 1;
             self.last_setpoint_at = Some(now);
+            let sp = sp.with_velocity_added(self.model.velocity_bias_enu_mps());
             let msg = setpoint::encode(&sp, boot_ms, system, component);
             self.push(MavMessage::SET_POSITION_TARGET_LOCAL_NED(msg));
         }
