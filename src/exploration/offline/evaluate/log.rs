@@ -2,7 +2,9 @@
 //! with `t`, `drone`, `x`, `y`, `z`, `yaw` and no `type`).
 //!
 //! In: the log's text. Out: the [`PoseSample`]s in file order. Records of other types and
-//! blank lines are skipped; a line over 1 MiB, a line that is not JSON, or a pose record
+//! blank lines are skipped, and so are poses whose `flight` says the motors are off
+//! (`disarmed`): such a vehicle is on the ground whatever height it reads (PX4 reports a
+//! vehicle resting on the ground up to 1 m above its home, and its estimate may creep there); a line over 1 MiB, a line that is not JSON, or a pose record
 //! missing a numeric field is an error naming the line.
 //!
 //! A fleet flown by several Kestrels (the fleet bus) leaves one log per node:
@@ -25,6 +27,7 @@ struct Record {
     z: Option<f64>,
     yaw: Option<f64>,
     unix_s: Option<f64>,
+    flight: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -56,6 +59,9 @@ pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
             Some(_) => continue,
             None => false,
         };
+        if r.flight.as_deref() == Some("disarmed") {
+            continue;
+        }
         let fields = [r.t, r.x, r.y, r.z, r.yaw];
         if !typed_pose && (r.drone.is_none() || fields.iter().any(Option::is_none)) {
             continue;
@@ -171,6 +177,17 @@ mod tests {
         assert_eq!(poses[0].drone, "d0");
         assert_eq!((poses[0].x_m, poses[0].yaw_rad), (1.0, 0.5));
         assert_eq!((poses[1].drone.as_str(), poses[1].z_m), ("3", 1.0));
+    }
+
+    #[test]
+    fn a_disarmed_vehicle_is_on_the_ground_whatever_height_it_reads() {
+        let text = r#"{"t":0.0,"drone":"d0","type":"pose","x":1,"y":2,"z":0.4,"yaw":0,"flight":"disarmed"}
+{"t":0.1,"drone":"d0","type":"pose","x":1,"y":2,"z":0.4,"yaw":0,"flight":"landed"}
+{"t":0.2,"drone":"d0","type":"pose","x":1,"y":2,"z":1.0,"yaw":0,"flight":"flying"}
+"#;
+        let poses = poses_from_log(text).unwrap();
+        let times: Vec<f64> = poses.iter().map(|p| p.t_s).collect();
+        assert_eq!(times, [0.1, 0.2]);
     }
 
     #[test]
