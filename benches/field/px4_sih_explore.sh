@@ -4,8 +4,9 @@
 # with `POST /api/exploration/start` (every `explore` argument at its default unless ARGS says
 # otherwise). Each instance is put at the world's start for three drones (`origin_enu_m`).
 # Prints how each drone's exploration ended, the least clearance to the world's obstacles it
-# flew (from the flight log, `kestrel evaluate`), the area seen, and the tracking margin each
-# explorer added to its safety distance.
+# flew (from the flight log, `kestrel evaluate`), the area seen, the tracking margin each
+# explorer added to its safety distance, and each drone's true horizontal speed (SIH's ground
+# truth, HIL_STATE_QUATERNION, recorded from PX4's GCS link) against the exploring speed.
 #
 #   bash benches/field/px4_sih_explore.sh [WORLD] [RUN_NAME]     (ARGS='{"safety_distance":0.5}')
 #
@@ -43,6 +44,10 @@ for i in 0 1 2; do
 done
 sleep 2
 rm -rf "$out/state-$name"
+# Every PX4's GCS link sends to 14550: one witness records their ground truth.
+sitl/.venv/bin/python benches/field/listen.py udpin:127.0.0.1:14550 $((limit + 300)) "$out/$name.gcs.jsonl" \
+    HIL_STATE_QUATERNION &
+listener=$!
 "$bin" run --config "$out/$name.toml" --virtual-world "$world" --listen "127.0.0.1:$port" \
     --log "$out/$name.jsonl" --log-overwrite --state-dir "$out/state-$name" > "$out/$name.out" 2>&1 &
 kestrel=$!
@@ -90,6 +95,24 @@ print(f"wall {time.time() - start:.0f} s")
 PY
 sleep 3
 kill -INT "$kestrel" 2> /dev/null; wait "$kestrel" 2> /dev/null
+kill "$listener" 2> /dev/null; wait "$listener" 2> /dev/null
 for i in 0 1 2; do bash "$anchors/run-px4-sih.sh" "$i" stop > /dev/null; done
+python3 - "$out/$name.gcs.jsonl" "$args" <<'PY'
+import json, math, sys
+speed = json.loads(sys.argv[2]).get("speed", 0.75)
+by = {}
+for line in open(sys.argv[1]):
+    h = json.loads(line)
+    by.setdefault(h["_src"][0], []).append(h)
+for sysid, rows in sorted(by.items()):
+    ground = rows[0]["alt"] / 1000
+    v = sorted(math.hypot(h["vx"], h["vy"]) / 100 for h in rows if h["alt"] / 1000 - ground > 0.6)
+    if not v:
+        print(f"truth, system {sysid}: never above 0.6 m")
+        continue
+    over = sum(x > speed * 1.03 for x in v) / len(v)
+    print(f"truth, system {sysid}: horizontal speed p50 {v[len(v) // 2]:.2f} p99 {v[int(0.99 * len(v))]:.2f} "
+          f"max {v[-1]:.2f} m/s; {100 * over:.1f} % over {speed} m/s + 3 %")
+PY
 "$bin" evaluate --world "$world" --log "$out/$name.jsonl" --out "$out/$name.eval.json" 2>&1 | grep -E "area|clearance|collision|time" | head -6
 grep -E "strays up to|virtual collision" "$out/$name.out" | sed -E 's/^[^ ]+ +//' | head -12
