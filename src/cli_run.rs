@@ -379,7 +379,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
         let core = DroneCore::new(
             core_config,
             platform.capabilities(),
-            kestrel::host::payload::registry(),
+            kestrel::behavior::payload::registry(),
         );
         fleet.push((core, platform));
     }

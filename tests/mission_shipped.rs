@@ -4,9 +4,9 @@
 
 mod mission_rig;
 
-use kestrel::host::scenario::Scenario;
 use kestrel::mission::schema::mission_schema;
 use kestrel::mission::{Action, ItemResult};
+use kestrel::scenario::file::Scenario;
 use kestrel::scenario::SimulatedHost;
 use kestrel::types::Vec3;
 use mission_rig::Rig;
@@ -55,7 +55,7 @@ fn the_demo_mission_file_is_the_demo_the_simulator_flies() {
 
 #[test]
 fn the_schema_file_is_generated_from_this_build() {
-    let generated = mission_schema(&kestrel::host::payload::registry());
+    let generated = mission_schema(&kestrel::behavior::payload::registry());
     let on_disk = read(&dir().join("schema.json"));
     assert!(
         generated == on_disk,

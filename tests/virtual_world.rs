@@ -88,7 +88,7 @@ impl Flight {
         let core = DroneCore::new(
             core_config,
             platform.capabilities(),
-            kestrel::host::payload::registry(),
+            kestrel::behavior::payload::registry(),
         );
         let host = virtual_world_host(vec![(core, Box::new(platform))], &config, world);
         Self {

@@ -10,13 +10,9 @@
 pub mod bus_link;
 pub mod coverage;
 pub mod engine;
-pub mod logwriter;
 pub mod map_view;
-pub mod payload;
 pub mod runtime;
 pub mod scans;
-pub mod scenario;
-pub mod scenario_coverage;
 pub mod status;
 pub mod store;
 pub mod vehicle;

@@ -5,10 +5,10 @@
 //! with the world handed to it as the truth of its exploration reports; [`SimulatedHost`] reads
 //! the simulator's world back from such a host.
 
+use crate::behavior::payload;
 use crate::config::Config;
 use crate::core::{CoreConfig, DroneCore};
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::host::payload;
 use crate::host::{Host, HostConfig};
 use crate::mapping::config::MapConfig;
 use crate::mapping::merged::FleetMap;
