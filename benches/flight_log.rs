@@ -1,5 +1,5 @@
 //! Benchmark (BENCHMARKS.md, "MCAP flight logs"): CPU per record of the two log formats, on
-//! the writer thread (`host::logwriter`; the control thread's part, a record made into a JSON
+//! the writer thread (`flightlog::writer`; the control thread's part, a record made into a JSON
 //! line, is the same for both) and the bytes each format writes per record, for one minute of
 //! three drones' pose records at 10 Hz with their events.
 //!

@@ -8,8 +8,8 @@
 
 use kestrel::config::Config;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
-use kestrel::host::sim::simulated_host;
 use kestrel::mission::{Action, MissionUpdate};
+use kestrel::scenario::sim_host::simulated_host;
 use kestrel::sim::world::{Cylinder, World};
 use kestrel::types::SensorConfig;
 use rand::{Rng, SeedableRng};

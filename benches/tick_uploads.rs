@@ -11,9 +11,9 @@
 use kestrel::api::{self, ApiState};
 use kestrel::config::Config;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
-use kestrel::host::sim::simulated_host;
 use kestrel::host::store;
 use kestrel::mission::{Action, MissionUpdate};
+use kestrel::scenario::sim_host::simulated_host;
 use kestrel::sim::world::World;
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -6,11 +6,11 @@
 //! Out: the flights (drone index, mission id) whose outcome decides the exit status, and
 //! console lines.
 
-use kestrel::host::demo::{as_mission, demo_plan};
 use kestrel::host::runtime::HostHandle;
 use kestrel::host::status::{DroneStatus, HostSnapshot};
 use kestrel::host::Command;
 use kestrel::mission::{Action, MissionUpdate};
+use kestrel::scenario::demo::{as_mission, demo_plan};
 use kestrel::types::{LinkHealth, Vec3};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;

@@ -4,8 +4,8 @@
 use crate::cli_sim::{self, SimArgs};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use kestrel::host::scenario::Scenario;
 use kestrel::mission::schema::mission_schema;
+use kestrel::scenario::file::Scenario;
 use std::path::PathBuf;
 
 #[derive(Subcommand, Debug)]
@@ -95,7 +95,7 @@ pub fn run(command: MissionCommand) -> Result<()> {
             state_dir: None,
         }),
         MissionCommand::Schema => {
-            let schema = mission_schema(&kestrel::host::payload::registry());
+            let schema = mission_schema(&kestrel::behavior::payload::registry());
             println!("{}", serde_json::to_string_pretty(&schema)?);
             Ok(())
         }

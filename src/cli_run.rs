@@ -29,10 +29,11 @@ use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
-use kestrel::host::vehicle::{vehicle_host, virtual_world_host};
+use kestrel::host::vehicle::vehicle_host;
 use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform, TextSender};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
+use kestrel::scenario::virtual_world::virtual_world_host;
 use kestrel::sim::spatial::ShapeIndex;
 use kestrel::sim::virtual_world::{VirtualRanges, VirtualSensors};
 use kestrel::sim::{Environment, SimWorld};
@@ -378,7 +379,7 @@ async fn run_async(args: RunArgs) -> Result<()> {
         let core = DroneCore::new(
             core_config,
             platform.capabilities(),
-            kestrel::host::payload::registry(),
+            kestrel::behavior::payload::registry(),
         );
         fleet.push((core, platform));
     }

@@ -5,8 +5,8 @@ use crate::cli_flights::{self, Flights};
 use anyhow::{Context, Result};
 use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
+use kestrel::flightlog::writer::{self, LogFile};
 use kestrel::flightlog::{files, LogFormat};
-use kestrel::host::logwriter::{self, LogFile};
 use kestrel::host::runtime::{self, HostHandle, Pace, RuntimeOptions};
 use kestrel::host::status::{EventBody, HostEvent, SharedEvent};
 use kestrel::host::{store, Host};
@@ -200,7 +200,7 @@ pub fn header(info: &RunInfo) -> serde_json::Value {
 
 /// Creates this run's flight log (never opening an existing file unless told to) and prunes
 /// old logs of its kind.
-pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile)> {
+pub fn open_log(choice: &LogChoice) -> Result<(writer::ChannelWriter, LogFile)> {
     let (file, path) = match &choice.explicit {
         Some(path) => {
             let file = files::create_at(path, choice.overwrite)
@@ -223,7 +223,7 @@ pub fn open_log(choice: &LogChoice) -> Result<(logwriter::ChannelWriter, LogFile
             (file, path)
         }
     };
-    logwriter::open(file, &path, choice.format)
+    writer::open(file, &path, choice.format)
         .with_context(|| format!("starting the writer of {}", path.display()))
 }
 

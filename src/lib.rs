@@ -29,5 +29,6 @@ pub mod planning;
 pub mod platform;
 pub mod report;
 pub mod safety;
+pub mod scenario;
 pub mod sim;
 pub mod types;

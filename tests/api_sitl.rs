@@ -84,7 +84,7 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
     let core = DroneCore::new(
         core_config,
         platform.capabilities(),
-        kestrel::host::payload::registry(),
+        kestrel::behavior::payload::registry(),
     );
     let host = vehicle_host(vec![(core, Box::new(platform))], &config);
     let (_stop, stop_rx) = tokio::sync::watch::channel(false);

@@ -5,7 +5,7 @@
 use kestrel::config::Config;
 use kestrel::host::engine::Command;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions, MAX_COMMANDS_PER_TICK};
-use kestrel::host::sim::simulated_host;
+use kestrel::scenario::sim_host::simulated_host;
 use kestrel::sim::world::World;
 use std::time::Duration;
 

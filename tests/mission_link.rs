@@ -10,6 +10,7 @@ use kestrel::behavior::FailureCode;
 use kestrel::config::Config;
 use kestrel::mission::executor::LinkRegained;
 use kestrel::mission::{Action, ExecState, ItemResult};
+use kestrel::scenario::SimulatedHost;
 use mission_rig::{square, Rig};
 use serde_json::json;
 

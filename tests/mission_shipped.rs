@@ -4,9 +4,10 @@
 
 mod mission_rig;
 
-use kestrel::host::scenario::Scenario;
 use kestrel::mission::schema::mission_schema;
 use kestrel::mission::{Action, ItemResult};
+use kestrel::scenario::file::Scenario;
+use kestrel::scenario::SimulatedHost;
 use kestrel::types::Vec3;
 use mission_rig::Rig;
 use serde_json::Value;
@@ -35,8 +36,9 @@ fn missions() -> Vec<PathBuf> {
 #[test]
 fn the_demo_mission_file_is_the_demo_the_simulator_flies() {
     let config = kestrel::config::Config::default();
-    let host = kestrel::host::simulated_host(kestrel::sim::world::World::empty(), 1, 0, &config);
-    let flown = kestrel::host::demo::demo_missions(host.sim_world().unwrap());
+    let host =
+        kestrel::scenario::simulated_host(kestrel::sim::world::World::empty(), 1, 0, &config);
+    let flown = kestrel::scenario::demo::demo_missions(host.sim_world().unwrap());
     let on_disk = read(&dir().join("demo.json"));
     if std::env::var_os("KESTREL_WRITE_DEMO").is_some() {
         std::fs::write(
@@ -53,7 +55,7 @@ fn the_demo_mission_file_is_the_demo_the_simulator_flies() {
 
 #[test]
 fn the_schema_file_is_generated_from_this_build() {
-    let generated = mission_schema(&kestrel::host::payload::registry());
+    let generated = mission_schema(&kestrel::behavior::payload::registry());
     let on_disk = read(&dir().join("schema.json"));
     assert!(
         generated == on_disk,

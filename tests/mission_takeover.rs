@@ -12,6 +12,7 @@ use kestrel::host::status::EventBody;
 use kestrel::host::HostEvent;
 use kestrel::mission::executor::InFlightFailure;
 use kestrel::mission::{Action, ExecState, ItemResult};
+use kestrel::scenario::SimulatedHost;
 use mission_rig::Rig;
 use serde_json::json;
 

@@ -5,8 +5,8 @@ mod common;
 
 use common::Harness;
 use common::SimConfig;
-use kestrel::host::demo::demo_missions;
 use kestrel::mission::{Action, MissionEnded, MissionUpdate};
+use kestrel::scenario::demo::demo_missions;
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::Vec3;

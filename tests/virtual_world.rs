@@ -10,11 +10,11 @@ use kestrel::behavior::{BehaviorEvent, BehaviorId, BehaviorResult, FailureCode};
 use kestrel::config::Config;
 use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
 use kestrel::host::status::{EventBody, HostEvent};
-use kestrel::host::vehicle::virtual_world_host;
 use kestrel::host::Host;
 use kestrel::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD;
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
+use kestrel::scenario::virtual_world::virtual_world_host;
 use kestrel::sim::dynamics::MultirotorParams;
 use kestrel::sim::spatial::ShapeIndex;
 use kestrel::sim::vehicle::SimVehicle;
@@ -88,7 +88,7 @@ impl Flight {
         let core = DroneCore::new(
             core_config,
             platform.capabilities(),
-            kestrel::host::payload::registry(),
+            kestrel::behavior::payload::registry(),
         );
         let host = virtual_world_host(vec![(core, Box::new(platform))], &config, world);
         Self {

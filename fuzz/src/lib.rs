@@ -110,7 +110,7 @@ struct MissionRig {
 fn mission_rig() -> &'static MissionRig {
     static RIG: OnceLock<MissionRig> = OnceLock::new();
     RIG.get_or_init(|| MissionRig {
-        registry: kestrel::host::payload::registry(),
+        registry: kestrel::behavior::payload::registry(),
         limits: Limits::default(),
         frames: FrameTree::new(),
         geo_origin: GeodeticOrigin::default(),

@@ -25,7 +25,7 @@ pub mod web;
 pub mod ws;
 
 use crate::config::ApiSection;
-use crate::host::logwriter::LogFile;
+use crate::flightlog::writer::LogFile;
 use crate::host::store::Sink;
 use crate::host::HostHandle;
 use axum::extract::DefaultBodyLimit;

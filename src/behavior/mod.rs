@@ -21,6 +21,7 @@ mod hover;
 mod land;
 mod nav_path;
 mod navigate_to;
+pub mod payload;
 mod progress;
 mod registry;
 mod rotate;

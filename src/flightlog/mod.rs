@@ -32,6 +32,7 @@ pub mod grid;
 pub mod mcap_log;
 pub mod reader;
 pub mod scene;
+pub mod writer;
 
 use crate::behavior::BehaviorEvent;
 use crate::types::{Setpoint, VehicleState};

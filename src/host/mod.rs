@@ -9,23 +9,15 @@
 #[cfg(feature = "fleet-bus")]
 pub mod bus_link;
 pub mod coverage;
-pub mod demo;
 pub mod engine;
-pub mod fleet;
-pub mod logwriter;
 pub mod map_view;
-pub mod payload;
 pub mod runtime;
 pub mod scans;
-pub mod scenario;
-pub mod scenario_coverage;
-pub mod sim;
 pub mod status;
 pub mod store;
 pub mod vehicle;
 
+pub use crate::platform::fleet::Fleet;
 pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};
-pub use fleet::{Fleet, SimFleet};
 pub use runtime::{HostHandle, Pace, RuntimeOptions};
-pub use sim::simulated_host;
 pub use status::{DroneStatus, HostEvent, HostSnapshot};

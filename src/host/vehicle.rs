@@ -1,7 +1,8 @@
 //! A host flying real vehicles: one core per [`Platform`] (a MAVLink autopilot), ticked in
 //! real time. `kestrel run` builds its core and platform, then serves this host.
 //!
-//! In: cores and their platforms, the config, the virtual world if any. Out: a [`Host`] over
+//! In: cores and their platforms, the config, the bounds of a virtual world if any. Out: a
+//! [`Host`] over
 //! `Vec<Box<dyn Platform>>`, with the fleet's merged map on the `[map]` section's grid (the one
 //! the cores map on), so the frontier allocator of exploration and the map routes work as in the
 //! simulator.
@@ -11,7 +12,6 @@ use crate::config::Config;
 use crate::core::DroneCore;
 use crate::mapping::merged::FleetMap;
 use crate::platform::Platform;
-use crate::sim::world::World;
 use crate::types::Vec2;
 use std::time::Duration;
 
@@ -20,22 +20,11 @@ pub fn vehicle_host(vehicles: Vec<(DroneCore, Box<dyn Platform>)>, config: &Conf
     framed_host(vehicles, config, None)
 }
 
-/// The same host for vehicles flying in a virtual world (`kestrel run --virtual-world`, their
-/// platforms wrapped in `sim::virtual_world`): the merged map framed on the world's bounds
-/// unless `[map]` gives its extent (as in the simulator; the cores' maps must be built from
-/// the same section and bounds), and the world kept as the truth the exploration report judges
-/// runs against.
-pub fn virtual_world_host(
-    vehicles: Vec<(DroneCore, Box<dyn Platform>)>,
-    config: &Config,
-    world: World,
-) -> Host {
-    let mut host = framed_host(vehicles, config, Some(world.bounds_m.corners()));
-    host.set_virtual_world(world);
-    host
-}
-
-fn framed_host(
+/// The same host with the merged map framed on `world_bounds` (SW and NE corners, ENU m)
+/// unless `[map]` gives its extent: for vehicles flying in a virtual world
+/// (`scenario::virtual_world`), as in the simulator; the cores' maps must be built from the
+/// same section and bounds.
+pub fn framed_host(
     vehicles: Vec<(DroneCore, Box<dyn Platform>)>,
     config: &Config,
     world_bounds: Option<(Vec2, Vec2)>,
@@ -88,13 +77,34 @@ mod tests {
     use super::*;
     use crate::behavior::Registry;
     use crate::core::CoreConfig;
-    use crate::sim::dynamics::MultirotorParams;
-    use crate::sim::vehicle::SimVehicle;
-    use crate::types::Vec3;
+    use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest};
+    use crate::types::{AcceptedSetpoints, Setpoint, Vec3};
+
+    /// A vehicle that stays on the ground and reports nothing: what hosting needs of one.
+    struct Grounded;
+
+    impl Platform for Grounded {
+        fn capabilities(&self) -> Capabilities {
+            Capabilities {
+                setpoints: AcceptedSetpoints {
+                    velocity: true,
+                    position: true,
+                    position_loop: None,
+                },
+                native_takeoff: false,
+                native_land: false,
+                velocity_lag_s: None,
+            }
+        }
+        fn poll(&mut self, _now: Duration) -> PlatformFeedback {
+            PlatformFeedback::default()
+        }
+        fn command(&mut self, _: Duration, _: Option<Setpoint>, _: &[PlatformRequest]) {}
+    }
 
     #[test]
     fn any_platform_can_be_hosted() {
-        let vehicle = SimVehicle::new(Vec3::zeros(), 0.0, MultirotorParams::default());
+        let vehicle = Grounded;
         let core = DroneCore::new(
             CoreConfig::new("drone_0"),
             vehicle.capabilities(),
@@ -114,7 +124,7 @@ mod tests {
         config.map.size_m = Some([12.0, 12.0]);
         let mut core_config = CoreConfig::new("drone_0");
         core_config.map = config.map.config(None).unwrap();
-        let vehicle = SimVehicle::new(Vec3::zeros(), 0.0, MultirotorParams::default());
+        let vehicle = Grounded;
         let core = DroneCore::new(
             core_config,
             vehicle.capabilities(),

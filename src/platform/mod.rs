@@ -5,6 +5,7 @@
 //! platform it flies; the MAVLink implementation lives in `platform::mavlink`, and
 //! `platform::shifted` moves a vehicle's local frame into a fleet's shared one.
 
+pub mod fleet;
 pub mod mavlink;
 pub mod shifted;
 

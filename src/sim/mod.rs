@@ -6,6 +6,7 @@
 //! sensor against a world's obstacles instead (`kestrel run --virtual-world`).
 
 pub mod dynamics;
+pub mod fleet;
 pub mod sensors;
 pub mod shape;
 pub mod spatial;

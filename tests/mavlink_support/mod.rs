@@ -467,7 +467,7 @@ pub const DEMO: &[&str] = &[
 pub fn demo_targets() -> Vec<[f64; 3]> {
     let mut targets = Vec::new();
     let mut last = [0.0, 0.0, 0.0];
-    for (behavior, goal) in kestrel::host::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0) {
+    for (behavior, goal) in kestrel::scenario::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0) {
         let point = |v: &Value| {
             [
                 v[0].as_f64().unwrap(),
@@ -620,9 +620,9 @@ impl Api {
 
 /// The demo flight from the origin, as mission JSON for drone 0.
 pub fn demo_mission() -> Value {
-    kestrel::host::demo::as_mission(
+    kestrel::scenario::demo::as_mission(
         "drone_0",
-        kestrel::host::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0),
+        kestrel::scenario::demo::demo_plan(kestrel::types::Vec3::zeros(), 0.0),
     )
 }
 

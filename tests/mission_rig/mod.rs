@@ -5,8 +5,9 @@ use kestrel::behavior::BehaviorEvent;
 use kestrel::config::Config;
 use kestrel::host::engine::{HostError, Updated};
 use kestrel::host::status::EventBody;
-use kestrel::host::{simulated_host, Host, HostEvent};
+use kestrel::host::{Host, HostEvent};
 use kestrel::mission::{Action, MissionStatus, MissionUpdate};
+use kestrel::scenario::simulated_host;
 use kestrel::sim::world::World;
 use serde_json::{json, Value};
 

@@ -27,6 +27,10 @@ use crate::sim::world::World;
 use raster::Raster;
 use serde::Serialize;
 
+/// The true world a run is judged against (a world file's obstacles and bounds), as those who
+/// only hand it to the evaluator name it.
+pub type TrueWorld = World;
+
 /// One pose of one drone, as logged (ENU m, rad, log seconds).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseSample {

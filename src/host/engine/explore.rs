@@ -9,12 +9,11 @@
 //! back the ones started before it.
 
 use super::{Host, HostError};
-use crate::exploration::offline::evaluate::PoseSample;
+use crate::exploration::offline::evaluate::{PoseSample, TrueWorld};
 use crate::exploration::online::progress::{
     DronePose, ExplorationRun, LiveReport, ProgressView, RunDrone, RunDroneView,
 };
 use crate::mission::{Action, ActionError, ExecState, MissionUpdate, ValidationError};
-use crate::sim::world::World;
 use serde::Serialize;
 use serde_json::{json, Value};
 use std::sync::Arc;
@@ -42,7 +41,7 @@ pub struct ReportInput {
     pub live: LiveReport,
     /// The simulator's true world, or the virtual world of real vehicles; `None` on real
     /// vehicles in the real world.
-    pub world: Option<World>,
+    pub world: Option<TrueWorld>,
     /// The run's pose samples in order, in shared chunks.
     pub samples: Vec<Arc<[PoseSample]>>,
 }
@@ -307,10 +306,10 @@ impl Host {
         Some(ProgressView::of(run, self.now, drones))
     }
 
-    /// Judges explorations against `world`, where real vehicles fly with virtual range sensors
-    /// (`sim::virtual_world`): their reports get the evaluator's metrics as in the simulator.
-    pub fn set_virtual_world(&mut self, world: World) {
-        self.virtual_world = Some(Box::new(world));
+    /// Judges explorations against `world`: the simulator's, or the virtual world real vehicles
+    /// fly in with virtual range sensors. Their reports get the evaluator's metrics.
+    pub fn set_true_world(&mut self, world: TrueWorld) {
+        self.truth = Some(Box::new(world));
     }
 
     /// What the report needs; `not_found`-like `NotSupported` before any exploration.
@@ -334,10 +333,7 @@ impl Host {
         };
         Ok(ReportInput {
             live,
-            world: self
-                .sim_world()
-                .map(|w| w.world.clone())
-                .or_else(|| self.virtual_world.as_deref().cloned()),
+            world: self.truth.as_deref().cloned(),
             samples: run.sample_chunks(),
         })
     }

@@ -21,12 +21,12 @@ pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 pub use frames::{FrameRegistration, MAX_FRAMES};
 pub use missions::{MissionView, Updated, Uploaded, ValidatedUpload};
 
-use super::fleet::Fleet;
 use super::status::{BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::{Change, Sink};
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
+use crate::exploration::offline::evaluate::TrueWorld;
 use crate::exploration::online::progress::ExplorationRun;
 use crate::exploration::online::service::{ExplorationView, RemoteClaim};
 use crate::exploration::online::worker::{ExploreJob, FrontierWorker};
@@ -38,10 +38,11 @@ use crate::mission::executor::ExecutorConfig;
 use crate::mission::executor::ExecutorSnapshot;
 use crate::mission::{ActionError, Limits, MissionExecutor, ValidationError};
 use crate::planning::worker::{Delivery, PlanWorker};
-use crate::sim::SimWorld;
+use crate::platform::fleet::Fleet;
 use crate::types::FleetView;
 use crate::types::LinkHealth;
 use serde::{Deserialize, Serialize};
+use std::any::Any;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
@@ -134,9 +135,9 @@ pub struct Host {
     remote: Option<RemoteFleet>,
     /// The fleet bus's last report, for the snapshot.
     bus_report: Option<BusReport>,
-    /// The world real vehicles fly in virtually (`kestrel run --virtual-world`), the truth the
-    /// exploration report judges against where the simulator's is absent.
-    virtual_world: Option<Box<crate::sim::world::World>>,
+    /// The true world the exploration report judges runs against, handed in by whoever built
+    /// the host over a simulated fleet or a virtual world; `None` in the real world.
+    truth: Option<Box<TrueWorld>>,
 }
 
 impl Host {
@@ -173,7 +174,7 @@ impl Host {
             frames_committed: 0,
             remote: None,
             bus_report: None,
-            virtual_world: None,
+            truth: None,
         }
     }
 
@@ -274,14 +275,16 @@ impl Host {
         &self.fleet_view
     }
 
-    /// The simulator's world (ground truth), `None` when flying real vehicles.
-    pub fn sim_world(&self) -> Option<&SimWorld> {
-        self.fleet.sim_world()
+    /// The fleet as the type it was built with (`None` for another type): how whoever built
+    /// the host over a fleet of its own reaches it again (the simulator's ground truth).
+    pub fn fleet_as<T: Fleet>(&self) -> Option<&T> {
+        (self.fleet.as_ref() as &dyn Any).downcast_ref()
     }
 
-    /// The simulator's world, to change the weather or the obstacles mid-run.
-    pub fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
-        self.fleet.sim_world_mut()
+    /// The fleet as the type it was built with, to change it mid-run (the simulator's weather,
+    /// a pilot taking over a simulated vehicle).
+    pub fn fleet_as_mut<T: Fleet>(&mut self) -> Option<&mut T> {
+        (self.fleet.as_mut() as &mut dyn Any).downcast_mut()
     }
 
     /// Sends a behavior command straight to one drone's behavior server, bypassing missions

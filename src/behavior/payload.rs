@@ -4,7 +4,7 @@
 //!
 //! In: goals and the vehicle state. Out: `PointGimbal` / `TakePhoto` platform requests.
 
-use crate::behavior::{
+use super::{
     check_non_negative, Behavior, BehaviorContext, BehaviorSpec, Failure, FailureCode, FramedPoint,
     Goal, GoalError, Registry, Resource, Step,
 };

@@ -1,83 +1,14 @@
-//! The vehicles a host flies: any list of [`Platform`]s, or the built-in simulator's world.
+//! The simulator's world as a fleet a host flies (`platform::fleet::Fleet`).
 //!
-//! In: per vehicle, each tick's setpoint and requests. Out: per vehicle, platform feedback;
-//! alerts (collisions) from the simulator. The simulator also advances its physics between
-//! ticks and can pretend a vehicle's link is lost (fault injection for tests).
+//! In: per vehicle, each tick's setpoint and requests; the tick to advance the physics by; link
+//! cuts (fault injection for tests). Out: per vehicle, platform feedback; each crash once, as an
+//! alert.
 
-use crate::control::Setpoint;
+use super::SimWorld;
+use crate::platform::fleet::{FaultError, Fleet};
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use crate::sim::SimWorld;
-use crate::types::LinkHealth;
+use crate::types::{LinkHealth, Setpoint};
 use std::time::Duration;
-
-/// Why a fault could not be injected.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum FaultError {
-    #[error("fault injection is only available in the simulator")]
-    NotSimulated,
-    #[error("no vehicle {0}")]
-    NoVehicle(usize),
-}
-
-/// What a host needs from its vehicles.
-pub trait Fleet: Send {
-    fn len(&self) -> usize;
-    fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    fn capabilities(&self, i: usize) -> Option<Capabilities>;
-    fn poll(&mut self, i: usize, now: Duration) -> PlatformFeedback;
-    fn command(
-        &mut self,
-        i: usize,
-        now: Duration,
-        setpoint: Option<Setpoint>,
-        requests: &[PlatformRequest],
-    );
-    /// Called once per tick after every vehicle was commanded; real vehicles do nothing.
-    fn advance(&mut self, _now: Duration, _tick: Duration) {}
-    /// New alerts since the last call: (vehicle index, message).
-    fn take_alerts(&mut self) -> Vec<(usize, String)> {
-        Vec::new()
-    }
-    /// Fault injection: cut (`true`) or restore a vehicle's link. Only the simulator can.
-    fn set_link_lost(&mut self, _i: usize, _lost: bool) -> Result<(), FaultError> {
-        Err(FaultError::NotSimulated)
-    }
-    fn is_simulated(&self) -> bool {
-        false
-    }
-    /// The simulator's world (ground truth for tests and benches); `None` for real vehicles.
-    fn sim_world(&self) -> Option<&SimWorld> {
-        None
-    }
-    fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
-        None
-    }
-}
-
-impl Fleet for Vec<Box<dyn Platform>> {
-    fn len(&self) -> usize {
-        <[Box<dyn Platform>]>::len(self)
-    }
-    fn capabilities(&self, i: usize) -> Option<Capabilities> {
-        self.get(i).map(|p| p.capabilities())
-    }
-    fn poll(&mut self, i: usize, now: Duration) -> PlatformFeedback {
-        self.get_mut(i).map(|p| p.poll(now)).unwrap_or_default()
-    }
-    fn command(
-        &mut self,
-        i: usize,
-        now: Duration,
-        setpoint: Option<Setpoint>,
-        requests: &[PlatformRequest],
-    ) {
-        if let Some(p) = self.get_mut(i) {
-            p.command(now, setpoint, requests);
-        }
-    }
-}
 
 /// The simulator's world as a fleet. A vehicle whose link is cut reports `Lost` and gets no
 /// commands, so its own failsafe takes over, as a real autopilot's would.
@@ -160,11 +91,5 @@ impl Fleet for SimFleet {
     }
     fn is_simulated(&self) -> bool {
         true
-    }
-    fn sim_world(&self) -> Option<&SimWorld> {
-        Some(&self.world)
-    }
-    fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
-        Some(&mut self.world)
     }
 }

@@ -1,17 +1,19 @@
 //! A host flying the built-in simulator: N drones (`drone_0` ...) in one world.
 //!
 //! In: a world, the number of drones, a seed and the config. Out: a [`Host`] whose vehicles
-//! are the simulator's, stepped in simulated time (deterministic for a seed).
+//! are the simulator's ([`SimFleet`]), stepped in simulated time (deterministic for a seed),
+//! with the world handed to it as the truth of its exploration reports; [`SimulatedHost`] reads
+//! the simulator's world back from such a host.
 
-use super::engine::{Host, HostConfig};
-use super::fleet::SimFleet;
-use super::payload;
+use crate::behavior::payload;
 use crate::config::Config;
 use crate::core::{CoreConfig, DroneCore};
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::host::{Host, HostConfig};
 use crate::mapping::config::MapConfig;
 use crate::mapping::merged::FleetMap;
 use crate::platform::Platform;
+use crate::sim::fleet::SimFleet;
 use crate::sim::world::World;
 use crate::sim::{Environment, SimWorld};
 use crate::types::Vec3;
@@ -52,8 +54,10 @@ pub fn simulated_host_with(
     tweak: impl Fn(&mut CoreConfig),
 ) -> Host {
     let map = sim_map_config(&sim, config);
+    let truth = sim.world.clone();
     let (cores, fleet, host_config) = simulated_parts_with(sim, config, tweak);
     let mut host = Host::new(cores, Box::new(fleet), host_config);
+    host.set_true_world(truth);
     if let Some(m) = map {
         match FleetMap::new(&m) {
             Ok(fleet_map) => host.set_map(fleet_map),
@@ -117,4 +121,22 @@ fn simulated_parts_with(
             tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
         },
     )
+}
+
+/// The simulator's world of a host built over a [`SimFleet`] (ground truth for tests, benches
+/// and the demo); `None` for any other fleet.
+pub trait SimulatedHost {
+    fn sim_world(&self) -> Option<&SimWorld>;
+    /// To change the weather or a vehicle (a pilot's takeover, the autopilot's own landing)
+    /// mid-run.
+    fn sim_world_mut(&mut self) -> Option<&mut SimWorld>;
+}
+
+impl SimulatedHost for Host {
+    fn sim_world(&self) -> Option<&SimWorld> {
+        self.fleet_as::<SimFleet>().map(|f| &f.world)
+    }
+    fn sim_world_mut(&mut self) -> Option<&mut SimWorld> {
+        self.fleet_as_mut::<SimFleet>().map(|f| &mut f.world)
+    }
 }

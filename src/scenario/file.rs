@@ -4,9 +4,9 @@
 //! In: a JSON file `{"description", "frames": [FrameRegistration..], "mission": "file.json",
 //! "drones": N, "coverage": {..}}` (the mission path is relative to the scenario file). Out:
 //! [`Scenario`]. One drone flies `mission`; several split `coverage` among them
-//! ([`super::scenario_coverage`]).
+//! ([`super::coverage`]).
 
-use super::engine::FrameRegistration;
+use crate::host::FrameRegistration;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -25,13 +25,13 @@ pub struct Scenario {
     pub drones: Option<usize>,
     /// An area to sweep: with several drones (or no `mission`) it is split among them.
     #[serde(default)]
-    pub coverage: Option<super::scenario_coverage::CoverageSpec>,
+    pub coverage: Option<super::coverage::CoverageSpec>,
 }
 
 impl Scenario {
     /// The coverage to split among `drones` drones, when this scenario flies that way: it has
     /// a `coverage` section and either several drones or no single-drone `mission`.
-    pub fn split_coverage(&self, drones: usize) -> Option<&super::scenario_coverage::CoverageSpec> {
+    pub fn split_coverage(&self, drones: usize) -> Option<&super::coverage::CoverageSpec> {
         self.coverage
             .as_ref()
             .filter(|_| drones > 1 || self.mission.is_none())

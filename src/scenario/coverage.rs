@@ -6,8 +6,8 @@
 //! (to bring the polygon into `earth`). Out: one mission per drone: takeoff, point the gimbal,
 //! sweep its piece, fly back above its start, land there.
 
-use super::coverage::{plan, CoverageError};
 use crate::estimator::frames::FrameTree;
+use crate::host::coverage::{plan, CoverageError};
 use crate::types::Vec3;
 use nalgebra::Vector2;
 use serde::Deserialize;
