@@ -6,6 +6,8 @@
 //! - item 5: a 96 MB put is dropped by Zenoh's transport as its fragments arrive (the node never
 //!   reassembles more than `fleet_bus::node::MAX_REASSEMBLED_BYTES`): the node's peak memory
 //!   does not grow by the put's size;
+//! - item 10: a map a member signs that decodes but does not apply (another grid) is counted in
+//!   `refused`, as docs/API.md says;
 //! - item 6: 300 idle TCP connections held open to a node's bus port (each re-opened as soon as
 //!   the node closes it) do not keep a second node from joining.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -14,7 +16,8 @@ mod mavlink_support;
 mod support;
 
 use kestrel::fleet_bus::identity::Signer;
-use kestrel::fleet_bus::wire::{DroneState, StateMsg, WIRE_VERSION};
+use kestrel::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
+use kestrel::mapping::grid::GridSpec;
 use mavlink_support::bus::{bus_only_node, credentials, start_bus_only, Identities};
 use mavlink_support::{alongside, free_tcp_port, Api, Kestrel};
 use std::time::{Duration, Instant};
@@ -31,7 +34,7 @@ fn status_kb(pid: u32, field: &str) -> u64 {
 
 struct Target {
     _dir: tempfile::TempDir,
-    _ids: Identities,
+    ids: Identities,
     node: Kestrel,
     api: Api,
     fleet: String,
@@ -41,12 +44,21 @@ struct Target {
 
 /// node_0 of a roster of two, listening; the attacker's Zenoh session joined to it.
 fn target() -> Target {
+    target_after("")
+}
+
+/// As [`target`], node_0's config starting with `head` (sections before `[[vehicle]]`).
+fn target_after(head: &str) -> Target {
     let dir = tempfile::tempdir().unwrap();
     let creds = credentials(dir.path(), "creds", "farm:the-fleet-secret");
     let fleet = format!("trust-{}", std::process::id());
     let ids = Identities::new(2);
     let port = free_tcp_port();
-    let (node, api) = start_bus_only(&bus_only_node(0, &fleet, port, &[], &creds, &ids));
+    let config = format!(
+        "{head}{}",
+        bus_only_node(0, &fleet, port, &[], &creds, &ids)
+    );
+    let (node, api) = start_bus_only(&config);
     let zenoh = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -73,7 +85,7 @@ fn target() -> Target {
     });
     Target {
         _dir: dir,
-        _ids: ids,
+        ids,
         node,
         api,
         fleet,
@@ -147,6 +159,53 @@ fn a_peer_speaking_for_another_node_or_a_made_up_one_is_refused_and_counted() {
         .filter(|l| l.contains("fleet bus: refused a `state` message"))
         .count();
     assert_eq!(lines, 1, "{out}");
+}
+
+#[test]
+fn a_members_map_that_decodes_but_does_not_apply_is_counted_refused() {
+    let _beside = alongside();
+    let t = target_after("[map]\nsize_m = [10.0, 10.0]\n\n");
+    let mut member = t.ids.signer(1);
+    // A grid of its own: 4 x 4 cells of 0.5 m far off node_0's.
+    let grid = GridSpec {
+        resolution_m: 0.5,
+        width_cells: 4,
+        height_cells: 4,
+        origin_enu_m: [500.0, 500.0].into(),
+    };
+    let map = MapMsg {
+        header: MapHeader {
+            v: WIRE_VERSION,
+            node: "node_1".into(),
+            drone: "drone_1".into(),
+            seq: 0,
+            keyframe: true,
+            grid,
+            region: grid.full_box(),
+        },
+        cells: vec![100; 16],
+    }
+    .encode();
+    let key = format!("kestrel/{}/node_1/map", t.fleet);
+    t.put(&key, member.seal(&t.fleet, "node_1", "map", &map));
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while t.bus()["refused"] != 1 {
+        assert!(
+            Instant::now() < deadline,
+            "not refused: {}\n{}",
+            t.bus(),
+            t.node.output()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    assert_eq!(t.bus()["received"], 1, "{}", t.bus());
+    assert!(
+        t.node
+            .output()
+            .contains("give every node the same [map] section"),
+        "{}",
+        t.node.output()
+    );
 }
 
 #[test]

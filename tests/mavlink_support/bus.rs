@@ -155,6 +155,12 @@ impl Identities {
         Identities { dir, roster }
     }
 
+    /// Node `id`'s key (what a member gone rogue, or its stolen key file, signs with).
+    pub fn signer(&self, id: usize) -> kestrel::fleet_bus::identity::Signer {
+        kestrel::fleet_bus::identity::Signer::read(&self.dir.path().join(format!("node_{id}.key")))
+            .unwrap()
+    }
+
     /// Node `id`'s key file and the roster: the end of its `[fleet]` section.
     pub fn section_end(&self, id: usize) -> String {
         let key = self.dir.path().join(format!("node_{id}.key"));
