@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes one target (or `all`, one after another) with AFL++ through cargo-afl for SECONDS each.
 #
-#   fuzz/run.sh TARGET SECONDS       TARGET: mavlink | mission | scans | config | fleet_wire | all
+#   fuzz/run.sh TARGET SECONDS       TARGET: mavlink | mission | scans | config | fleet_wire | fleet_intake | all
 #
 # Installs cargo-afl (which builds AFL++) if missing, builds the instrumented targets, starts
 # from fuzz/corpus/TARGET, writes AFL's state to fuzz/out/TARGET (not committed), then prints
@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-targets=(mavlink mission scans config fleet_wire)
+targets=(mavlink mission scans config fleet_wire fleet_intake)
 if [ $# -ne 2 ] || ! [[ $2 =~ ^[0-9]+$ ]]; then
     echo "usage: fuzz/run.sh {${targets[*]// /|}|all} SECONDS" >&2
     exit 2

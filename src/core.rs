@@ -20,7 +20,7 @@ use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
-use crate::safety::{Override, SafetyConfig, SafetyStage};
+use crate::safety::{Flight, Override, SafetyConfig, SafetyStage};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
@@ -331,7 +331,8 @@ impl DroneCore {
         if out.reference.is_some() {
             self.held_at_enu_m = out.reference.as_ref().and_then(MotionReference::held_at);
         }
-        let (setpoint, safety) = self.setpoint_for(out.reference, dt_s);
+        let landing = out.requests.contains(&PlatformRequest::LandOnSetpoints);
+        let (setpoint, safety) = self.setpoint_for(out.reference, landing, dt_s);
         TickOutput {
             setpoint,
             safety,
@@ -343,10 +344,12 @@ impl DroneCore {
     }
 
     /// The setpoint for the behaviors' `reference` (none without a position or a link), after
-    /// the safety stage, and the stage's override if it changed it.
+    /// the safety stage, and the stage's override if it changed it. `landing`: the behaviors
+    /// fly the vehicle down to touchdown on these setpoints.
     fn setpoint_for(
         &mut self,
         reference: Option<MotionReference>,
+        landing: bool,
         dt_s: f64,
     ) -> (Option<Setpoint>, Option<Override>) {
         let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
@@ -370,7 +373,11 @@ impl DroneCore {
             &self.config.drone_id,
             &self.state,
             home,
-            flying,
+            match (flying, landing) {
+                (false, _) => Flight::OnGround,
+                (true, false) => Flight::Flying,
+                (true, true) => Flight::Landing,
+            },
             setpoint,
             caps,
             &self.fleet,

@@ -14,7 +14,11 @@
 //!   executor, mission limits, MAVLink session and peers, the map grid);
 //! - [`fleet_wire`]: a fleet-bus message from a peer, as a drone-state message and as a map
 //!   region (bounds checks, inflating), applied to remote drones and a merged map as
-//!   `kestrel run` does with what a peer sends.
+//!   `kestrel run` does with what a peer sends;
+//! - [`fleet_intake`]: a sample heard on the fleet bus, through the intake every peer's message
+//!   passes (roster, size, signed envelope, replay counter, decoding, whose node and drones),
+//!   once as it came and once sealed with the member's own key, so that the checks behind the
+//!   signature are reached too.
 
 use kestrel::behavior::Registry;
 use kestrel::config::Config;
@@ -216,5 +220,59 @@ pub fn fleet_wire(data: &[u8]) {
             };
             black_box(map.apply_remote(&region).is_ok());
         }
+    }
+}
+
+/// Key expressions a sample can arrive on: a member's state and map, a made-up node's state,
+/// and a kind the intake does not read. The first byte of the input picks one.
+const INTAKE_KEYS: [(&str, &str); 4] = [
+    ("node_1", "state"),
+    ("node_1", "map"),
+    ("ghost", "state"),
+    ("node_1", "status"),
+];
+
+/// The fleet's name in the keys of [`fleet_intake`].
+const INTAKE_FLEET: &str = "fuzz";
+
+pub fn fleet_intake(data: &[u8]) {
+    use kestrel::fleet_bus::identity::Signer;
+    use kestrel::fleet_bus::inbox::MapInbox;
+    use kestrel::fleet_bus::intake::{Intake, Member};
+    use kestrel::fleet_bus::stats::BusStats;
+    use std::sync::Arc;
+    let Some((&pick, sample)) = data.split_first() else {
+        return;
+    };
+    let (node, kind) = INTAKE_KEYS[usize::from(pick) % INTAKE_KEYS.len()];
+    let Ok(mut member_key) = Signer::from_seed(&[1; 32]) else {
+        return;
+    };
+    let member = Member {
+        keys: vec![member_key.public()],
+        drones: vec!["drone_1".to_string()],
+    };
+    let (states, mut heard) = tokio::sync::mpsc::channel(4);
+    let maps = Arc::new(MapInbox::default());
+    let intake = Intake::new(
+        INTAKE_FLEET,
+        "node_0",
+        [("node_1".to_string(), member)].into(),
+        64 * 64,
+        Arc::new(BusStats::default()),
+        states,
+        maps.clone(),
+    );
+    let key = format!("kestrel/{INTAKE_FLEET}/{node}/{kind}");
+    black_box(intake.take(&key, sample).is_ok());
+    let sealed = member_key.seal(INTAKE_FLEET, node, kind, sample);
+    black_box(intake.take(&key, &sealed).is_ok());
+    // Played again: refused by its counter.
+    black_box(intake.take(&key, &sealed).is_ok());
+    while let Ok(state) = heard.try_recv() {
+        black_box(state);
+    }
+    while let Some(slice) = maps.take(4096) {
+        black_box(slice);
     }
 }

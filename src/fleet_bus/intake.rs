@@ -21,7 +21,7 @@ use tokio::sync::mpsc;
 
 use super::identity::{self, OpenError, PublicKey, ENVELOPE_BYTES};
 use super::inbox::MapInbox;
-use super::node::BusStats;
+use super::stats::BusStats;
 use super::wire::{MapMsg, StateMsg, WireError, MAX_MAP_BYTES, MAX_STATE_BYTES};
 
 /// A refusal is said at most this often (the count says the rest).

@@ -8,19 +8,21 @@
 //! while their node is silent), their map layers in the merged map, their claims in the
 //! allocator. `config`, `credentials` and `wire` (formats and checks), `remote` (what was
 //! heard), `inbox` (peers' map regions coalesced for the control loop) and `join` (whether this node joined its peers, who refused whom) are plain code;
-//! `zenoh_log` reads Zenoh's log lines for `join`; `node` (the Zenoh session) is built with the
-//! `fleet-bus` feature.
+//! `zenoh_log` reads Zenoh's log lines for `join`; `stats` counts; `node` (the Zenoh session) is
+//! built with the `fleet-bus` feature, `identity` (signing) and `intake` (a peer's message
+//! checked) with `fleet-identity`, which `fleet-bus` includes and the fuzz targets use.
 
 pub mod config;
 pub mod credentials;
-#[cfg(feature = "fleet-bus")]
+#[cfg(feature = "fleet-identity")]
 pub mod identity;
 pub mod inbox;
-#[cfg(feature = "fleet-bus")]
+#[cfg(feature = "fleet-identity")]
 pub mod intake;
 pub mod join;
 #[cfg(feature = "fleet-bus")]
 pub mod node;
 pub mod remote;
+pub mod stats;
 pub mod wire;
 pub mod zenoh_log;

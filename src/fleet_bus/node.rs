@@ -9,10 +9,9 @@
 //! `kestrel/<fleet>/<node>/map` (binary, see `wire`). The control loop never waits on the bus:
 //! it only `try_send`s and `try_recv`s.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-use serde::Serialize;
 use tokio::sync::mpsc;
 
 use super::config::FleetSection;
@@ -20,6 +19,7 @@ use super::identity::Signer;
 use super::inbox::MapInbox;
 use super::intake::{Intake, Member};
 use super::join::{JoinWatch, Severity};
+pub use super::stats::{BusStats, BusStatsView};
 use super::wire::{MapMsg, StateMsg};
 
 /// Messages waiting to be sent, or to be read by the control loop.
@@ -32,6 +32,15 @@ const LEASE_MS: u64 = 3000;
 /// at 1.15 GB. A bigger message is dropped by the transport as its fragments arrive.
 pub const MAX_REASSEMBLED_BYTES: usize =
     super::wire::MAX_MAP_BYTES + super::identity::ENVELOPE_BYTES + 4096;
+/// Connections that have not finished Zenoh's handshake, held at once (Zenoh's default is 100):
+/// further ones are closed as they come. About 100 idle connections from anyone who can reach
+/// the port kept every peer out; now it takes more than this many held open at once, each
+/// closed after [`ACCEPT_TIMEOUT_MS`]. With the API's 512 connections, within the service's
+/// `LimitNOFILE` of 8192.
+const ACCEPT_PENDING: usize = 512;
+/// How long a connection may take to finish the handshake (ms; Zenoh's default is 10 000): two
+/// round trips and the user/password check, well under a second on a fleet's Wi-Fi.
+const ACCEPT_TIMEOUT_MS: u64 = 3000;
 /// How often what the join watch has to say is logged.
 const JOIN_LINES_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
 
@@ -52,50 +61,6 @@ pub struct NodeConfig {
 pub enum Outbound {
     State(StateMsg),
     Map(MapMsg),
-}
-
-/// Counters since the bus started.
-#[derive(Debug, Default)]
-pub struct BusStats {
-    pub state_sent_bytes: AtomicU64,
-    pub state_sent: AtomicU64,
-    pub map_sent_bytes: AtomicU64,
-    pub map_sent: AtomicU64,
-    pub received: AtomicU64,
-    pub received_bytes: AtomicU64,
-    /// Messages from peers that did not decode or check.
-    pub refused: AtomicU64,
-    /// Messages dropped because a queue (or the map inbox) was full.
-    pub dropped: AtomicU64,
-}
-
-/// The counters as the API shows them.
-#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
-pub struct BusStatsView {
-    pub state_sent: u64,
-    pub state_sent_bytes: u64,
-    pub map_sent: u64,
-    pub map_sent_bytes: u64,
-    pub received: u64,
-    pub received_bytes: u64,
-    pub refused: u64,
-    pub dropped: u64,
-}
-
-impl BusStats {
-    pub fn view(&self) -> BusStatsView {
-        let r = |c: &AtomicU64| c.load(Ordering::Relaxed);
-        BusStatsView {
-            state_sent: r(&self.state_sent),
-            state_sent_bytes: r(&self.state_sent_bytes),
-            map_sent: r(&self.map_sent),
-            map_sent_bytes: r(&self.map_sent_bytes),
-            received: r(&self.received),
-            received_bytes: r(&self.received_bytes),
-            refused: r(&self.refused),
-            dropped: r(&self.dropped),
-        }
-    }
 }
 
 /// The control loop's end of the bus.
@@ -138,8 +103,8 @@ fn spawn_join_lines(join: &'static JoinWatch) {
 }
 
 /// The Zenoh configuration for a section: peer mode, the endpoints, scouting only if asked,
-/// messages reassembled up to [`MAX_REASSEMBLED_BYTES`], user/password authentication when a
-/// credentials file is given.
+/// messages reassembled up to [`MAX_REASSEMBLED_BYTES`], [`ACCEPT_PENDING`] handshakes at once,
+/// user/password authentication when a credentials file is given.
 fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
     let mut json = serde_json::json!({
         "mode": "peer",
@@ -152,10 +117,13 @@ fn zenoh_config(section: &FleetSection) -> anyhow::Result<zenoh::Config> {
             "multicast": { "enabled": section.scouting },
             "gossip": { "enabled": section.scouting },
         },
-        "transport": { "link": {
-            "tx": { "lease": LEASE_MS },
-            "rx": { "max_message_size": MAX_REASSEMBLED_BYTES },
-        } },
+        "transport": {
+            "unicast": { "accept_pending": ACCEPT_PENDING, "accept_timeout": ACCEPT_TIMEOUT_MS },
+            "link": {
+                "tx": { "lease": LEASE_MS },
+                "rx": { "max_message_size": MAX_REASSEMBLED_BYTES },
+            },
+        },
     });
     if let Some(path) = &section.credentials_file {
         let own = super::credentials::read_credentials(path)?;

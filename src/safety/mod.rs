@@ -10,7 +10,7 @@
 pub mod geofence;
 
 use crate::control::{ControllerConfig, Setpoint, SpeedCaps, YawTarget};
-use crate::types::FleetView;
+use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
 pub use geofence::GeofenceSection;
@@ -57,6 +57,17 @@ pub enum OverrideKind {
     Separation,
 }
 
+/// What the vehicle is doing, as far as the stage is concerned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flight {
+    /// On the ground or disarmed: setpoints pass (only a non-finite one is replaced).
+    OnGround,
+    Flying,
+    /// Flying down to touchdown on Kestrel's own setpoints (the behavior `land` without the
+    /// autopilot's land mode): a hold for a silent peer still lets it descend, straight down.
+    Landing,
+}
+
 /// One change to a setpoint, reported once per episode.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Override {
@@ -88,6 +99,14 @@ const LIMIT_HEADROOM: f64 = 1.1;
 /// Reaction time of the separation cap beyond the controller's velocity lag (s): a tick or two
 /// of the control loop and of the fleet view's age.
 const REACTION_EXTRA_S: f64 = 0.05;
+
+/// Which drones the separation keeps apart from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Heard {
+    All,
+    /// Only drones heard now, not silent ones.
+    Now,
+}
 
 /// One other drone's cap on the closing speed along `away` (unit, from it to this drone).
 struct Closing {
@@ -156,7 +175,7 @@ impl SafetyStage {
         me: &str,
         state: &EstimatedState,
         home_enu_m: Vec3,
-        flying: bool,
+        flight: Flight,
         setpoint: Option<Setpoint>,
         caps: SpeedCaps,
         fleet: &FleetView,
@@ -174,7 +193,7 @@ impl SafetyStage {
         let (out, change) = if !finite(&sp) {
             let reason = "a non-finite setpoint was replaced by a hold".to_string();
             (hold, Some((OverrideKind::NonFinite, reason)))
-        } else if !flying {
+        } else if flight == Flight::OnGround {
             (sp, None)
         } else {
             let fence = Fence {
@@ -184,24 +203,15 @@ impl SafetyStage {
             };
             self.fenced(&fence, here, sp)
                 .or_else(|| {
-                    // Held in place, still turning as asked: a turn moves nothing toward anyone
-                    // and keeps the range beams sweeping.
-                    held_for_silence(me, fleet).map(|why| {
-                        let yaw = match sp {
-                            Setpoint::Velocity { yaw, .. } | Setpoint::Position { yaw, .. } => yaw,
-                        };
-                        let in_place = Setpoint::Velocity {
-                            velocity_enu_mps: Vec3::zeros(),
-                            yaw,
-                        };
-                        (in_place, OverrideKind::Separation, why)
-                    })
+                    let why = held_for_silence(me, fleet)?;
+                    Some(self.held(me, state, sp, fleet, flight, why))
                 })
-                .or_else(|| self.separated(me, state, sp, fleet))
+                .or_else(|| self.separated(me, state, sp, fleet, Heard::All))
                 .or_else(|| self.limited(sp))
                 .map_or((sp, None), |(s, kind, why)| (s, Some((kind, why))))
         };
         // The speed caps are the last word, whatever the steps above made of the setpoint.
+        let flying = flight != Flight::OnGround;
         let capped = flying.then(|| self.capped(out, here, caps)).flatten();
         let (out, change) = match capped {
             Some((capped, why)) => (capped, change.or(Some((OverrideKind::Limit, why)))),
@@ -261,6 +271,42 @@ impl SafetyStage {
         Some((target_at(stop, yaw), OverrideKind::Geofence, why))
     }
 
+    /// The setpoint while held for a silent peer: in place, still turning as asked (a turn
+    /// moves nothing toward anyone and keeps the range beams sweeping). A landing goes on
+    /// straight down at the speed it asked, horizontal motion taken out: the silent peer's
+    /// drone could be anywhere, but every drone that hears the fleet holds where it is, and a
+    /// drone on the ground is a danger to none. Drones heard now are still kept apart from; a
+    /// silent one's growing uncertainty would stop the descent for good, which is the very
+    /// hold the landing is there to end.
+    fn held(
+        &self,
+        me: &str,
+        state: &EstimatedState,
+        sp: Setpoint,
+        fleet: &FleetView,
+        flight: Flight,
+        why: String,
+    ) -> (Setpoint, OverrideKind, String) {
+        let here = state.pose.position_m;
+        let (asked, yaw) = intended_velocity(&sp, here, &self.position_loop);
+        let down_mps = match flight {
+            Flight::Landing => asked.z.min(0.0),
+            Flight::Flying | Flight::OnGround => 0.0,
+        };
+        let in_place = Setpoint::Velocity {
+            velocity_enu_mps: Vec3::new(0.0, 0.0, down_mps),
+            yaw,
+        };
+        if down_mps == 0.0 {
+            return (in_place, OverrideKind::Separation, why);
+        }
+        let why = format!("{why}; landing straight down");
+        match self.separated(me, state, in_place, fleet, Heard::Now) {
+            Some((kept, _, apart)) => (kept, OverrideKind::Separation, format!("{why}, {apart}")),
+            None => (in_place, OverrideKind::Separation, why),
+        }
+    }
+
     /// Keeps this drone from closing in on any other flying drone faster than it can stop short
     /// of `min_separation_m + separation_margin_m`, on the 3-D line between them, and pushes
     /// apart inside `min_separation_m`.
@@ -281,6 +327,7 @@ impl SafetyStage {
         state: &EstimatedState,
         sp: Setpoint,
         fleet: &FleetView,
+        heard: Heard,
     ) -> Option<(Setpoint, OverrideKind, String)> {
         let here = state.pose.position_m;
         let min = self.config.min_separation_m;
@@ -292,7 +339,8 @@ impl SafetyStage {
         let mut limits: Vec<Closing> = Vec::new();
         let mut push = Vec3::zeros();
         let mut nearest: Option<(f64, &str)> = None;
-        for other in fleet.others(me).filter(|d| d.flying) {
+        let counted = |d: &&DroneView| heard == Heard::All || !d.silent;
+        for other in fleet.others(me).filter(|d| d.flying).filter(counted) {
             let offset = here - other.position_enu_m;
             // A remote drone may be up to its uncertainty nearer than where it was heard; a
             // silent one's uncertainty already holds wherever it could have gone.

@@ -45,7 +45,7 @@ fn check(
         "me",
         state,
         Vec3::zeros(),
-        true,
+        Flight::Flying,
         Some(sp),
         NO_CAPS,
         &FleetView::default(),
@@ -112,7 +112,7 @@ fn non_finite_setpoints_become_a_hold_even_on_the_ground() {
             "me",
             &state,
             Vec3::zeros(),
-            false,
+            Flight::OnGround,
             Some(bad),
             NO_CAPS,
             &FleetView::default(),
@@ -149,7 +149,7 @@ fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
         "me",
         &state,
         Vec3::zeros(),
-        true,
+        Flight::Flying,
         Some(velocity(1.0, 1.0, 0.0)),
         NO_CAPS,
         &fleet,
@@ -171,7 +171,7 @@ fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
         "me",
         &state,
         Vec3::zeros(),
-        true,
+        Flight::Flying,
         Some(velocity(-1.0, 0.0, 0.0)),
         NO_CAPS,
         &fleet,
@@ -193,7 +193,7 @@ fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
         "me",
         &at(0.0, 0.0, 2.0),
         Vec3::zeros(),
-        true,
+        Flight::Flying,
         Some(position(0.0, 0.0, 2.0)),
         NO_CAPS,
         &fleet,
@@ -217,7 +217,7 @@ fn a_silent_remote_drone_is_kept_away_from_by_where_it_could_be() {
             "me",
             &at(0.0, 0.0, 2.0),
             Vec3::zeros(),
-            true,
+            Flight::Flying,
             Some(velocity(1.0, 0.0, 0.0)),
             NO_CAPS,
             fleet,
@@ -261,7 +261,7 @@ fn an_unaccounted_silent_drone_holds_this_one_wherever_it_is() {
         "me",
         &at(0.0, 0.0, 2.0),
         Vec3::zeros(),
-        true,
+        Flight::Flying,
         Some(Setpoint::Velocity {
             velocity_enu_mps: Vec3::new(-1.0, 0.0, 0.0),
             yaw: YawTarget::Rate(0.4),
@@ -280,6 +280,84 @@ fn an_unaccounted_silent_drone_holds_this_one_wherever_it_is() {
         }),
         "held in place, still turning"
     );
+}
+
+/// A fleet held for `other`, silent and unaccounted 30 m away, with `beside` heard as well.
+fn held_by_a_silent_peer(beside: Vec<DroneView>) -> FleetView {
+    let mut other = drone("other", 30.0, 0.0);
+    other.local = false;
+    other.silent = true;
+    other.unaccounted = true;
+    // Its uncertainty has grown over everything around.
+    other.uncertainty_m = 40.0;
+    let mut drones = vec![other];
+    drones.extend(beside);
+    FleetView { drones }
+}
+
+/// The land behavior's setpoint: over its point, 0.5 m/s down.
+fn landing_setpoint(state: &EstimatedState) -> Setpoint {
+    let here = state.pose.position_m;
+    Setpoint::Position {
+        position_enu_m: Vec3::new(here.x + 0.3, here.y, here.z - 0.1),
+        velocity_ff_enu_mps: Vec3::new(0.0, 0.0, -0.5),
+        yaw: YawTarget::Angle(0.0),
+    }
+}
+
+fn sent_velocity(out: Option<Setpoint>) -> Vec3 {
+    match out {
+        Some(Setpoint::Velocity {
+            velocity_enu_mps, ..
+        }) => velocity_enu_mps,
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_landing_goes_straight_down_through_a_hold_for_a_silent_peer() {
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+    let state = at(0.0, 0.0, 3.0);
+    let fleet = held_by_a_silent_peer(Vec::new());
+    let sp = Some(landing_setpoint(&state));
+    let land = |stage: &mut SafetyStage, flight| {
+        stage.check("me", &state, Vec3::zeros(), flight, sp, NO_CAPS, &fleet)
+    };
+    // Flying the same setpoint (a go_to's descent): held in place.
+    let (out, o) = land(&mut stage, Flight::Flying);
+    assert_eq!(sent_velocity(out), Vec3::zeros());
+    assert!(o.unwrap().reason.contains("other fell silent"));
+    // Landing: down at its own speed (0.5 m/s and the pull to its height), nothing sideways.
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+    let (out, o) = land(&mut stage, Flight::Landing);
+    let v = sent_velocity(out);
+    assert_eq!((v.x, v.y), (0.0, 0.0), "{v}");
+    assert!((v.z + 0.6).abs() < 1e-9, "{v}");
+    let o = o.unwrap();
+    assert_eq!(o.kind, OverrideKind::Separation);
+    assert!(o.reason.contains("landing straight down"), "{}", o.reason);
+}
+
+#[test]
+fn a_landing_through_a_hold_still_keeps_off_a_drone_heard_below() {
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+    let state = at(0.0, 0.0, 3.0);
+    let mut below = DroneView::at_rest("below", Vec3::new(0.0, 0.0, 1.8), true);
+    below.local = false;
+    let fleet = held_by_a_silent_peer(vec![below]);
+    let (out, o) = stage.check(
+        "me",
+        &state,
+        Vec3::zeros(),
+        Flight::Landing,
+        Some(landing_setpoint(&state)),
+        NO_CAPS,
+        &fleet,
+    );
+    let v = sent_velocity(out);
+    // 1.2 m over it: the least separation and its margin, no room left to close in.
+    assert!(v.norm() < 1e-6, "stopped over the drone 1.2 m below: {v}");
+    assert!(o.unwrap().reason.contains("from below"));
 }
 
 #[test]
@@ -325,7 +403,7 @@ fn fly_next_to(start: Vec3, goal: Vec3, others: &[DroneView], seconds: f64) -> (
             "me",
             &state,
             Vec3::zeros(),
-            true,
+            Flight::Flying,
             Some(velocity(asked.x, asked.y, asked.z)),
             NO_CAPS,
             &fleet,
@@ -386,7 +464,7 @@ fn a_descent_beside_a_drone_a_metre_away_is_left_alone() {
         "me",
         &at(0.0, 0.0, 1.8),
         Vec3::zeros(),
-        true,
+        Flight::Flying,
         Some(sp),
         NO_CAPS,
         &fleet,
@@ -439,7 +517,7 @@ fn the_speed_caps_are_the_last_word_on_velocities_and_position_targets() {
             "me",
             &state,
             Vec3::zeros(),
-            true,
+            Flight::Flying,
             Some(sp),
             caps,
             &FleetView::default(),

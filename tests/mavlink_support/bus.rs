@@ -155,6 +155,12 @@ impl Identities {
         Identities { dir, roster }
     }
 
+    /// Node `id`'s key (what a member gone rogue, or its stolen key file, signs with).
+    pub fn signer(&self, id: usize) -> kestrel::fleet_bus::identity::Signer {
+        kestrel::fleet_bus::identity::Signer::read(&self.dir.path().join(format!("node_{id}.key")))
+            .unwrap()
+    }
+
     /// Node `id`'s key file and the roster: the end of its `[fleet]` section.
     pub fn section_end(&self, id: usize) -> String {
         let key = self.dir.path().join(format!("node_{id}.key"));
@@ -180,8 +186,41 @@ pub struct Fleet {
     _ids: Option<Identities>,
 }
 
+/// `n` fake ArduPilot vehicles in one process, each on its own TCP port (the fake's base + 10
+/// per vehicle) and system id `1 + i`; returns the fake and Kestrel's connection for each.
+pub fn start_ardupilot_fleet(n: u16, extra: &[&str]) -> (Fake, Vec<String>) {
+    let control_port = free_tcp_port();
+    let base = loop {
+        let b = free_tcp_port();
+        let free = (0..n).all(|i| TcpListener::bind(("127.0.0.1", b + 10 * i)).is_ok());
+        if free {
+            break b;
+        }
+    };
+    let mut args: Vec<String> = vec!["--control-port".into(), control_port.to_string()];
+    args.extend(["--personality".into(), "ardupilot".into()]);
+    args.extend(["--vehicles".into(), n.to_string()]);
+    args.extend(["--ardupilot-tcp-base".into(), base.to_string()]);
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let connections: Vec<String> = (0..n)
+        .map(|i| format!("tcpout:127.0.0.1:{}", base + 10 * i))
+        .collect();
+    let fake = Fake {
+        child: super::spawn_fake(&args),
+        args,
+        control_port,
+        connection: connections[0].clone(),
+    };
+    (fake, connections)
+}
+
 impl Fleet {
     pub fn start(arena: &Arena, connections: &[String]) -> Self {
+        Self::start_on(arena, connections, "platforms/px4.toml")
+    }
+
+    /// As [`Self::start`], every vehicle flown with the profile `platform`.
+    pub fn start_on(arena: &Arena, connections: &[String], platform: &str) -> Self {
         let creds = tempfile::tempdir().unwrap();
         let file = credentials(creds.path(), "fleet-credentials", "bays:s3cret-shared");
         let name = format!("bays-{}", std::process::id());
@@ -205,10 +244,9 @@ impl Fleet {
             );
             let api_port = free_tcp_port();
             let listen = format!("127.0.0.1:{api_port}");
-            nodes.push(Some(Kestrel::run_config(
-                &config(arena, id, &connections[id], Some(&fleet)),
-                &["--listen", &listen],
-            )));
+            let text = config(arena, id, &connections[id], Some(&fleet))
+                .replace("platforms/px4.toml", platform);
+            nodes.push(Some(Kestrel::run_config(&text, &["--listen", &listen])));
             apis.push(Api::connect(api_port));
         }
         Fleet {
