@@ -3,7 +3,9 @@
 //!
 //! In: a world file (its `starts_xy_yaw[N]` place the drones), the thesis's simulation
 //! parameters as defaults (0.1 m map, four 4 m beams at 20 Hz, 1.0 m height, 0.75 m/s, turns at
-//! 0.15 rad/s, 0.4 m from obstacles, 2.0 m between drones), a seed and an allocator.
+//! 0.15 rad/s, 0.4 m from obstacles, 2.0 m between drones), a seed and an allocator, and
+//! optionally what a real drone has (a drifting position estimate, range noise, dropped
+//! readings; judged on the truth the log keeps beside the estimate).
 //! Out: the flight log (poses at 20 Hz), a JSON report with the exploration's metrics (computed
 //! by `exploration::offline::evaluate` from the log and the true world, as an outside evaluator would),
 //! progress
@@ -24,6 +26,7 @@ use kestrel::host::Host;
 use kestrel::mapping::grid::UNKNOWN;
 use kestrel::scenario::sim_host::{sim_world, simulated_host_in};
 use kestrel::sim::world::World;
+use kestrel::types::SensorConfig;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -70,6 +73,17 @@ pub struct ExploreArgs {
     /// Extra arguments of every drone's `explore` behavior (JSON object), e.g. '{"heading": "align"}'.
     #[arg(long)]
     explore_args: Option<String>,
+    /// Speed at which each drone's position estimate drifts from the truth (m/s, 0 to 1):
+    /// replaces the config's `[sim] position_drift_mps`.
+    #[arg(long, value_name = "MPS")]
+    position_drift_mps: Option<f64>,
+    /// Fraction of range readings that return nothing (0 to 1): replaces the config's
+    /// `[sim] range_dropout`.
+    #[arg(long, value_name = "FRACTION")]
+    range_dropout: Option<f64>,
+    /// Standard deviation of the range noise (m): replaces the sensor's `noise_std_m` (1 cm).
+    #[arg(long, value_name = "M")]
+    range_noise_m: Option<f64>,
     /// Seconds of simulated time between progress lines.
     #[arg(long, default_value_t = 30.0)]
     progress_every_s: f64,
@@ -94,8 +108,9 @@ pub fn run(args: ExploreArgs) -> Result<()> {
     }
     let allocator: AllocatorKind = args.allocator.parse().map_err(anyhow::Error::msg)?;
     let mut config = load_config(args.config.as_deref())?;
-    let world = World::load(&args.world)?;
+    let mut world = World::load(&args.world)?;
     fit_config(&mut config, &args, &world);
+    imperfect(&mut config, &args, &mut world)?;
     let start = std::time::SystemTime::now();
     let (file, log_path) = open_log(&args, &config, start)?;
     let report_path = args
@@ -203,6 +218,30 @@ fn fit_config(config: &mut Config, args: &ExploreArgs, world: &World) {
         let b = &world.bounds_m;
         config.map.size_m = Some([b.x[1] - b.x[0], b.y[1] - b.y[0]]);
     }
+}
+
+/// The simulated drones' sensor (the config's `[sim] sensor`, else the world's) and the
+/// imperfections the command line sets, checked as the config's own values are; the config
+/// keeps them, so the log's header says what the run had.
+fn imperfect(config: &mut Config, args: &ExploreArgs, world: &mut World) -> Result<()> {
+    let mut sensor = config.sim.sensor.unwrap_or(world.sensor);
+    if let Some(noise) = args.range_noise_m {
+        match &mut sensor {
+            SensorConfig::Multiranger { noise_std_m, .. }
+            | SensorConfig::Lidar360 { noise_std_m, .. } => *noise_std_m = noise,
+            SensorConfig::None => bail!("--range-noise-m: the drones carry no range sensor"),
+        }
+        config.sim.sensor = Some(sensor);
+    }
+    world.sensor = sensor;
+    if let Some(drift) = args.position_drift_mps {
+        config.sim.position_drift_mps = drift;
+    }
+    if let Some(dropout) = args.range_dropout {
+        config.sim.range_dropout = dropout;
+    }
+    config.check("the command line")?;
+    Ok(())
 }
 
 /// The flight log: `--log`, or a new file named by the world, the drones, the seed and the

@@ -5,6 +5,7 @@
 //! over `[mavlink]` is the one).
 
 pub mod bounds;
+pub mod sim;
 pub mod vehicles;
 
 use crate::behavior::BehaviorConfig;
@@ -15,8 +16,8 @@ use crate::exploration::online::settings::ExplorationSettings;
 use crate::mission::executor::{ExecutorConfig, InFlightFailure, LinkRegained};
 use crate::mission::Limits;
 use crate::safety::{GeofenceSection, SafetyConfig};
-use crate::types::SensorConfig;
 use serde::{Deserialize, Serialize};
+pub use sim::SimSection;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -103,34 +104,6 @@ impl Default for DroneSection {
 #[serde(deny_unknown_fields, default)]
 pub struct EstimatorSection {
     pub plugin: Option<EstimatorPlugin>,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct SimSection {
-    /// Steady wind (ENU, m/s).
-    pub wind_enu_mps: [f64; 3],
-    /// Random acceleration standard deviation per axis (m/s^2).
-    pub turbulence_mps2: f64,
-    /// Range sensor of every simulated drone (`kind` = `multiranger`, `lidar360` or `none`);
-    /// replaces the world file's. Absent: the world file's, else the multi-ranger. Also the
-    /// sensor `kestrel run --virtual-world` casts for vehicles that name none of their own.
-    pub sensor: Option<SensorConfig>,
-    /// Collision radius of a vehicle (m, 0.01 to 5): a drone whose centre comes closer than
-    /// this to an obstacle of the simulator's world has crashed, of `--virtual-world`'s has a
-    /// `virtual_collision`.
-    pub vehicle_radius_m: f64,
-}
-
-impl Default for SimSection {
-    fn default() -> Self {
-        Self {
-            wind_enu_mps: [0.0; 3],
-            turbulence_mps2: 0.0,
-            sensor: None,
-            vehicle_radius_m: crate::types::DEFAULT_VEHICLE_RADIUS_M,
-        }
-    }
 }
 
 /// The HTTP/WebSocket ground-station API.
@@ -315,14 +288,19 @@ impl Config {
             path: origin.to_string(),
             message: e.to_string(),
         })?;
-        config
-            .validate()
+        config.check(origin)?;
+        Ok(config)
+    }
+
+    /// The checks of [`Config::parse`], for a config changed after it was read (command-line
+    /// settings); `origin` says where the values came from.
+    pub fn check(&self, origin: &str) -> Result<(), ConfigError> {
+        self.validate()
             .map_err(|(field, message)| ConfigError::Invalid {
                 path: origin.to_string(),
                 field,
                 message,
-            })?;
-        Ok(config)
+            })
     }
 
     /// Every number within its bounds, every name and address well formed.
@@ -347,7 +325,7 @@ impl Config {
         vehicles::validate(&self.vehicles, &self.mavlink)?;
         self.fleet.validate(&self.drone_ids())?;
         self.validate_behaviors()?;
-        self.validate_sim()?;
+        self.sim.validate()?;
         self.mavlink.validate()?;
         self.validate_geofence()?;
         self.validate_mission()?;
@@ -392,39 +370,6 @@ impl Config {
         positive("behaviors.arm_timeout_s", b.arm_timeout_s, 600.0, "s")?;
         positive("behaviors.ready_timeout_s", b.ready_timeout_s, 3600.0, "s")?;
         positive("behaviors.hold_speed_mps", b.hold_speed_mps, 20.0, "m/s")?;
-        Ok(())
-    }
-
-    /// `[sim]`: wind, turbulence, the vehicle and its sensor.
-    fn validate_sim(&self) -> Result<(), (String, String)> {
-        use bounds::{non_negative, within};
-        for (axis, w) in ["x", "y", "z"].iter().zip(self.sim.wind_enu_mps) {
-            within(
-                &format!("sim.wind_enu_mps.{axis}"),
-                w,
-                (-50.0, 50.0),
-                false,
-                "m/s",
-            )?;
-        }
-        non_negative(
-            "sim.turbulence_mps2",
-            self.sim.turbulence_mps2,
-            20.0,
-            "m/s^2",
-        )?;
-        within(
-            "sim.vehicle_radius_m",
-            self.sim.vehicle_radius_m,
-            (0.01, 5.0),
-            false,
-            "m",
-        )?;
-        if let Some(sensor) = &self.sim.sensor {
-            sensor
-                .validate()
-                .map_err(|e| ("sim.sensor".to_string(), e.to_string()))?;
-        }
         Ok(())
     }
 
@@ -605,8 +550,32 @@ mod tests {
 
     #[test]
     fn sim_sensor_is_chosen_by_kind() {
+        use crate::types::SensorConfig;
         let c = Config::parse("[sim.sensor]\nkind = \"lidar360\"\n", "test").unwrap();
         assert_eq!(c.sim.sensor, Some(SensorConfig::lidar()));
+    }
+
+    #[test]
+    fn sim_imperfections_are_off_unless_set() {
+        use crate::types::Imperfections;
+        assert_eq!(
+            Config::default().sim.imperfections(),
+            Imperfections::default()
+        );
+        let c = Config::parse(
+            "[sim]\nposition_drift_mps = 0.02\nrange_dropout = 0.05\n",
+            "test",
+        )
+        .unwrap();
+        let i = c.sim.imperfections();
+        assert_eq!((i.position_drift_mps, i.range_dropout), (0.02, 0.05));
+        let mut c = Config::default();
+        c.sim.range_dropout = -0.01;
+        let e = c.check("the command line").unwrap_err().to_string();
+        assert!(
+            e.contains("the command line") && e.contains("sim.range_dropout"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -635,6 +604,15 @@ mod tests {
             ),
             ("[drone]\ncontrol_rate_hz = 1e9\n", "drone.control_rate_hz"),
             ("[sim]\nturbulence_mps2 = -0.5\n", "sim.turbulence_mps2"),
+            (
+                "[sim]\nposition_drift_mps = 2.0\n",
+                "sim.position_drift_mps",
+            ),
+            (
+                "[sim]\nposition_drift_mps = nan\n",
+                "sim.position_drift_mps",
+            ),
+            ("[sim]\nrange_dropout = 1.5\n", "sim.range_dropout"),
             (
                 "[sim]\nwind_enu_mps = [0.0, 1e6, 0.0]\n",
                 "sim.wind_enu_mps.y",

@@ -8,7 +8,9 @@
 //!   `behavior` (the active motion behavior or null: never a gimbal or camera behavior),
 //!   `mode`, `link`, `battery_v`, `battery_fraction` (null when unknown) and `setpoint` (what
 //!   the controller sent the vehicle this tick: `kind` velocity / position with its fields, for
-//!   tracking error; null when none); at `pose_rate_hz` (default 10 Hz).
+//!   tracking error; null when none); at `pose_rate_hz` (default 10 Hz). The pose is what the
+//!   drone believes; where a simulated drone's estimate drifts (`[sim] position_drift_mps`) the
+//!   record also has `truth` (`x`, `y`, `z`, `yaw`: where it really was), which evaluators use.
 //! - `behavior`: a behavior event (`event` = started / paused / resumed / modified / finished,
 //!   `id`, `behavior`, and `goal` or `result`), with `mission` (`mission_id`, `item_index`,
 //!   `item`: the mission item running when it happened) or null outside missions.
@@ -35,7 +37,7 @@ pub mod scene;
 pub mod writer;
 
 use crate::behavior::BehaviorEvent;
-use crate::types::{Setpoint, VehicleState};
+use crate::types::{Pose, Setpoint, VehicleState};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::io::Write;
@@ -131,13 +133,15 @@ impl FlightLog {
         self.write(record);
     }
 
-    /// Writes a pose record if one is due for this drone.
+    /// Writes a pose record if one is due for this drone, with the true pose where the
+    /// estimate is known to differ from it.
     pub fn pose(
         &mut self,
         t: Duration,
         state: &VehicleState,
         behavior: Option<&str>,
         setpoint: Option<&Setpoint>,
+        truth: Option<&Pose>,
     ) {
         if !self.pose_due(t, &state.drone) {
             return;
@@ -146,7 +150,7 @@ impl FlightLog {
             .insert(state.drone.clone(), t + self.pose_period);
         let p = state.estimate.pose.position_m;
         let v = state.estimate.velocity_enu_mps;
-        self.write(json!({
+        let mut record = json!({
             "t": t.as_secs_f64(), "drone": state.drone, "type": "pose",
             "x": p.x, "y": p.y, "z": p.z, "yaw": state.estimate.pose.yaw_rad(),
             "vx": v.x, "vy": v.y, "vz": v.z,
@@ -155,7 +159,15 @@ impl FlightLog {
             "battery_v": state.platform.battery.map(|b| b.voltage_v),
             "battery_fraction": state.platform.battery.and_then(|b| b.remaining_fraction),
             "setpoint": setpoint,
-        }));
+        });
+        if let (Some(truth), Value::Object(map)) = (truth, &mut record) {
+            let q = truth.position_m;
+            map.insert(
+                "truth".into(),
+                json!({"x": q.x, "y": q.y, "z": q.z, "yaw": truth.yaw_rad()}),
+            );
+        }
+        self.write(record);
     }
 
     /// A behavior event, with the mission item it belongs to (`mission`, null outside missions).

@@ -152,13 +152,17 @@ fn exploration(flight: &Flight, options: &Options) -> Exploration {
         .drones
         .iter()
         .flat_map(|(drone, log)| {
-            log.poses.iter().map(move |p| PoseSample {
-                t_s: p.t_s,
-                drone: drone.clone(),
-                x_m: p.x_m,
-                y_m: p.y_m,
-                z_m: p.z_m,
-                yaw_rad: p.yaw_rad,
+            // Judged where the drones were, not where they believed they were.
+            log.poses.iter().map(move |p| {
+                let [x_m, y_m, z_m, yaw_rad] = p.truth.unwrap_or([p.x_m, p.y_m, p.z_m, p.yaw_rad]);
+                PoseSample {
+                    t_s: p.t_s,
+                    drone: drone.clone(),
+                    x_m,
+                    y_m,
+                    z_m,
+                    yaw_rad,
+                }
             })
         })
         .collect();

@@ -47,6 +47,9 @@ pub struct Pose {
     pub behavior: Option<String>,
     pub battery_fraction: Option<f64>,
     pub setpoint: Option<SetpointSample>,
+    /// Where the drone really was (`x`, `y`, `z` in m, `yaw` in rad) when the record says so
+    /// (a simulated drone whose estimate drifts); the fields above are its belief.
+    pub truth: Option<[f64; 4]>,
 }
 
 /// One behavior's activation: a bar of the timeline.
@@ -228,6 +231,10 @@ fn pose(r: &Value, t_s: f64) -> Option<Pose> {
             .map(str::to_string),
         battery_fraction: num("battery_fraction"),
         setpoint: r.get("setpoint").and_then(setpoint),
+        truth: r.get("truth").and_then(|q| {
+            let num = |k: &str| q.get(k).and_then(Value::as_f64).filter(|v| v.is_finite());
+            Some([num("x")?, num("y")?, num("z")?, num("yaw")?])
+        }),
     })
 }
 

@@ -27,8 +27,8 @@ pub fn simulated_host(world: World, drones: usize, seed: u64, config: &Config) -
     simulated_host_in(sim_world(world, drones, seed, config), config)
 }
 
-/// The simulator's world with `drones` vehicles and the config's wind, turbulence and vehicle
-/// radius.
+/// The simulator's world with `drones` vehicles and the config's wind, turbulence, vehicle
+/// radius and imperfections (drift, dropped readings).
 pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> SimWorld {
     let environment = Environment {
         wind_mps: Vec3::from(config.sim.wind_enu_mps),
@@ -38,6 +38,7 @@ pub fn sim_world(world: World, drones: usize, seed: u64, config: &Config) -> Sim
     for v in &mut sim.vehicles {
         v.params.radius_m = config.sim.vehicle_radius_m;
     }
+    sim.set_imperfections(config.sim.imperfections());
     sim
 }
 

@@ -1,10 +1,13 @@
 //! The built-in simulator: several multirotors in one world, stepped in simulated time.
 //!
 //! In: a [`world::World`], per-drone setpoints and requests (through [`vehicle::SimVehicle`]'s
-//! `Platform` impl), a seed. Out: vehicle states, range scans, collisions. Reproducible: the same
-//! seed, world and commands give the same flight. `virtual_world` casts a real vehicle's range
+//! `Platform` impl), a seed, optionally [`Imperfections`] (a drifting position estimate, dropped
+//! range readings). Out: vehicle states (the truth), what each vehicle reports (its estimate),
+//! range scans, collisions. Reproducible: the same seed, world and commands give the same
+//! flight. `virtual_world` casts a real vehicle's range
 //! sensor against a world's obstacles instead (`kestrel run --virtual-world`).
 
+pub mod drift;
 pub mod dynamics;
 pub mod fleet;
 pub mod sensors;
@@ -14,10 +17,11 @@ pub mod vehicle;
 pub mod virtual_world;
 pub mod world;
 
-use crate::types::SensorConfig;
 use crate::types::Vec3;
+use crate::types::{Imperfections, Pose, SensorConfig};
+use drift::EstimateDrift;
 use dynamics::MultirotorParams;
-use rand::SeedableRng;
+use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use spatial::ShapeIndex;
@@ -40,6 +44,19 @@ pub struct SimWorld {
     pub sensor: SensorConfig,
     pub environment: Environment,
     rng: ChaCha8Rng,
+    seed: u64,
+    imperfections: Imperfections,
+    /// Per vehicle, the source of its dropped readings (a stream of its own, so one drone's
+    /// dropouts do not depend on how many fly).
+    dropout_rngs: Vec<ChaCha8Rng>,
+}
+
+/// ChaCha streams of the seed: the simulator's shared source is stream 0; vehicle `i` has
+/// its drift at `2 i + 1` and its dropouts at `2 i + 2`.
+fn vehicle_stream(seed: u64, i: usize, dropouts: bool) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(2 * i as u64 + 1 + u64::from(dropouts));
+    rng
 }
 
 impl SimWorld {
@@ -58,7 +75,47 @@ impl SimWorld {
             vehicles,
             environment,
             rng: ChaCha8Rng::seed_from_u64(seed),
+            seed,
+            imperfections: Imperfections::default(),
+            dropout_rngs: Vec::new(),
         }
+    }
+
+    /// Sets what the vehicles have of a real drone's imperfections, each vehicle's drift
+    /// starting again from the truth; every random draw comes from the seed.
+    pub fn set_imperfections(&mut self, imperfections: Imperfections) {
+        self.imperfections = imperfections;
+        let seed = self.seed;
+        for (i, v) in self.vehicles.iter_mut().enumerate() {
+            let heading_seed = vehicle_stream(seed, i, false).next_u64();
+            v.set_drift(EstimateDrift::new(
+                imperfections.position_drift_mps,
+                heading_seed,
+            ));
+        }
+        self.dropout_rngs = (0..self.vehicles.len())
+            .map(|i| vehicle_stream(seed, i, true))
+            .collect();
+    }
+
+    pub fn imperfections(&self) -> Imperfections {
+        self.imperfections
+    }
+
+    /// The true pose of vehicle `i` where what it reports is a drifting estimate; `None`
+    /// without drift (its reports are the truth) or for no such vehicle.
+    pub fn truth_behind_estimate(&self, i: usize) -> Option<Pose> {
+        if self.imperfections.position_drift_mps.is_nan()
+            || self.imperfections.position_drift_mps <= 0.0
+        {
+            return None;
+        }
+        let s = &self.vehicles.get(i)?.state;
+        let (roll, pitch) = s.tilt_rad();
+        Some(Pose {
+            position_m: s.position_m,
+            orientation: nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, s.yaw_rad),
+        })
     }
 
     pub fn shapes(&self) -> &[Shape] {
@@ -122,16 +179,21 @@ impl SimWorld {
         let Some(period) = sensors::period_s(&self.sensor) else {
             return;
         };
-        for v in self.vehicles.iter_mut() {
+        for (i, v) in self.vehicles.iter_mut().enumerate() {
             if now >= v.next_scan_at {
                 v.next_scan_at = now + Duration::from_secs_f64(period);
-                if let Some(scan) = sensors::scan(
+                // Cast from where the vehicle is, mapped from where it believes it is.
+                if let Some(mut scan) = sensors::scan(
                     &self.sensor,
                     &self.obstacles,
                     &v.state.position_m,
                     v.state.yaw_rad,
                     &mut self.rng,
                 ) {
+                    scan.origin_enu_m = v.estimated_position_m();
+                    if let Some(rng) = self.dropout_rngs.get_mut(i) {
+                        sensors::drop_readings(&mut scan, self.imperfections.range_dropout, rng);
+                    }
                     v.pending_scans.push(scan);
                 }
             }
@@ -143,6 +205,7 @@ impl SimWorld {
 mod tests {
     use super::*;
     use crate::platform::Platform;
+    use crate::types::PlatformRequest;
     use world::Cylinder;
 
     fn world_with(sensor: SensorConfig) -> World {
@@ -166,6 +229,67 @@ mod tests {
             scans.extend(sim.vehicles[0].poll(now).scans);
         }
         scans
+    }
+
+    #[test]
+    fn a_drifting_vehicle_reports_and_maps_from_its_estimate() {
+        use crate::types::{Measurement, Setpoint, YawTarget};
+        let exact = SensorConfig::Multiranger {
+            range_max_m: 4.0,
+            rate_hz: 20.0,
+            noise_std_m: 0.0,
+        };
+        let mut sim = SimWorld::new(world_with(exact), 1, 5, Environment::default());
+        sim.set_imperfections(Imperfections {
+            position_drift_mps: 0.05,
+            range_dropout: 0.0,
+        });
+        let climb = Setpoint::Velocity {
+            velocity_enu_mps: Vec3::new(0.0, 0.0, 0.5),
+            yaw: YawTarget::Rate(0.0),
+        };
+        let hold = Setpoint::Position {
+            position_enu_m: Vec3::new(0.0, 0.0, 1.0),
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Angle(0.0),
+        };
+        let v = &mut sim.vehicles[0];
+        v.command(Duration::ZERO, Some(climb), &[PlatformRequest::Arm]);
+        v.command(Duration::ZERO, None, &[PlatformRequest::StartOffboard]);
+        let (mut reported, mut last_scan) = (Vec3::zeros(), None);
+        for k in 0..2000u32 {
+            let now = Duration::from_millis(u64::from(k) * 10);
+            let setpoint = if k < 200 { climb } else { hold };
+            sim.vehicles[0].command(now, Some(setpoint), &[]);
+            sim.step(now, 0.01);
+            let feedback = sim.vehicles[0].poll(now);
+            if let Some(Measurement::GroundTruth { pose, .. }) = feedback.measurements.first() {
+                reported = pose.position_m;
+            }
+            if let Some(scan) = feedback.scans.last() {
+                last_scan = Some((scan.clone(), sim.vehicles[0].state));
+            }
+        }
+        let truth = sim.truth_behind_estimate(0).unwrap().position_m;
+        // Under 20 s of flight at 5 cm/s: at most 1 m off, and well off.
+        let off = (reported - truth).norm();
+        assert!(off > 0.2 && off <= 1.0, "estimate {off:.2} m off");
+        // Holding its estimate at the origin, the vehicle itself has gone the other way.
+        assert!(reported.xy().norm() < 0.1, "estimate {reported:?}");
+        let (scan, state) = last_scan.unwrap();
+        assert!(
+            (scan.origin_enu_m - state.position_m).norm() > 0.2,
+            "mapped from the estimate"
+        );
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let from_truth = sensors::scan(
+            &exact,
+            sim.obstacles(),
+            &state.position_m,
+            state.yaw_rad,
+            &mut rng,
+        );
+        assert_eq!(scan.beams, from_truth.unwrap().beams, "cast from the truth");
     }
 
     #[test]

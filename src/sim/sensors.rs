@@ -73,6 +73,22 @@ pub fn scan<R: Rng>(
     })
 }
 
+/// Drops each beam's reading with probability `fraction` (0 to 1, clamped): the beam stays in
+/// the scan and returns nothing (`range_m: None`), as a time-of-flight ranger's invalid reading
+/// does, so the map clears the ray to the sensor's range as for any beam without a hit.
+pub fn drop_readings<R: Rng>(scan: &mut RangeScan, fraction: f64, rng: &mut R) {
+    // NaN or 0 or less: nothing dropped.
+    if fraction.is_nan() || fraction <= 0.0 {
+        return;
+    }
+    let p = fraction.min(1.0);
+    for beam in &mut scan.beams {
+        if rng.gen_bool(p) {
+            beam.range_m = None;
+        }
+    }
+}
+
 /// Period between scans (s).
 pub fn period_s(config: &SensorConfig) -> Option<f64> {
     match *config {
@@ -119,6 +135,35 @@ mod tests {
         )
         .unwrap();
         assert!((s.beams[3].range_m.unwrap() - 2.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn dropped_readings_return_nothing_at_their_rate() {
+        let shapes = ShapeIndex::new(vec![Shape::Cylinder {
+            center: Vec2::new(0.0, 0.0),
+            radius_m: 20.0,
+            height_m: 5.0,
+        }]);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        // Inside a wide cylinder every lidar beam hits its wall.
+        let at = Vec3::new(0.0, 0.0, 1.0);
+        let full = scan(&SensorConfig::lidar(), &shapes, &at, 0.0, &mut rng).unwrap();
+        let mut hits = 0;
+        let mut total = 0;
+        for _ in 0..100 {
+            let mut s = full.clone();
+            drop_readings(&mut s, 0.05, &mut rng);
+            assert_eq!(s.beams.len(), 360, "a dropped beam stays in the scan");
+            hits += s.beams.iter().filter(|b| b.range_m.is_some()).count();
+            total += s.beams.len();
+        }
+        let dropped = 1.0 - hits as f64 / total as f64;
+        assert!((0.04..0.06).contains(&dropped), "{dropped:.4} dropped");
+        let mut s = full.clone();
+        drop_readings(&mut s, 0.0, &mut rng);
+        assert_eq!(s, full, "no dropout: the scan unchanged");
+        drop_readings(&mut s, 1.0, &mut rng);
+        assert!(s.beams.iter().all(|b| b.range_m.is_none()));
     }
 
     #[test]

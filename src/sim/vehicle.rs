@@ -1,8 +1,12 @@
 //! One simulated vehicle behind an autopilot-like interface: arming, offboard, landed state,
 //! battery, setpoint-loss failsafe. It implements [`Platform`], so the core flies it exactly as
 //! it flies a MAVLink autopilot. Each poll reports the true state as ground truth, autopilot
-//! odometry and an external (motion-capture) pose, so every estimator plugin can fly it.
+//! odometry and an external (motion-capture) pose, so every estimator plugin can fly it. With
+//! a drift ([`SimVehicle::set_drift`]) all three carry the drifting estimate instead, and the
+//! autopilot's own position loop and holds use it too: the truth stays inside the simulator
+//! (`state`, collisions).
 
+use super::drift::EstimateDrift;
 use super::dynamics::{self, Drive, MultirotorParams, RigidState};
 use crate::platform::Platform;
 use crate::types::Measurement;
@@ -45,6 +49,8 @@ pub struct SimVehicle {
     last_setpoint_at: Option<Duration>,
     pub(super) pending_scans: Vec<RangeScan>,
     pub(super) next_scan_at: Duration,
+    /// How the vehicle's own position estimate walks off the truth (none by default).
+    drift: EstimateDrift,
 }
 
 impl SimVehicle {
@@ -69,7 +75,18 @@ impl SimVehicle {
             last_setpoint_at: None,
             pending_scans: Vec::new(),
             next_scan_at: Duration::ZERO,
+            drift: EstimateDrift::new(0.0, 0),
         }
+    }
+
+    /// Replaces how the position estimate drifts (from no offset).
+    pub fn set_drift(&mut self, drift: EstimateDrift) {
+        self.drift = drift;
+    }
+
+    /// Where the vehicle believes it is (ENU m): the truth plus its estimate's drift.
+    pub fn estimated_position_m(&self) -> Vec3 {
+        self.state.position_m + self.drift.offset_m()
     }
 
     pub fn crashed(&self) -> Option<&str> {
@@ -116,7 +133,7 @@ impl SimVehicle {
             return;
         }
         self.offboard = false;
-        self.failsafe_hold = Some(self.state.position_m);
+        self.failsafe_hold = Some(self.estimated_position_m());
         let event = PlatformEvent::PilotTakeover {
             mode: "HOLD".into(),
             disarmed: false,
@@ -141,7 +158,7 @@ impl SimVehicle {
         if self.offboard && stale && self.armed {
             // Autopilot failsafe: leave offboard and hold position.
             self.offboard = false;
-            self.failsafe_hold = Some(self.state.position_m);
+            self.failsafe_hold = Some(self.estimated_position_m());
             self.last_error = Some("offboard setpoints lost: holding position".into());
         }
         // Landed outside offboard: the autopilot disarms by itself (PX4's COM_DISARM_LAND).
@@ -165,7 +182,7 @@ impl SimVehicle {
             }
         } else if let Some(hold) = self.failsafe_hold.filter(|_| !self.state.on_ground()) {
             Drive::Velocity {
-                velocity_enu_mps: (hold - self.state.position_m) * 1.0,
+                velocity_enu_mps: (hold - self.estimated_position_m()) * 1.0,
                 yaw_rate_radps: 0.0,
             }
         } else {
@@ -178,6 +195,18 @@ impl SimVehicle {
                 yaw_rate_radps: 0.0,
             }
         };
+        // The autopilot's velocity loop closes on its estimate, which moves at the truth's
+        // velocity plus the drift's: the truth goes the drift's way backwards.
+        let drive = match drive {
+            Drive::Velocity {
+                velocity_enu_mps,
+                yaw_rate_radps,
+            } => Drive::Velocity {
+                velocity_enu_mps: velocity_enu_mps - self.drift.rate_mps(),
+                yaw_rate_radps,
+            },
+            Drive::Off => Drive::Off,
+        };
         dynamics::step(
             &mut self.state,
             &self.params,
@@ -186,6 +215,8 @@ impl SimVehicle {
             noise_mps2,
             dt_s,
         );
+        let flying = self.flight_status() == FlightStatus::Flying;
+        self.drift.step(dt_s, flying);
     }
 
     fn drive_for(&self, sp: &Setpoint) -> Drive {
@@ -202,7 +233,8 @@ impl SimVehicle {
                 velocity_ff_enu_mps,
                 yaw,
             } => Drive::Velocity {
-                velocity_enu_mps: velocity_ff_enu_mps + (position_enu_m - self.state.position_m),
+                velocity_enu_mps: velocity_ff_enu_mps
+                    + (position_enu_m - self.estimated_position_m()),
                 yaw_rate_radps: self.yaw_rate_for(yaw),
             },
         }
@@ -271,8 +303,9 @@ impl Platform for SimVehicle {
     fn poll(&mut self, now: Duration) -> PlatformFeedback {
         let s = &self.state;
         let (roll, pitch) = s.tilt_rad();
+        let velocity_enu_mps = s.velocity_mps + self.drift.rate_mps();
         let pose = Pose {
-            position_m: s.position_m,
+            position_m: self.estimated_position_m(),
             orientation: nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, s.yaw_rad),
         };
         let status = PlatformStatus {
@@ -302,12 +335,12 @@ impl Platform for SimVehicle {
             measurements: vec![
                 Measurement::GroundTruth {
                     pose,
-                    velocity_enu_mps: s.velocity_mps,
+                    velocity_enu_mps,
                     angular_velocity_flu_radps,
                 },
                 Measurement::AutopilotOdometry {
                     pose,
-                    velocity_enu_mps: s.velocity_mps,
+                    velocity_enu_mps,
                     angular_velocity_flu_radps,
                     valid: Validity::ALL,
                     reset_counter: 0,

@@ -26,7 +26,7 @@ pub use platform::{
 };
 pub use scan::{Beam, RangeScan};
 pub use setpoint::{AcceptedSetpoints, PositionLoop, Setpoint, YawTarget};
-pub use simulated::{SensorConfig, SensorError, DEFAULT_VEHICLE_RADIUS_M};
+pub use simulated::{Imperfections, SensorConfig, SensorError, DEFAULT_VEHICLE_RADIUS_M};
 pub use state::{
     Battery, EstimatedState, FlightStatus, LinkHealth, PlatformStatus, Validity, VehicleState,
 };

@@ -9,6 +9,17 @@ use serde::{Deserialize, Serialize};
 /// and the simulator's multirotor's.
 pub const DEFAULT_VEHICLE_RADIUS_M: f64 = 0.15;
 
+/// What a real drone has that a perfect simulation would not: a position estimate that drifts
+/// away from the truth and range readings that go missing (`[sim] position_drift_mps`,
+/// `[sim] range_dropout`; the range noise is the sensor's `noise_std_m`). Both off by default.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Imperfections {
+    /// Speed at which the position estimate walks away from the truth (m/s, horizontal; 0 = none).
+    pub position_drift_mps: f64,
+    /// Fraction of beam readings that return nothing (0 to 1).
+    pub range_dropout: f64,
+}
+
 /// Bounds of a sensor's settings: most lidar beams, longest range (m), fastest rate (Hz).
 const MAX_BEAMS: u32 = 3600;
 const MAX_RANGE_M: f64 = 1000.0;

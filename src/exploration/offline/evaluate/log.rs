@@ -1,10 +1,13 @@
 //! Pose samples out of a JSON-lines flight log (`flightlog`'s `pose` records, or any record
 //! with `t`, `drone`, `x`, `y`, `z`, `yaw` and no `type`).
 //!
-//! In: the log's text. Out: the [`PoseSample`]s in file order. Records of other types and
-//! blank lines are skipped, and so are poses whose `flight` says the motors are off
-//! (`disarmed`): such a vehicle is on the ground whatever height it reads (PX4 reports a
-//! vehicle resting on the ground up to 1 m above its home, and its estimate may creep there); a line over 1 MiB, a line that is not JSON, or a pose record
+//! In: the log's text. Out: the [`PoseSample`]s in file order: where the drone really was, so
+//! a record's `truth` (a simulated drone whose estimate drifts) is taken over its own `x`, `y`,
+//! `z` and `yaw`, which are the drone's belief. Records of other types and blank lines are
+//! skipped, and so are poses whose `flight` says the motors are off (`disarmed`): such a
+//! vehicle is on the ground whatever height it reads (PX4 reports a vehicle resting on the
+//! ground up to 1 m above its home, and its estimate may creep there). A line over 1 MiB, a
+//! line that is not JSON, or a pose record
 //! missing a numeric field is an error naming the line.
 //!
 //! A fleet flown by several Kestrels (the fleet bus) leaves one log per node:
@@ -28,6 +31,16 @@ struct Record {
     yaw: Option<f64>,
     unix_s: Option<f64>,
     flight: Option<String>,
+    truth: Option<Truth>,
+}
+
+/// A pose record's `truth`.
+#[derive(Deserialize)]
+struct Truth {
+    x: Option<f64>,
+    y: Option<f64>,
+    z: Option<f64>,
+    yaw: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -82,13 +95,27 @@ pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
                 })
             }
         };
+        let (x_m, y_m, z_m, yaw_rad) = match &r.truth {
+            Some(q) => (
+                field(q.x, "truth.x")?,
+                field(q.y, "truth.y")?,
+                field(q.z, "truth.z")?,
+                field(q.yaw, "truth.yaw")?,
+            ),
+            None => (
+                field(r.x, "x")?,
+                field(r.y, "y")?,
+                field(r.z, "z")?,
+                field(r.yaw, "yaw")?,
+            ),
+        };
         out.push(PoseSample {
             t_s: field(r.t, "t")?,
             drone,
-            x_m: field(r.x, "x")?,
-            y_m: field(r.y, "y")?,
-            z_m: field(r.z, "z")?,
-            yaw_rad: field(r.yaw, "yaw")?,
+            x_m,
+            y_m,
+            z_m,
+            yaw_rad,
         });
     }
     Ok(out)
@@ -188,6 +215,22 @@ mod tests {
         let poses = poses_from_log(text).unwrap();
         let times: Vec<f64> = poses.iter().map(|p| p.t_s).collect();
         assert_eq!(times, [0.1, 0.2]);
+    }
+
+    #[test]
+    fn a_records_truth_is_where_the_drone_was() {
+        let text = r#"{"t":1.0,"drone":"d0","type":"pose","x":1,"y":2,"z":1,"yaw":0.5,"truth":{"x":1.3,"y":1.9,"z":1,"yaw":0.5}}
+"#;
+        let p = &poses_from_log(text).unwrap()[0];
+        assert_eq!((p.x_m, p.y_m, p.z_m, p.yaw_rad), (1.3, 1.9, 1.0, 0.5));
+        let partial = text.replace(r#","yaw":0.5}"#, "}");
+        assert!(matches!(
+            poses_from_log(&partial),
+            Err(EvalError::PoseField {
+                line: 1,
+                field: "truth.yaw"
+            })
+        ));
     }
 
     #[test]
