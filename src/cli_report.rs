@@ -4,6 +4,8 @@
 //! an exploration log, when its header's is missing or moved). Out: DIR (default
 //! `<log stem>-report/` beside the log) with `index.html`, every figure as SVG and PNG,
 //! `poses.csv`, and `area.csv` for an evaluated exploration; the files written on stdout.
+//! With `--runs DIR` instead: every exploration run under DIR in one figure of time and area
+//! against the number of drones (`report::runs`), into `--out` (default `DIR/runs-report/`).
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -13,7 +15,15 @@ use std::path::PathBuf;
 #[derive(Args, Debug)]
 pub struct ReportArgs {
     /// Flight log to report on (JSON lines or MCAP, told apart by the file's first bytes).
-    flight_log: PathBuf,
+    #[arg(required_unless_present = "runs", conflicts_with = "runs")]
+    flight_log: Option<PathBuf>,
+    /// Directory of exploration runs (`kestrel explore` reports and flight logs) to draw
+    /// together: time and area against the number of drones.
+    #[arg(long, value_name = "DIR", conflicts_with = "world")]
+    runs: Option<PathBuf>,
+    /// The thesis's table (CSV) to draw beside the runs, e.g. benches/thesis-exploration-results.csv.
+    #[arg(long, value_name = "CSV", requires = "runs")]
+    thesis: Option<PathBuf>,
     /// Directory to write into (created if missing). Default: <log stem>-report/ beside the log.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -23,7 +33,9 @@ pub struct ReportArgs {
 }
 
 pub fn run(args: ReportArgs) -> Result<()> {
-    let log = &args.flight_log;
+    let (Some(log), None) = (&args.flight_log, &args.runs) else {
+        return runs(&args);
+    };
     let flight =
         report::read_file(log).with_context(|| format!("reading flight log {}", log.display()))?;
     let dir = log.parent().map(PathBuf::from).unwrap_or_default();
@@ -54,6 +66,19 @@ pub fn run(args: ReportArgs) -> Result<()> {
     }
     let written = report::write_dir(&report, &out)
         .with_context(|| format!("writing the report into {}", out.display()))?;
+    for path in written {
+        println!("{}", path.display());
+    }
+    Ok(())
+}
+
+fn runs(args: &ReportArgs) -> Result<()> {
+    let Some(dir) = &args.runs else {
+        anyhow::bail!("give a flight log or --runs DIR");
+    };
+    let out = args.out.clone().unwrap_or_else(|| dir.join("runs-report"));
+    let written = report::runs::write_dir(dir, &out, args.thesis.as_deref())
+        .with_context(|| format!("reporting the runs under {}", dir.display()))?;
     for path in written {
         println!("{}", path.display());
     }

@@ -6,7 +6,7 @@
 //! between ticks and can pretend a vehicle's link is lost (fault injection for tests).
 
 use super::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use crate::types::Setpoint;
+use crate::types::{Pose, Setpoint};
 use std::any::Any;
 use std::time::Duration;
 
@@ -47,6 +47,11 @@ pub trait Fleet: Send + Any {
     }
     fn is_simulated(&self) -> bool {
         false
+    }
+    /// The true pose of vehicle `i` where what it reports is a drifting estimate (a simulated
+    /// vehicle with drift); `None` where its reports are all there is.
+    fn truth_behind_estimate(&self, _i: usize) -> Option<Pose> {
+        None
     }
 }
 

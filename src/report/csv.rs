@@ -9,7 +9,7 @@ use crate::exploration::offline::evaluate::CurvePoint;
 use std::fmt::Write;
 
 /// A text cell, quoted when it holds a comma, quote or line break.
-fn cell(s: &str) -> String {
+pub(super) fn cell(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) {
         format!("\"{}\"", s.replace('"', "\"\""))
     } else {

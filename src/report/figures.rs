@@ -11,8 +11,9 @@
 
 use super::palette;
 use super::read::{DroneLog, Flight};
-use super::tracks;
+use super::runs::{Group, ThesisRow};
 use super::ReportError;
+use super::{runs_figure, tracks};
 use crate::exploration::offline::evaluate::{CurvePoint, KnownMap};
 use crate::sim::world::World;
 use plotters::coord::Shift;
@@ -31,14 +32,22 @@ pub enum Figure<'a> {
     Trajectory(&'a Flight),
     /// Altitude over distance flown, coloured the same way.
     Altitude(&'a Flight),
-    /// The area known at the end, the obstacles and the tracks (Figures 5.22, 5.23).
+    /// The area known, the obstacles, the tracks and the starts (Figure 5.22): at the end, or
+    /// with the tracks cut at `until_s` (a snapshot's map).
     Explored {
         flight: &'a Flight,
         map: &'a KnownMap,
         world: &'a World,
+        until_s: Option<f64>,
     },
     /// Known area over time (Figure 5.24).
     AreaCurve(&'a [CurvePoint]),
+    /// Time and area against the number of drones over several runs (Figure 5.23), the
+    /// thesis's rows beside when given.
+    Runs {
+        groups: &'a [Group],
+        thesis: &'a [ThesisRow],
+    },
 }
 
 pub(super) fn plot_err(e: impl std::fmt::Display) -> ReportError {
@@ -63,8 +72,14 @@ impl Figure<'_> {
             Figure::Timeline { drone, log } => timeline(root, drone, log),
             Figure::Trajectory(flight) => tracks::trajectory(root, flight),
             Figure::Altitude(flight) => tracks::altitude(root, flight),
-            Figure::Explored { flight, map, world } => tracks::explored(root, flight, map, world),
+            Figure::Explored {
+                flight,
+                map,
+                world,
+                until_s,
+            } => tracks::explored(root, flight, map, world, *until_s),
             Figure::AreaCurve(curve) => area_curve(root, curve),
+            Figure::Runs { groups, thesis } => runs_figure::draw(root, groups, thesis),
         }?;
         root.present().map_err(plot_err)
     }

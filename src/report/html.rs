@@ -23,7 +23,7 @@ pub fn linked(stem: &str, size_px: (u32, u32)) -> String {
     )
 }
 
-const STYLE: &str = "body{font-family:sans-serif;margin:2em;max-width:1000px}\
+pub const STYLE: &str = "body{font-family:sans-serif;margin:2em;max-width:1000px}\
 table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}\
 th{background:#eee}td:first-child{text-align:left}figure{margin:1.5em 0}\
 .note{background:#fff4d6;padding:.5em 1em}svg{max-width:100%;height:auto}";
@@ -96,8 +96,17 @@ fn table(h: &mut String, report: &Report) {
     h.push_str(
         "<h2>Drones</h2>\n<table><tr><th>drone</th><th>distance flown (m)</th>\
          <th>flight time (s)</th><th>battery used (%)</th><th>position error mean / max (m)</th>\
-         <th>velocity error mean / max (m/s)</th><th>time per behavior (s)</th></tr>\n",
+         <th>velocity error mean / max (m/s)</th><th>explored area (%)</th>\
+         <th>time per behavior (s)</th></tr>\n",
     );
+    let explored = |drone: &str| match &report.exploration {
+        Exploration::Evaluated { metrics, .. } => metrics
+            .drones
+            .iter()
+            .find(|d| d.drone == drone)
+            .map(|d| d.area_pct),
+        _ => None,
+    };
     for (drone, s) in &report.stats {
         let err = |e: Option<super::stats::ErrorStats>| {
             e.map_or("–".into(), |e| {
@@ -112,13 +121,14 @@ fn table(h: &mut String, report: &Report) {
         let _ = writeln!(
             h,
             "<tr><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{}</td>\
-             <td>{}</td></tr>",
+             <td>{}</td><td>{}</td></tr>",
             escape(drone),
             s.distance_m,
             s.flight_time_s,
             opt(s.battery_used_fraction.map(|b| 100.0 * b), 1),
             err(s.position_error_m),
             err(s.velocity_error_mps),
+            opt(explored(drone), 2),
             behaviors.join(", "),
         );
     }
@@ -130,7 +140,8 @@ fn table(h: &mut String, report: &Report) {
          sent a position setpoint. Velocity error: |velocity setpoint − logged velocity| over \
          the airborne records where it sent a velocity setpoint (the velocity asked for in \
          that tick against the one the vehicle had then, so it includes the vehicle's \
-         response lag). Time per behavior: from each behavior's <code>started</code> event to \
+         response lag). Explored area: the cells this drone's beams crossed / all cells of the \
+         evaluation grid (exploration logs). Time per behavior: from each behavior's <code>started</code> event to \
          its <code>finished</code> (or the end of the log), summed.</small></p>\n",
     );
 }

@@ -8,14 +8,21 @@
 //! inlined as SVG ([`inline_html`]). Exploration metrics come from `exploration::offline::evaluate`,
 //! the same evaluator as `kestrel evaluate`.
 //!
-//! Files: `read` (the log), `stats` (the per-drone table), `palette`, `figures` and `tracks`
-//! (plotters drawings), `html` (the page), `csv` (the exports).
+//! Exploration reports add the map at 25/50/75/100 % of the final area (`snapshots`). Several
+//! runs together (`kestrel report --runs DIR`): [`runs::write_dir`].
+//!
+//! Files: `read` (the log), `stats` (the per-drone table), `snapshots`, `palette`, `figures` and
+//! `tracks` (plotters drawings), `html` (the page), `csv` (the exports), `runs` and
+//! `runs_figure` (several runs: reading, grouping, the figure and page).
 
 mod csv;
 pub mod figures;
 mod html;
 pub mod palette;
 pub mod read;
+pub mod runs;
+mod runs_figure;
+pub mod snapshots;
 pub mod stats;
 mod tracks;
 
@@ -26,6 +33,7 @@ use crate::flightlog::reader;
 use crate::sim::world::World;
 use figures::Figure;
 use read::Flight;
+use snapshots::Snapshot;
 use stats::DroneStats;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -74,6 +82,8 @@ pub enum Exploration {
         world: Box<World>,
         metrics: Box<ExplorationMetrics>,
         map: KnownMap,
+        /// The map when 25, 50, 75 and 100 % of the final area was first known.
+        snapshots: Vec<Snapshot>,
     },
 }
 
@@ -175,6 +185,7 @@ fn exploration(flight: &Flight, options: &Options) -> Exploration {
             world_path,
             world: Box::new(world),
             metrics: Box::new(metrics),
+            snapshots: snapshots::snapshots(&map),
             map,
         },
         Err(e) => Exploration::NoWorld(format!("evaluating against {}: {e}", world_path.display())),
@@ -236,6 +247,7 @@ pub fn plots(report: &Report) -> Vec<Plot<'_>> {
         world,
         metrics,
         map,
+        snapshots,
         ..
     } = &report.exploration
     {
@@ -246,9 +258,27 @@ pub fn plots(report: &Report) -> Vec<Plot<'_>> {
                 flight: &report.flight,
                 map,
                 world,
+                until_s: None,
             },
             size_px: SQUARE_PX,
         });
+        for shot in snapshots {
+            out.push(Plot {
+                stem: format!("explored-{:.0}", shot.pct_of_final),
+                title: format!(
+                    "Explored when {:.0} % of the final area was first known (log time {:.1} s), \
+                     tracks up to then, starts as diamonds",
+                    shot.pct_of_final, shot.t_s
+                ),
+                figure: Figure::Explored {
+                    flight: &report.flight,
+                    map: &shot.map,
+                    world,
+                    until_s: Some(shot.t_s),
+                },
+                size_px: SQUARE_PX,
+            });
+        }
         out.push(Plot {
             stem: "area".into(),
             title: "Known area over time".into(),

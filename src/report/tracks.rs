@@ -229,17 +229,24 @@ pub fn altitude<DB: DrawingBackend>(
     behavior_legend(&mut chart, flight)
 }
 
+/// The known cells, the obstacles, the tracks up to `until_s` (all of them when `None`) and
+/// each drone's start as a diamond of its colour.
 pub fn explored<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     flight: &Flight,
     map: &KnownMap,
     world: &World,
+    until_s: Option<f64>,
 ) -> Result<(), ReportError> {
     let b = &world.bounds_m;
     let corners = [(b.x[0], b.y[0]), (b.x[1], b.y[1])];
     let ((x0, x1), (y0, y1)) = square_ranges(corners.into_iter(), plot_px(root));
+    let caption = match until_s {
+        Some(t) => format!("Explored by t = {t:.0} s, obstacles and tracks"),
+        None => "Explored area, obstacles and tracks".to_string(),
+    };
     let mut chart = ChartBuilder::on(root)
-        .caption("Explored area, obstacles and tracks", (FAMILY, 20))
+        .caption(caption, (FAMILY, 20))
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(50)
@@ -299,15 +306,32 @@ pub fn explored<DB: DrawingBackend>(
             Polygon::new(corners.to_vec(), obstacle)
         }))
         .map_err(plot_err)?;
+    let end_s = until_s.unwrap_or(f64::INFINITY);
     for (i, log) in flight.drones.values().enumerate() {
-        let stride = log.poses.len().div_ceil(MAX_TRACK_POINTS).max(1);
+        let flown = log.poses.partition_point(|p| p.t_s <= end_s);
+        let poses = log.poses.get(..flown).unwrap_or_default();
+        let stride = poses.len().div_ceil(MAX_TRACK_POINTS).max(1);
         chart
             .draw_series(LineSeries::new(
-                log.poses.iter().step_by(stride).map(|p| (p.x_m, p.y_m)),
+                poses.iter().step_by(stride).map(|p| (p.x_m, p.y_m)),
                 palette::drone(i).stroke_width(2),
             ))
             .map_err(plot_err)?;
     }
+    // Each drone's start: a diamond of its colour, outlined in black.
+    let r = START_PX;
+    let corners = vec![(0, -r), (r, 0), (0, r), (-r, 0), (0, -r)];
+    let starts = flight.drones.values().enumerate().filter_map(|(i, log)| {
+        let start = log.poses.first()?;
+        Some(((start.x_m, start.y_m), palette::drone(i)))
+    });
+    chart
+        .draw_series(starts.map(|(at, colour)| {
+            EmptyElement::at(at)
+                + Polygon::new(corners.clone(), colour.filled())
+                + PathElement::new(corners.clone(), BLACK.stroke_width(1))
+        }))
+        .map_err(plot_err)?;
     let mut entries = vec![("known".to_string(), KNOWN)];
     entries.extend(
         flight
@@ -318,6 +342,9 @@ pub fn explored<DB: DrawingBackend>(
     );
     legend(&mut chart, entries.into_iter())
 }
+
+/// Half the diagonal of a start diamond (px).
+const START_PX: i32 = 7;
 
 const KNOWN: RGBColor = RGBColor(0xB8, 0xDC, 0xF5);
 

@@ -7,7 +7,7 @@
 use super::SimWorld;
 use crate::platform::fleet::{FaultError, Fleet};
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use crate::types::{LinkHealth, Setpoint};
+use crate::types::{LinkHealth, Pose, Setpoint};
 use std::time::Duration;
 
 /// The simulator's world as a fleet. A vehicle whose link is cut reports `Lost` and gets no
@@ -91,5 +91,8 @@ impl Fleet for SimFleet {
     }
     fn is_simulated(&self) -> bool {
         true
+    }
+    fn truth_behind_estimate(&self, i: usize) -> Option<Pose> {
+        self.world.truth_behind_estimate(i)
     }
 }

@@ -200,6 +200,11 @@ pub struct KnownMap {
     pub ny: usize,
     /// Row-major from the south-west corner: `known[iy * nx + ix]`.
     pub known: Vec<bool>,
+    /// Indices into `known` in the order the cells became known (to any drone).
+    pub order: Vec<u32>,
+    /// (log time, cells known) after every sample that added a cell: `order[..n]` were the
+    /// cells known from that time on (until the next entry).
+    pub growth: Vec<(f64, usize)>,
 }
 
 /// Evaluates a flight against the true world. `samples` may come in any order.
@@ -265,6 +270,8 @@ pub fn evaluate_with_map(
         nx: raster.nx,
         ny: raster.ny,
         known: (0..cells).map(|i| union.contains(i)).collect(),
+        order: known.order().to_vec(),
+        growth: known.growth().to_vec(),
     };
     let metrics = ExplorationMetrics {
         time_s,

@@ -155,10 +155,7 @@ impl Host {
             let state = core.vehicle_state();
             let motion = core.server().motion().map(|(name, _)| name);
             // A simulated drone whose estimate drifts: the truth beside it, for the evaluator.
-            let truth = self
-                .fleet
-                .sim_world()
-                .and_then(|w| w.truth_behind_estimate(i));
+            let truth = self.fleet.truth_behind_estimate(i);
             log.pose(now, &state, motion, out.setpoint.as_ref(), truth.as_ref());
             for e in &out.events {
                 log.behavior(now, core.drone_id(), e, item.as_ref());

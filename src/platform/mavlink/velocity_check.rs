@@ -109,7 +109,13 @@ mod tests {
     #[test]
     fn an_estimate_that_agrees_with_its_position_has_no_bias() {
         let mut check = VelocityCheck::new(0.2);
-        fly(&mut check, 0.0, 5.0, Vec3::new(0.8, -0.3, 0.5), Vec3::zeros());
+        fly(
+            &mut check,
+            0.0,
+            5.0,
+            Vec3::new(0.8, -0.3, 0.5),
+            Vec3::zeros(),
+        );
         assert!(check.bias_enu_mps().norm() < 1e-9);
     }
 
@@ -136,7 +142,13 @@ mod tests {
     #[test]
     fn the_bias_is_bounded_and_a_gap_starts_afresh() {
         let mut check = VelocityCheck::new(0.2);
-        fly(&mut check, 0.0, 2.0, Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0));
+        fly(
+            &mut check,
+            0.0,
+            2.0,
+            Vec3::zeros(),
+            Vec3::new(2.0, 0.0, 0.0),
+        );
         assert!((check.bias_enu_mps().norm() - MAX_BIAS_MPS).abs() < 1e-9);
         let before = check.bias_enu_mps();
         check.observe(3.0, Vec3::new(9.0, 0.0, 0.0), Vec3::zeros());

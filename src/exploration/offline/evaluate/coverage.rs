@@ -19,6 +19,8 @@ pub struct Known {
     cells: usize,
     /// (log time, cells known by any drone) after every sample that added a cell.
     growth: Vec<(f64, usize)>,
+    /// Cells in the order they joined the union: `order[..n]` were known when `growth` says n.
+    order: Vec<u32>,
     /// Log times of the first and last samples.
     start_s: f64,
     end_s: f64,
@@ -38,6 +40,7 @@ pub fn cast(raster: &Raster, index: &ShapeIndex, tracks: &Tracks, params: &EvalP
     let mut union = CellSet::new(cells);
     let mut union_count = 0usize;
     let mut growth = Vec::new();
+    let mut order = Vec::new();
     let (mut start_s, mut end_s) = (f64::INFINITY, f64::NEG_INFINITY);
     for (drone, s) in tracks.in_time_order() {
         start_s = start_s.min(s.t_s);
@@ -65,6 +68,8 @@ pub fn cast(raster: &Raster, index: &ShapeIndex, tracks: &Tracks, params: &EvalP
                 known.insert(i);
                 if union.insert(i) {
                     union_count += 1;
+                    // The raster has at most 100 million cells (`Raster::over`).
+                    order.push(u32::try_from(i).unwrap_or(u32::MAX));
                 }
                 true
             });
@@ -77,6 +82,7 @@ pub fn cast(raster: &Raster, index: &ShapeIndex, tracks: &Tracks, params: &EvalP
         per_drone,
         cells,
         growth,
+        order,
         start_s,
         end_s,
     }
@@ -85,6 +91,16 @@ pub fn cast(raster: &Raster, index: &ShapeIndex, tracks: &Tracks, params: &EvalP
 impl Known {
     pub fn per_drone(&self) -> &[CellSet] {
         &self.per_drone
+    }
+
+    /// (log time, cells known) after every sample that added a cell.
+    pub fn growth(&self) -> &[(f64, usize)] {
+        &self.growth
+    }
+
+    /// Cells in the order they became known to any drone.
+    pub fn order(&self) -> &[u32] {
+        &self.order
     }
 
     pub fn union(&self) -> CellSet {

@@ -223,3 +223,28 @@ fn bad_parameters_are_refused() {
         Err(EvalError::Param("cell_m"))
     ));
 }
+
+#[test]
+fn the_map_lists_its_cells_in_the_order_they_became_known() {
+    // a casts its four beams in the south-west at 1 s, b in the north-east at 3 s.
+    let samples = [
+        pose(1.0, "a", -4.0, -4.0, 1.0, 0.0),
+        pose(3.0, "b", 4.0, 4.0, 1.0, PI),
+    ];
+    let (m, map) = evaluate_with_map(&world(&[]), &samples, &EvalParams::default()).unwrap();
+    assert_eq!(map.order.len(), m.known_cells);
+    assert!(map.order.iter().all(|&i| map.known[i as usize]));
+    let times: Vec<f64> = map.growth.iter().map(|g| g.0).collect();
+    assert_eq!(times, [1.0, 3.0]);
+    let (_, at_first) = map.growth[0];
+    assert!((100.0 * at_first as f64 / m.grid_cells as f64 - m.drones[0].area_pct).abs() < 1e-9);
+    assert_eq!(map.growth[1].1, m.known_cells);
+    // The first cells listed are exactly the ones a alone makes known.
+    let (_, a_map) = evaluate_with_map(&world(&[]), &samples[..1], &EvalParams::default()).unwrap();
+    let mut first: Vec<u32> = map.order[..at_first].to_vec();
+    first.sort_unstable();
+    let a_cells: Vec<u32> = (0..a_map.known.len() as u32)
+        .filter(|&i| a_map.known[i as usize])
+        .collect();
+    assert_eq!(first, a_cells);
+}
