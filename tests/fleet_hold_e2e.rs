@@ -83,8 +83,13 @@ fn land_and_stop_get_through_the_hold_for_a_lost_peer_on_the_simulator() {
         || heard(&api_0, "drone_1") && heard(&api_1, "drone_0"),
         both,
     );
-    // Both simulated drones start at the origin: drone_1 climbs to 1 m and moves 3 m aside,
-    // drone_0 climbs to 3 m.
+    // Both simulated drones start at the origin: drone_1 climbs to 1 m and moves 3 m aside
+    // first (two drones taking off from one spot at once would be held apart by the safety
+    // stage), then drone_0 climbs to 3 m.
+    let idle_in_air = |api: &Api| {
+        let d = drone(api);
+        d["flight"] == "flying" && d["mission"]["state"] == 0
+    };
     execute(
         &api_1,
         1,
@@ -93,6 +98,12 @@ fn land_and_stop_get_through_the_hold_for_a_lost_peer_on_the_simulator() {
             {"behavior": "go_to", "args": {"x": 3.0, "y": 0.0, "z": 1.0, "speed": 0.5}}
         ]),
     );
+    wait_for(
+        "drone_1 not up and aside",
+        Duration::from_secs(60),
+        || idle_in_air(&api_1),
+        both,
+    );
     execute(
         &api_0,
         0,
@@ -100,10 +111,6 @@ fn land_and_stop_get_through_the_hold_for_a_lost_peer_on_the_simulator() {
             {"behavior": "takeoff", "args": {"height": 3.0, "speed": 0.5}}
         ]),
     );
-    let idle_in_air = |api: &Api| {
-        let d = drone(api);
-        d["flight"] == "flying" && d["mission"]["state"] == 0
-    };
     wait_for(
         "not both up",
         Duration::from_secs(60),
