@@ -6,6 +6,7 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use kestrel::exploration::offline::evaluate::limits::FlightLimits;
 use kestrel::exploration::offline::evaluate::{self, EvalParams, ExplorationMetrics, MergeError};
 use kestrel::flightlog::reader;
 use kestrel::sim::world::World;
@@ -32,6 +33,18 @@ pub struct EvaluateArgs {
     /// Time between two points of the area-over-time curve (s, 0.1 to 3600).
     #[arg(long, default_value_t = 10.0)]
     curve_step_s: f64,
+    /// Horizontal speed limit the run is judged against (m/s; flown within it + 3 %).
+    #[arg(long, default_value_t = FlightLimits::default().speed_mps)]
+    speed_limit_mps: f64,
+    /// Yaw-rate limit (rad/s; flown within it + 3 %).
+    #[arg(long, default_value_t = FlightLimits::default().yaw_rate_radps)]
+    yaw_rate_limit_radps: f64,
+    /// Least clearance from a drone's centre to an obstacle (m).
+    #[arg(long, default_value_t = FlightLimits::default().clearance_m)]
+    clearance_limit_m: f64,
+    /// Least 3-D distance between two airborne drones (m).
+    #[arg(long, default_value_t = FlightLimits::default().separation_m)]
+    separation_limit_m: f64,
 }
 
 pub fn run(args: EvaluateArgs) -> Result<()> {
@@ -73,6 +86,13 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     let params = EvalParams {
         beam_range_m: args.range_m,
         curve_step_s: args.curve_step_s,
+        limits: FlightLimits {
+            speed_mps: args.speed_limit_mps,
+            yaw_rate_radps: args.yaw_rate_limit_radps,
+            clearance_m: args.clearance_limit_m,
+            separation_m: args.separation_limit_m,
+            ..FlightLimits::default()
+        },
         ..EvalParams::default()
     };
     let metrics = evaluate::evaluate(&world, &samples, &params)
@@ -87,6 +107,8 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
 
 pub fn summary(m: &ExplorationMetrics) -> String {
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    let opt3 = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    let f = &m.flown;
     let times: Vec<String> = m
         .time_to_pct
         .iter()
@@ -97,7 +119,9 @@ pub fn summary(m: &ExplorationMetrics) -> String {
          area {:.2} % (closed {:.2} %), observable {:.2} % of {:.2} % of the grid\n\
          path {:.1} m (L1 {:.1} m), overlap {:.2} %, observed by 2+ {:.2} %\n\
          min clearance {} m, min separation {} m, collisions {}\n\
-         time to final area: {}\n",
+         time to final area: {}\n\
+         flown: speed max {} m/s (p99 {}), yaw rate max {} rad/s (p99 {}), height {} m (max {})\n\
+         limits: {}\n",
         m.drones_flown,
         m.time_s,
         m.first_takeoff_s,
@@ -115,6 +139,17 @@ pub fn summary(m: &ExplorationMetrics) -> String {
         opt(m.min_obstacle_clearance_m),
         opt(m.min_separation_m),
         m.collisions,
-        times.join(", ")
+        times.join(", "),
+        opt3(f.max_speed_mps),
+        opt3(f.p99_speed_mps),
+        opt3(f.max_yaw_rate_radps),
+        opt3(f.p99_yaw_rate_radps),
+        opt(f.cruise_height_m),
+        opt(f.max_height_m),
+        if f.held {
+            "held".to_string()
+        } else {
+            format!("BROKEN: {}", f.breaches.join("; "))
+        }
     )
 }

@@ -59,9 +59,10 @@ pub struct RemoteDroneStatus {
     pub id: String,
     /// The Kestrel that flies it.
     pub node: String,
-    pub position_enu_m: [f64; 3],
-    pub velocity_enu_mps: [f64; 3],
-    pub yaw_rad: f64,
+    /// `null` until its autopilot has given a position (all three).
+    pub position_enu_m: Option<[f64; 3]>,
+    pub velocity_enu_mps: Option<[f64; 3]>,
+    pub yaw_rad: Option<f64>,
     pub flying: bool,
     /// Its node's link to its autopilot.
     #[schema(value_type = String)]
@@ -178,32 +179,46 @@ impl RemoteFleet {
         if accounted {
             return self.policy.keepout_m;
         }
-        Vec3::from(state.velocity_enu_mps).norm() * age.as_secs_f64()
+        state
+            .velocity_enu_mps
+            .map_or(0.0, |v| Vec3::from(v).norm() * age.as_secs_f64())
     }
 
-    /// The fleet-view entries of the remote drones at host time `now`.
+    /// How `h` stands at host time `now`: silent, and whether the majority accounts for it.
+    fn silence(&self, h: &Heard, now: Duration, majority: bool) -> Silence {
+        let age = self.age(h, now);
+        let silent = age > self.policy.peer_timeout;
+        let accounted = silent && majority && age >= self.policy.lost_after;
+        Silence {
+            age,
+            silent,
+            accounted,
+            unaccounted: silent && !accounted && h.state.flying,
+        }
+    }
+
+    /// The fleet-view entries of the remote drones at host time `now`. A drone whose autopilot
+    /// has not given a position yet is not among them: there is nowhere to keep apart from.
     pub fn views(&self, now: Duration) -> impl Iterator<Item = DroneView> + '_ {
         let majority = self.in_majority(now);
-        self.drones.values().map(move |h| {
+        self.drones.values().filter_map(move |h| {
             let s = &h.state;
-            let age = self.age(h, now);
-            let silent = age > self.policy.peer_timeout;
-            let accounted = silent && majority && age >= self.policy.lost_after;
-            DroneView {
+            let q = self.silence(h, now, majority);
+            Some(DroneView {
                 id: s.id.as_str().into(),
-                position_enu_m: Vec3::from(s.position_enu_m),
-                velocity_enu_mps: Vec3::from(s.velocity_enu_mps),
-                yaw_rad: s.yaw_rad,
+                position_enu_m: Vec3::from(s.position_enu_m?),
+                velocity_enu_mps: Vec3::from(s.velocity_enu_mps?),
+                yaw_rad: s.yaw_rad?,
                 flying: s.flying,
                 link: s.link,
                 motion_behavior: s.behavior.as_deref().map(Arc::from),
                 goal_enu_m: s.goal_enu_m.map(Vec3::from),
                 stamp: h.at,
                 local: false,
-                uncertainty_m: self.uncertainty_m(s, age, accounted),
-                silent,
-                unaccounted: silent && !accounted && s.flying,
-            }
+                uncertainty_m: self.uncertainty_m(s, q.age, q.accounted),
+                silent: q.silent,
+                unaccounted: q.unaccounted,
+            })
         })
     }
 
@@ -216,11 +231,12 @@ impl RemoteFleet {
     }
 
     pub fn statuses(&self, now: Duration) -> Vec<RemoteDroneStatus> {
+        let majority = self.in_majority(now);
         self.drones
             .values()
-            .zip(self.views(now))
-            .map(|(h, view)| {
+            .map(|h| {
                 let s = &h.state;
+                let q = self.silence(h, now, majority);
                 RemoteDroneStatus {
                     id: s.id.clone(),
                     node: h.node.clone(),
@@ -232,13 +248,21 @@ impl RemoteFleet {
                     battery_pct: s.battery_pct,
                     behavior: s.behavior.clone(),
                     mission: s.mission.clone(),
-                    age_s: self.age(h, now).as_secs_f64(),
-                    silent: view.silent,
-                    unaccounted: view.unaccounted,
+                    age_s: q.age.as_secs_f64(),
+                    silent: q.silent,
+                    unaccounted: q.unaccounted,
                 }
             })
             .collect()
     }
+}
+
+/// How long a remote drone has not been heard, and what that means for the fleet.
+struct Silence {
+    age: Duration,
+    silent: bool,
+    accounted: bool,
+    unaccounted: bool,
 }
 
 #[cfg(test)]
@@ -257,7 +281,7 @@ mod tests {
 
     fn drone(id: &str, x: f64) -> DroneState {
         DroneState {
-            velocity_enu_mps: [0.5, 0.0, 0.0],
+            velocity_enu_mps: Some([0.5, 0.0, 0.0]),
             claim_enu_m: Some([x + 1.0, 0.0]),
             ..DroneState::at_rest(id, [x, 0.0, 1.0], true)
         }
@@ -324,6 +348,30 @@ mod tests {
         r.apply(msg("c", vec![landed]), t0 + s(60.0), &[]);
         assert!(!view(&r, 65.0, "drone_3").unaccounted);
         assert_eq!(r.claims().len(), 2);
+    }
+
+    #[test]
+    fn a_drone_without_a_position_is_listed_but_kept_out_of_the_fleet_view() {
+        let mut r = RemoteFleet::new(policy(), roster(&[("b", &["drone_1", "drone_2"])]));
+        let t0 = Duration::from_secs(1);
+        let unplaced = DroneState {
+            position_enu_m: None,
+            velocity_enu_mps: None,
+            yaw_rad: None,
+            ..DroneState::at_rest("drone_2", [0.0; 3], false)
+        };
+        r.apply(msg("b", vec![drone("drone_1", 2.0), unplaced]), t0, &[]);
+        let ids: Vec<_> = r.views(t0).map(|v| v.id.to_string()).collect();
+        assert_eq!(ids, ["drone_1"]);
+        let statuses = r.statuses(t0);
+        assert_eq!(statuses.len(), 2);
+        let listed = statuses.iter().find(|s| s.id == "drone_2").unwrap();
+        assert_eq!(
+            (listed.position_enu_m, listed.velocity_enu_mps, listed.yaw_rad),
+            (None, None, None)
+        );
+        let json = serde_json::to_value(listed).unwrap();
+        assert!(json["position_enu_m"].is_null(), "{json}");
     }
 
     #[test]

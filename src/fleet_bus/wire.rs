@@ -56,9 +56,11 @@ fn field(field: impl Into<String>, message: impl Into<String>) -> WireError {
 #[serde(deny_unknown_fields)]
 pub struct DroneState {
     pub id: String,
-    pub position_enu_m: [f64; 3],
-    pub velocity_enu_mps: [f64; 3],
-    pub yaw_rad: f64,
+    /// Where it is, how it moves and where it heads: `null`, all three, until its autopilot has
+    /// given a position (nothing is made up; receivers leave such a drone out of separation).
+    pub position_enu_m: Option<[f64; 3]>,
+    pub velocity_enu_mps: Option<[f64; 3]>,
+    pub yaw_rad: Option<f64>,
     /// Airborne and armed.
     pub flying: bool,
     /// Its node's link to its autopilot.
@@ -142,9 +144,9 @@ impl DroneState {
     pub fn at_rest(id: &str, position_enu_m: [f64; 3], flying: bool) -> Self {
         DroneState {
             id: id.into(),
-            position_enu_m,
-            velocity_enu_mps: [0.0; 3],
-            yaw_rad: 0.0,
+            position_enu_m: Some(position_enu_m),
+            velocity_enu_mps: Some([0.0; 3]),
+            yaw_rad: Some(0.0),
             flying,
             link: LinkHealth::Ok,
             battery_pct: None,
@@ -159,19 +161,39 @@ impl DroneState {
         if !valid_name(&self.id) {
             return Err(("id", "not a valid drone id".into()));
         }
-        if !finite_within(&self.position_enu_m, MAX_POSITION_M) {
+        let known = [
+            self.position_enu_m.is_some(),
+            self.velocity_enu_mps.is_some(),
+            self.yaw_rad.is_some(),
+        ];
+        if known.iter().any(|k| *k != known[0]) {
+            return Err((
+                "position_enu_m",
+                "position_enu_m, velocity_enu_mps and yaw_rad are all null or all set".into(),
+            ));
+        }
+        if !self
+            .position_enu_m
+            .is_none_or(|p| finite_within(&p, MAX_POSITION_M))
+        {
             return Err((
                 "position_enu_m",
                 format!("must be finite, within {MAX_POSITION_M} m"),
             ));
         }
-        if !finite_within(&self.velocity_enu_mps, MAX_SPEED_MPS) {
+        if !self
+            .velocity_enu_mps
+            .is_none_or(|v| finite_within(&v, MAX_SPEED_MPS))
+        {
             return Err((
                 "velocity_enu_mps",
                 format!("must be finite, within {MAX_SPEED_MPS} m/s"),
             ));
         }
-        if !finite_within(&[self.yaw_rad], 4.0 * std::f64::consts::PI) {
+        if !self
+            .yaw_rad
+            .is_none_or(|y| finite_within(&[y], 4.0 * std::f64::consts::PI))
+        {
             return Err(("yaw_rad", "must be finite, within 4 pi rad".into()));
         }
         if let Some(b) = self.battery_pct {
@@ -343,9 +365,9 @@ mod tests {
             sent_unix_us: 1,
             drones: vec![DroneState {
                 id: "drone_1".into(),
-                position_enu_m: [1.0, 2.0, 1.0],
-                velocity_enu_mps: [0.5, 0.0, 0.0],
-                yaw_rad: 0.3,
+                position_enu_m: Some([1.0, 2.0, 1.0]),
+                velocity_enu_mps: Some([0.5, 0.0, 0.0]),
+                yaw_rad: Some(0.3),
                 flying: true,
                 link: LinkHealth::Ok,
                 battery_pct: Some(80.0),
@@ -396,16 +418,26 @@ mod tests {
         let s = state();
         assert_eq!(StateMsg::decode(&s.encode()).unwrap(), s);
         let mut nan = state();
-        nan.drones[0].position_enu_m[1] = f64::NAN;
+        nan.drones[0].position_enu_m = Some([0.0, f64::NAN, 1.0]);
         // NaN serializes as null, which is not a number.
         assert!(StateMsg::decode(&nan.encode()).is_err());
         let mut far = state();
-        far.drones[0].velocity_enu_mps[0] = 1e3;
+        far.drones[0].velocity_enu_mps = Some([1e3, 0.0, 0.0]);
         let err = StateMsg::decode(&far.encode()).unwrap_err();
         assert!(
             err.to_string().contains("/drones/0/velocity_enu_mps"),
             "{err}"
         );
+        let mut unplaced = state();
+        let d = &mut unplaced.drones[0];
+        (d.position_enu_m, d.velocity_enu_mps, d.yaw_rad) = (None, None, None);
+        assert_eq!(StateMsg::decode(&unplaced.encode()).unwrap(), unplaced);
+        let mut half = state();
+        half.drones[0].yaw_rad = None;
+        assert!(StateMsg::decode(&half.encode())
+            .unwrap_err()
+            .to_string()
+            .contains("all null or all set"));
         let mut sneaky = state();
         sneaky.drones[0].id = "x/../y".into();
         assert!(StateMsg::decode(&sneaky.encode())

@@ -332,7 +332,7 @@ function drawDrones(): void {
 /** Zooms the map to every drone that has a position, other Kestrels' too (home when none has). */
 function fitFleet(): void {
   const placed = app.drones().map((r) => app.view(r).status).filter(hasPosition);
-  const points = [...placed.map((s) => s.position_enu_m), ...app.remoteDrones().map((r) => r.drone.position_enu_m)];
+  const points = [...placed.map((s) => s.position_enu_m), ...app.remoteDrones().flatMap((r) => (r.drone.position_enu_m ? [r.drone.position_enu_m] : []))];
   mapView.fitTo(points.length ? points.map((p): Vec2 => [p[0], p[1]]) : [[0, 0]]);
 }
 

@@ -15,6 +15,7 @@
 //! hit cell, becomes known to that drone.
 
 mod coverage;
+pub mod limits;
 mod log;
 mod motion;
 mod observable;
@@ -24,6 +25,7 @@ pub use log::{poses_from_log, poses_from_logs, start_unix_s, MergeError};
 
 use crate::sim::spatial::ShapeIndex;
 use crate::sim::world::World;
+use limits::{FlightLimits, Flown};
 use raster::Raster;
 use serde::Serialize;
 
@@ -69,6 +71,8 @@ pub struct EvalParams {
     pub pair_tolerance_s: f64,
     /// Spacing of the points of the area curve (s of log time).
     pub curve_step_s: f64,
+    /// What the run is judged against (the thesis's limits by default).
+    pub limits: FlightLimits,
 }
 
 impl Default for EvalParams {
@@ -86,6 +90,7 @@ impl Default for EvalParams {
             collision_separation_m: 0.2,
             pair_tolerance_s: 0.06,
             curve_step_s: 10.0,
+            limits: FlightLimits::default(),
         }
     }
 }
@@ -184,6 +189,9 @@ pub struct ExplorationMetrics {
     pub time_over_bound: Option<f64>,
     /// Times to 90, 95 and 99 % of the final `area_pct`.
     pub time_to_pct: Vec<TimeToPct>,
+    /// Speed, yaw rate, height, clearance and separation flown against the limits; a run that
+    /// broke one failed, whatever it explored.
+    pub flown: Flown,
 }
 
 /// Shares of the final area `time_to_pct` reports (%).
@@ -304,6 +312,13 @@ pub fn evaluate_with_map(
                 area_pct: pct(n),
             })
             .collect(),
+        flown: limits::judge(
+            &tracks,
+            params.airborne_z_m,
+            clearance.min_m,
+            separation.min_m,
+            &params.limits,
+        ),
         lower_bound_s,
         time_over_bound: (lower_bound_s > 0.0).then(|| time_s / lower_bound_s),
         time_to_pct: TIME_TO_PCTS
@@ -360,7 +375,7 @@ fn check(p: &EvalParams) -> Result<(), EvalError> {
     ];
     match rules.iter().find(|(ok, _)| !ok) {
         Some((_, name)) => Err(EvalError::Param(name)),
-        None => Ok(()),
+        None => p.limits.check().map_err(EvalError::Param),
     }
 }
 

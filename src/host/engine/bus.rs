@@ -130,11 +130,13 @@ impl Host {
             .map(|(core, ex)| {
                 let view = core.fleet_entry(self.now);
                 let status = core.platform_status();
+                // Nothing is made up before the autopilot's first position.
+                let placed = core.position_age().is_some();
                 DroneState {
                     id: core.drone_id().to_string(),
-                    position_enu_m: view.position_enu_m.into(),
-                    velocity_enu_mps: view.velocity_enu_mps.into(),
-                    yaw_rad: view.yaw_rad,
+                    position_enu_m: placed.then(|| view.position_enu_m.into()),
+                    velocity_enu_mps: placed.then(|| view.velocity_enu_mps.into()),
+                    yaw_rad: placed.then_some(view.yaw_rad),
                     flying: view.flying,
                     link: view.link,
                     battery_pct: status

@@ -188,9 +188,10 @@ export interface RemoteDrone {
   id: string;
   /** The Kestrel (bus node) that flies it. */
   node: string;
-  position_enu_m: Vec3;
-  velocity_enu_mps: Vec3;
-  yaw_rad: number;
+  /** `null` (all three) until its autopilot has given a position. */
+  position_enu_m: Vec3 | null;
+  velocity_enu_mps: Vec3 | null;
+  yaw_rad: number | null;
   flying: boolean;
   /** Its node's link to its autopilot. */
   link: LinkState | string;

@@ -76,8 +76,12 @@ export class RemoteCards {
       const last = silent ? 'last heard: ' : '';
       fields.flight.textContent = `${last}${r.flying ? 'flying' : 'on the ground'}`;
       fields.battery.textContent = r.battery_pct === null ? '—' : `${Math.round(r.battery_pct)} %`;
-      const [x, y, z] = r.position_enu_m;
-      fields.position.textContent = `${silent ? 'last known ' : ''}x ${fmt(x)} y ${fmt(y)} z ${fmt(z)} m`;
+      if (r.position_enu_m === null) {
+        fields.position.textContent = 'no position yet';
+      } else {
+        const [x, y, z] = r.position_enu_m;
+        fields.position.textContent = `${silent ? 'last known ' : ''}x ${fmt(x)} y ${fmt(y)} z ${fmt(z)} m`;
+      }
       fields.behavior.textContent = r.behavior ?? 'none';
       fields.mission.textContent = r.mission ?? 'no mission';
       fields.commands.textContent = `none here: ${remoteCommandNote(r)}`;

@@ -24,8 +24,11 @@ export class RemoteLayer {
     const seen = new Set<string>();
     for (const d of drones) {
       const r = d.drone;
+      // Not drawn before its autopilot gives a position (its marker goes, if it had one).
+      if (r.position_enu_m === null || r.yaw_rad === null) continue;
       seen.add(d.key);
       const [x, y, z] = r.position_enu_m;
+      const yaw = r.yaw_rad;
       let m = this.markers.get(d.key);
       if (!m) {
         m = L.marker(this.ll(x, y), {
@@ -48,7 +51,7 @@ export class RemoteLayer {
       el.dataset.x = x.toFixed(2);
       el.dataset.y = y.toFixed(2);
       el.classList.toggle('silent', d.link.state === 'silent');
-      el.querySelector('svg')?.setAttribute('style', `transform: rotate(${(-r.yaw_rad * 180) / Math.PI}deg)`);
+      el.querySelector('svg')?.setAttribute('style', `transform: rotate(${(-yaw * 180) / Math.PI}deg)`);
       const label = el.querySelector('.drone-label');
       if (label) label.textContent = `${remoteLabel(r, d.link)} · ${z.toFixed(1)} m`;
     }
