@@ -14,9 +14,17 @@ runs = []
 for path in sorted(glob.glob(os.path.join(out, '*.report.json'))):
     rep = json.load(open(path))
     m = rep.get('metrics') or {}
+    flown = m.get('flown') or {}
     world = os.path.basename(rep['world']).removesuffix('.json')
+    # A run that broke a limit (speed, yaw rate, clearance, separation: `kestrel evaluate`'s
+    # `flown`) failed, whatever it explored; so did one with a collision.
+    held = flown.get('held', False)
     runs.append(dict(world=world, drones=rep['drones'], seed=rep['seed'], allocator=rep['allocator'],
-                     ok=rep['succeeded'], time_s=m.get('time_s'), area=m.get('area_pct'),
+                     ok=bool(rep['succeeded'] and held and m.get('collisions') == 0),
+                     explored=rep['succeeded'], limits_held=held,
+                     max_speed=flown.get('max_speed_mps'), max_yaw_rate=flown.get('max_yaw_rate_radps'),
+                     breaches='; '.join(flown.get('breaches', [])),
+                     time_s=m.get('time_s'), area=m.get('area_pct'),
                      area_closed=m.get('area_closed_pct'), observable=m.get('observable_pct'),
                      path=m.get('path_m'), path_l1=m.get('path_l1_m'), overlap=m.get('overlap_pct'),
                      bound=m.get('lower_bound_s'), clearance=m.get('min_obstacle_clearance_m'),
@@ -63,11 +71,14 @@ for a in ['kestrel', 'thesis', 'nearest', 'farthest']:
     for r in [r for r in runs if r['world'] == 'low' and r['drones'] == 3 and r['allocator'] == a and r['seed'] == 0]:
         lines.append(f"| {a} | {r['ok']} | {fmt(r['time_s'])} | {fmt(r['area'], 2)} ({fmt(r['area_closed'], 2)}) | "
                      f"{fmt(r['path'], 0)} | {fmt(r['overlap'], 1)} |")
-lines += ['', 'Every run:', '', '| world | N | seed | allocator | ok | T (s) | area % | closed % | observable % | '
-          'path (m) | collisions | failures |', '|' + '---|' * 12]
+lines += ['', 'Every run (ok: explored, no collision and every limit held):', '',
+          '| world | N | seed | allocator | ok | T (s) | area % | closed % | observable % | '
+          'path (m) | collisions | max speed (m/s) | max yaw rate (rad/s) | limits broken | failures |',
+          '|' + '---|' * 15]
 for r in runs:
     lines.append(f"| {r['world']} | {r['drones']} | {r['seed']} | {r['allocator']} | {r['ok']} | {fmt(r['time_s'])} | "
                  f"{fmt(r['area'], 2)} | {fmt(r['area_closed'], 2)} | {fmt(r['observable'], 2)} | {fmt(r['path'], 0)} | "
-                 f"{r['collisions']} | {r['failures']} |")
+                 f"{r['collisions']} | {fmt(r['max_speed'], 3)} | {fmt(r['max_yaw_rate'], 3)} | "
+                 f"{r['breaches'] or '-'} | {r['failures']} |")
 open(os.path.join(out, 'table.md'), 'w').write('\n'.join(lines) + '\n')
 print('\n'.join(lines))

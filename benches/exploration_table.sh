@@ -7,7 +7,8 @@
 #   bash benches/exploration_table.sh [OUT_DIR]        (SEEDS="0 1 2" JOBS=2 to change)
 #
 # Writes OUT_DIR/runs.csv (one line a run), OUT_DIR/table.md (means, ratios, thesis rows) and
-# OUT_DIR/speeds.md (the horizontal speed flown in every run against the 0.75 m/s limit).
+# OUT_DIR/speeds.md (the horizontal speed flown in every run against the 0.75 m/s limit). A run
+# is ok only if it explored, had no collision and held every limit `kestrel evaluate` judges.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/exploration-table}

@@ -111,10 +111,15 @@ fn the_readme_two_node_example_forms_a_fleet_on_loopback() {
     let deadline = Instant::now() + Duration::from_secs(60);
     let (b_on_a, a_on_b) = loop {
         let own_b = &api_b.get("/api/status")["drones"][0];
-        // Until B's autopilot gives a position, B announces its drone at its frame's origin
-        // (the wire has no "unknown" yet): wait for a state sent after the first position.
+        // Until B's autopilot gives a position, B announces its drone with a null position
+        // (nothing made up): wait for a state sent after the first position.
         if let (Some(x), Some(y)) = (heard(&api_a, "drone_b"), heard(&api_b, "drone_a")) {
-            if own_b["has_position"] == true {
+            if x["position_enu_m"].is_null() {
+                assert!(
+                    x["velocity_enu_mps"].is_null() && x["yaw_rad"].is_null(),
+                    "a drone without a position has no velocity or heading either: {x}"
+                );
+            } else if own_b["has_position"] == true {
                 let agree = (0..2).all(|k| {
                     (x["position_enu_m"][k].as_f64().unwrap()
                         - own_b["position_enu_m"][k].as_f64().unwrap())

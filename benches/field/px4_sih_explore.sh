@@ -114,5 +114,5 @@ for sysid, rows in sorted(by.items()):
     print(f"truth, system {sysid}: horizontal speed p50 {v[len(v) // 2]:.2f} p99 {v[int(0.99 * len(v))]:.2f} "
           f"max {v[-1]:.2f} m/s; {100 * over:.1f} % over {speed} m/s + 3 %")
 PY
-"$bin" evaluate --world "$world" --log "$out/$name.jsonl" --out "$out/$name.eval.json" 2>&1 | grep -E "area|clearance|collision|time" | head -6
+"$bin" evaluate --world "$world" --log "$out/$name.jsonl" --out "$out/$name.eval.json" 2>&1 | grep -E "area|clearance|collision|time|flown|limits" | head -8
 grep -E "strays up to|virtual collision" "$out/$name.out" | sed -E 's/^[^ ]+ +//' | head -12
