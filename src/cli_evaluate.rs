@@ -39,12 +39,14 @@ pub struct EvaluateArgs {
     /// Yaw-rate limit (rad/s; flown within it + 3 %).
     #[arg(long, default_value_t = FlightLimits::default().yaw_rate_radps)]
     yaw_rate_limit_radps: f64,
-    /// Least clearance from a drone's centre to an obstacle (m).
-    #[arg(long, default_value_t = FlightLimits::default().clearance_m)]
-    clearance_limit_m: f64,
-    /// Least 3-D distance between two airborne drones (m).
-    #[arg(long, default_value_t = FlightLimits::default().separation_m)]
-    separation_limit_m: f64,
+    /// Judge the least clearance from a drone's centre to an obstacle against this (m; by
+    /// default it is reported, and only a contact fails the run).
+    #[arg(long)]
+    clearance_limit_m: Option<f64>,
+    /// Judge the least 3-D distance between two airborne drones against this (m; by default
+    /// reported, and only a contact fails the run).
+    #[arg(long)]
+    separation_limit_m: Option<f64>,
 }
 
 pub fn run(args: EvaluateArgs) -> Result<()> {

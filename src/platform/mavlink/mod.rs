@@ -38,6 +38,7 @@ pub mod profile;
 pub mod router;
 pub mod session;
 pub mod setpoint;
+pub mod slew;
 pub mod statustext;
 pub mod takeover;
 #[cfg(test)]

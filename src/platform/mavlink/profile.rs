@@ -100,6 +100,10 @@ struct RawDrive {
     /// [`super::velocity_check`].
     #[serde(default)]
     velocity_check_s: Option<f64>,
+    /// Fastest change of the velocity sent (m/s^2; absent: sent as commanded). See
+    /// [`super::slew`].
+    #[serde(default)]
+    command_slew_mps2: Option<f64>,
 }
 
 fn unit_gain() -> f64 {
@@ -118,6 +122,7 @@ impl Default for RawDrive {
             position_gain_xy_per_s: 1.0,
             position_gain_z_per_s: 1.0,
             velocity_check_s: None,
+            command_slew_mps2: None,
         }
     }
 }
@@ -278,6 +283,9 @@ pub struct Profile {
     /// The velocity estimate is checked against the position over this time constant
     /// (`[drive] velocity_check_s`); `None`: taken as reported.
     pub velocity_check: Option<Duration>,
+    /// Fastest change of the velocity setpoints sent (`[drive] command_slew_mps2`, m/s^2);
+    /// `None`: sent as commanded.
+    pub command_slew_mps2: Option<f64>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -477,6 +485,20 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
             .drive
             .velocity_check_s
             .map(|s| seconds("drive.velocity_check_s", s, 0.0, 5.0))
+            .transpose()?,
+        command_slew_mps2: raw
+            .drive
+            .command_slew_mps2
+            .map(|a| {
+                if a.is_finite() && (0.1..=50.0).contains(&a) {
+                    Ok(a)
+                } else {
+                    Err((
+                        "drive.command_slew_mps2".to_string(),
+                        format!("must be within 0.1..=50 m/s^2, got {a}"),
+                    ))
+                }
+            })
             .transpose()?,
     })
 }

@@ -21,6 +21,7 @@ use super::commands::{CommandId, CommandTracker};
 use super::model::{ModelEvent, VehicleModel};
 use super::profile::{LandMethod, Profile, TakeoffMethod};
 use super::setpoint::{self, SetpointStreamer};
+use super::slew::Slew;
 use super::statustext::{Outbox, StatusText};
 use super::takeover::{ControlWatch, ModeReport, Takeover, WatchedModes};
 use crate::platform::{
@@ -100,6 +101,8 @@ pub struct Session {
     /// The vehicle was taken from Kestrel: no setpoints until the core asks for control again.
     handed_over: bool,
     last_setpoint_at: Option<Duration>,
+    /// How fast the velocity sent may change (the profile's `[drive] command_slew_mps2`).
+    slew: Option<Slew>,
     events: Vec<PlatformEvent>,
     texts: Outbox,
     /// When the behavior `land` last said it flies the descent on setpoints.
@@ -122,6 +125,7 @@ impl Session {
             watch,
             handed_over: false,
             last_setpoint_at: None,
+            slew: profile.command_slew_mps2.map(Slew::new),
             events: Vec::new(),
             model: VehicleModel::new(profile.clone(), config.target_system),
             tracker: CommandTracker::new(profile.command_timeout, profile.command_retries),
@@ -412,6 +416,19 @@ impl Session {
             let boot_ms = u32::try_from(now.as_millis()).unwrap_or(u32::MAX);
             self.stats.setpoints_sent += 1;
             self.last_setpoint_at = Some(now);
+            let sp = match (sp, self.slew.as_mut()) {
+                (
+                    Setpoint::Velocity {
+                        velocity_enu_mps,
+                        yaw,
+                    },
+                    Some(slew),
+                ) => Setpoint::Velocity {
+                    velocity_enu_mps: slew.limit(now, velocity_enu_mps),
+                    yaw,
+                },
+                (sp, _) => sp,
+            };
             let sp = sp.with_velocity_added(self.model.velocity_bias_enu_mps());
             let msg = setpoint::encode(&sp, boot_ms, system, component);
             self.push(MavMessage::SET_POSITION_TARGET_LOCAL_NED(msg));
