@@ -72,8 +72,14 @@ fn a_flood_of_commands_does_not_delay_the_ticks() {
     // commands, so the flood is judged against the quiet second of the same run (twice as long,
     // so twice its count, doubled again, and 10 more): the command-first loop had 41 late or
     // missed against none.
-    let (_, quiet_late, quiet_missed, _) = quiet;
-    assert!(wakes >= 150, "{wakes} ticks in 2 s at 100 Hz");
+    let (quiet_wakes, quiet_late, quiet_missed, _) = quiet;
+    // At least 150 of the 200, or (on a machine so loaded that the quiet second had fewer than
+    // 94 ticks) 80 % of twice the quiet second's.
+    let floor = 150.0_f64.min(1.6 * quiet_wakes as f64);
+    assert!(
+        wakes as f64 >= floor,
+        "{wakes} ticks in 2 s at 100 Hz (quiet second: {quiet:?})"
+    );
     let allowed = 4 * (quiet_late + quiet_missed) + 10;
     assert!(
         late + missed <= allowed,
