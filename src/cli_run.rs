@@ -2,7 +2,8 @@
 //! behaviors as the simulator, ticked in real time by a tokio interval.
 //!
 //! In: `--config FILE` (TOML), `--platform` and `--connection` overriding its `[mavlink]`
-//! section (`--platform platforms/sim.toml` flies the built-in simulator in real time instead).
+//! section (`--platform platforms/sim.toml` flies the built-in simulator in real time instead,
+//! with the config's `[sim]` drift and dropped readings; its log holds the estimate only).
 //! A `[[vehicle]]` list in the config flies several autopilots, each over its own connection
 //! with its own core and mission executor, its local frame shifted into the shared one.
 //! Out: the vehicles on the host, serving the HTTP/WebSocket API (`--listen`; `--no-api`: none),
@@ -257,6 +258,7 @@ fn start_platform(
             for v in &mut world.vehicles {
                 v.params.radius_m = config.sim.vehicle_radius_m;
             }
+            world.set_imperfections(config.sim.imperfections());
             let sim = RealtimeSim {
                 world,
                 stepped_to: Duration::ZERO,

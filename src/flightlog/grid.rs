@@ -24,6 +24,7 @@ pub fn sample(record: &Value) -> Option<PoseSample> {
         y_m: num("y")?,
         z_m: num("z")?,
         yaw_rad: num("yaw").unwrap_or(0.0),
+        crashed: record.get("flight").and_then(Value::as_str) == Some("crashed"),
     })
 }
 

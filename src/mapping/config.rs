@@ -55,6 +55,9 @@ pub struct MapSection {
     pub lock_above: Option<u8>,
     /// Cells at or above this occupancy (0..=100) are obstacles for planning.
     pub occupied_threshold: i8,
+    /// A beam without a return clears occupied cells too, and what is behind them (false: it
+    /// stops before them, since a dropped reading looks like an open view).
+    pub no_return_clears_occupied: bool,
     /// A known map in the ROS `map_server` format (the YAML file; its `image` is read beside
     /// it), relative to the config file. It sets the grid's geometry (`size_m` and
     /// `origin_enu_m` must then be absent) and its cells are where every drone starts from.
@@ -95,6 +98,7 @@ impl Default for MapSection {
             max_range_m: None,
             lock_above: None,
             occupied_threshold: DEFAULT_OCCUPIED_THRESHOLD,
+            no_return_clears_occupied: false,
             known_map: None,
             graph: None,
             fuse: FuseRule::default(),
@@ -185,6 +189,8 @@ impl MapSection {
             miss_confidence: self.miss_confidence,
             max_range_m: self.max_range_m,
             lock_above: self.lock_above,
+            no_return_stops_at: (!self.no_return_clears_occupied)
+                .then_some(self.occupied_threshold.max(0) as u8),
         };
         let initial = match &self.loaded.known_map {
             Some(known) => known.clone(),

@@ -12,6 +12,11 @@
 //! as 0 before the update, results are clipped to `0..=100`. Cells never touched stay unknown.
 //! Unlike Aerostack2 (which locks cells above 80 at 100 for ever), locking is optional
 //! (`lock_above`), so a moved obstacle can be cleared.
+//!
+//! A beam without a return ends before the first cell the map holds as occupied
+//! (`no_return_stops_at`) and leaves it as it is: a ranger's dropped reading looks exactly like
+//! an open view, so it may neither erase an obstacle nor see behind one. Only a beam with a hit
+//! beyond such a cell clears it (a moved obstacle).
 
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
@@ -191,6 +196,9 @@ pub struct InsertParams {
     pub max_range_m: Option<f64>,
     /// Cells above this value are kept at 100 for ever (Aerostack2 uses 80); `None` = never.
     pub lock_above: Option<u8>,
+    /// A beam without a return stops before a cell at or above this value (the occupied
+    /// threshold), leaving it as it is; `None` = it clears its whole ray.
+    pub no_return_stops_at: Option<u8>,
 }
 
 impl Default for InsertParams {
@@ -200,6 +208,7 @@ impl Default for InsertParams {
             miss_confidence: 10,
             max_range_m: None,
             lock_above: None,
+            no_return_stops_at: Some(DEFAULT_OCCUPIED_THRESHOLD as u8),
         }
     }
 }
@@ -429,6 +438,7 @@ impl OccupancyGrid {
         let hit = i16::from(params.hit_confidence.min(100));
         let miss = -i16::from(params.miss_confidence.min(100));
         let lock = params.lock_above.map(i16::from);
+        let stop_at = params.no_return_stops_at.map(|s| s.min(100) as i8);
         let update = |old: i8, delta: i16| -> i8 {
             let old = i16::from(old);
             if lock.is_some_and(|l| old > l) {
@@ -475,11 +485,19 @@ impl OccupancyGrid {
                 _ => (limit_m, false),
             };
             let end = origin + direction * range_m;
+            let stop_at = if is_hit { None } else { stop_at };
             // Every cell on the ray, the end included, is a miss unless already updated by
-            // this scan.
+            // this scan; a beam without a return stops at an occupied cell.
             let traced = trace_segment(spec, origin, end, |i| {
                 if let (Some(m), Some(v)) = (mark.get_mut(i), data.get_mut(i)) {
-                    if *m >> MARK_SHIFT != gen {
+                    let fresh = *m >> MARK_SHIFT != gen;
+                    if let Some(s) = stop_at {
+                        let before_scan = if fresh { *v } else { (*m & 0xFF) as u8 as i8 };
+                        if before_scan.max(*v) >= s {
+                            return false;
+                        }
+                    }
+                    if fresh {
                         let old = *v;
                         *m = (gen << MARK_SHIFT) | u32::from(old as u8);
                         let new = after_miss[usize::from(old as u8)];
@@ -710,6 +728,59 @@ mod tests {
         }
         locked.insert_scan(&pass, &lp).unwrap();
         assert_eq!(locked.get(Cell { x: 2, y: 0 }), Some(100));
+    }
+
+    fn east(range_m: Option<f64>) -> RangeScan {
+        scan_at(
+            0.5,
+            0.5,
+            vec![Beam {
+                angle_rad: 0.0,
+                range_m,
+            }],
+        )
+    }
+
+    #[test]
+    fn an_obstacle_seen_once_survives_beams_without_a_return() {
+        let p = InsertParams::default();
+        let mut g = OccupancyGrid::new(spec(8, 1, 1.0)).unwrap();
+        g.insert_scan(&east(Some(3.0)), &p).unwrap();
+        for _ in 0..20 {
+            g.insert_scan(&east(None), &p).unwrap();
+        }
+        // Still occupied, and nothing behind it is taken as seen.
+        assert_eq!(row(&g, 0), vec![0, 0, 0, 40, -1, -1, -1, -1]);
+        // Clearing whole rays, one dropped reading erases it and "sees" behind it.
+        let clear_all = InsertParams {
+            no_return_stops_at: None,
+            ..p
+        };
+        let mut g = OccupancyGrid::new(spec(8, 1, 1.0)).unwrap();
+        g.insert_scan(&east(Some(3.0)), &clear_all).unwrap();
+        g.insert_scan(&east(None), &clear_all).unwrap();
+        assert_eq!(row(&g, 0), vec![0, 0, 0, 30, 0, -1, -1, -1]);
+    }
+
+    #[test]
+    fn a_moved_obstacle_is_cleared_by_returns_from_beyond_it() {
+        let p = InsertParams::default();
+        let mut g = OccupancyGrid::new(spec(8, 1, 1.0)).unwrap();
+        for _ in 0..3 {
+            g.insert_scan(&east(Some(2.0)), &p).unwrap();
+        }
+        assert_eq!(g.get(Cell { x: 2, y: 0 }), Some(100));
+        // The obstacle is gone: the beam now returns from 3.5 m, through its cell.
+        let gone: Vec<i8> = (0..8)
+            .map(|_| {
+                g.insert_scan(&east(Some(3.5)), &p).unwrap();
+                g.get(Cell { x: 2, y: 0 }).unwrap()
+            })
+            .collect();
+        assert_eq!(gone, vec![90, 80, 70, 60, 50, 40, 30, 20]);
+        // Free again, it is cleared by a beam without a return, which stops at the far obstacle.
+        g.insert_scan(&east(None), &p).unwrap();
+        assert_eq!(row(&g, 0), vec![0, 0, 10, 0, 100, -1, -1, -1]);
     }
 
     #[test]

@@ -172,6 +172,7 @@ fn exploration(flight: &Flight, options: &Options) -> Exploration {
                     y_m,
                     z_m,
                     yaw_rad,
+                    crashed: p.crashed,
                 }
             })
         })

@@ -50,6 +50,8 @@ pub struct Pose {
     /// Where the drone really was (`x`, `y`, `z` in m, `yaw` in rad) when the record says so
     /// (a simulated drone whose estimate drifts); the fields above are its belief.
     pub truth: Option<[f64; 4]>,
+    /// `flight` is crashed: the simulator ended the flight at a contact.
+    pub crashed: bool,
 }
 
 /// One behavior's activation: a bar of the timeline.
@@ -225,6 +227,7 @@ fn pose(r: &Value, t_s: f64) -> Option<Pose> {
         vz_mps: or_zero("vz"),
         armed: r.get("armed").and_then(Value::as_bool).unwrap_or(false),
         airborne: matches!(flight, "taking_off" | "flying" | "landing"),
+        crashed: flight == "crashed",
         behavior: r
             .get("behavior")
             .and_then(Value::as_str)

@@ -75,7 +75,8 @@ pub fn scan<R: Rng>(
 
 /// Drops each beam's reading with probability `fraction` (0 to 1, clamped): the beam stays in
 /// the scan and returns nothing (`range_m: None`), as a time-of-flight ranger's invalid reading
-/// does, so the map clears the ray to the sensor's range as for any beam without a hit.
+/// does: the map cannot tell it from an open view (`mapping::grid`'s rule for beams without a
+/// return).
 pub fn drop_readings<R: Rng>(scan: &mut RangeScan, fraction: f64, rng: &mut R) {
     // NaN or 0 or less: nothing dropped.
     if fraction.is_nan() || fraction <= 0.0 {

@@ -10,6 +10,10 @@
 //! 90/95/99 % of the final area; [`evaluate_with_map`] adds the final known cells ([`KnownMap`], for
 //! plots).
 //!
+//! Collisions are airborne samples within the body radius of an obstacle, flights between
+//! two samples that came that close, drones closer than the collision separation, and flights
+//! the simulator ended in a crash.
+//!
 //! Each airborne sample casts the four beams at the true obstacles (exact ray-shape hits, found
 //! through [`ShapeIndex`]); every grid cell a beam crosses up to its hit or its range, and the
 //! hit cell, becomes known to that drone.
@@ -42,6 +46,9 @@ pub struct PoseSample {
     pub y_m: f64,
     pub z_m: f64,
     pub yaw_rad: f64,
+    /// The vehicle reported a crash (`flight: crashed`: the simulator ended a flight that
+    /// touched something).
+    pub crashed: bool,
 }
 
 /// How the evaluation senses and judges; defaults are the thesis's (exploration-research §4.2).
@@ -176,10 +183,13 @@ pub struct ExplorationMetrics {
     pub min_obstacle_clearance_m: Option<f64>,
     /// Least 3-D distance between two airborne drones at the same time (m); none for one drone.
     pub min_separation_m: Option<f64>,
-    /// `obstacle_collision_samples + drone_collision_pairs`.
+    /// `obstacle_collision_samples + drone_collision_pairs + crashes`.
     pub collisions: usize,
-    /// Airborne samples closer than the body radius to an obstacle.
+    /// Airborne samples closer than the body radius to an obstacle, plus flights between two
+    /// samples that came that close (a contact between samples).
     pub obstacle_collision_samples: usize,
+    /// Drones whose flight ended in a crash (`flight: crashed` in the log).
+    pub crashes: usize,
     /// Time-matched pairs of airborne drones closer than the collision separation.
     pub drone_collision_pairs: usize,
     pub area_curve: Vec<CurvePoint>,
@@ -250,6 +260,7 @@ pub fn evaluate_with_map(
     let area_pct = pct(known_cells);
     let separation = motion::separation(&tracks, params);
     let clearance = motion::clearance(&index, &tracks, params);
+    let crashes = motion::crashes(&tracks);
     let drones: Vec<DroneMetrics> = tracks
         .drones()
         .iter()
@@ -301,8 +312,9 @@ pub fn evaluate_with_map(
         drones,
         min_obstacle_clearance_m: clearance.min_m,
         min_separation_m: separation.min_m,
-        collisions: clearance.collisions + separation.collisions,
+        collisions: clearance.collisions + separation.collisions + crashes,
         obstacle_collision_samples: clearance.collisions,
+        crashes,
         drone_collision_pairs: separation.collisions,
         area_curve: known
             .curve(params.curve_step_s)

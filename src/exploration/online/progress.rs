@@ -179,6 +179,7 @@ impl ExplorationRun {
                     y_m: p.position_enu_m.y,
                     z_m: p.position_enu_m.z,
                     yaw_rad: p.yaw_rad,
+                    crashed: false,
                 });
                 if self.open_chunk.len() >= CHUNK {
                     self.chunks

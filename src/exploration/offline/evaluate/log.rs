@@ -6,9 +6,11 @@
 //! `z` and `yaw`, which are the drone's belief. Records of other types and blank lines are
 //! skipped, and so are poses whose `flight` says the motors are off (`disarmed`): such a
 //! vehicle is on the ground whatever height it reads (PX4 reports a vehicle resting on the
-//! ground up to 1 m above its home, and its estimate may creep there). A line over 1 MiB, a
-//! line that is not JSON, or a pose record
-//! missing a numeric field is an error naming the line.
+//! ground up to 1 m above its home, and its estimate may creep there). A pose whose `flight`
+//! is `crashed` is kept and marked, and so is a drone's latest pose before a `collision`
+//! record: the simulator ended that flight at a contact. A line over
+//! 1 MiB, a line that is not JSON, or a pose record missing a numeric field is an error naming
+//! the line.
 //!
 //! A fleet flown by several Kestrels (the fleet bus) leaves one log per node:
 //! [`poses_from_logs`] puts them on one clock through each log's first `clock` record.
@@ -50,8 +52,17 @@ enum DroneId {
     Number(i64),
 }
 
+impl DroneId {
+    fn name(&self) -> String {
+        match self {
+            DroneId::Name(s) => s.clone(),
+            DroneId::Number(k) => k.to_string(),
+        }
+    }
+}
+
 pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
-    let mut out = Vec::new();
+    let mut out: Vec<PoseSample> = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line_no = n + 1;
         if line.len() > MAX_LINE_BYTES {
@@ -67,8 +78,19 @@ pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
             line: line_no,
             source,
         })?;
-        let typed_pose = match &r.kind {
-            Some(kind) if kind.as_str() == Some("pose") => true,
+        let typed_pose = match r.kind.as_ref().map(serde_json::Value::as_str) {
+            Some(Some("pose")) => true,
+            Some(Some("collision")) => {
+                let drone = r.drone.as_ref().map(DroneId::name);
+                if let Some(last) = out
+                    .iter_mut()
+                    .rev()
+                    .find(|p| Some(&p.drone) == drone.as_ref())
+                {
+                    last.crashed = true;
+                }
+                continue;
+            }
             Some(_) => continue,
             None => false,
         };
@@ -86,8 +108,7 @@ pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
             })
         };
         let drone = match r.drone {
-            Some(DroneId::Name(s)) => s,
-            Some(DroneId::Number(k)) => k.to_string(),
+            Some(id) => id.name(),
             None => {
                 return Err(EvalError::PoseField {
                     line: line_no,
@@ -116,6 +137,7 @@ pub fn poses_from_log(text: &str) -> Result<Vec<PoseSample>, EvalError> {
             y_m,
             z_m,
             yaw_rad,
+            crashed: r.flight.as_deref() == Some("crashed"),
         });
     }
     Ok(out)
@@ -215,6 +237,18 @@ mod tests {
         let poses = poses_from_log(text).unwrap();
         let times: Vec<f64> = poses.iter().map(|p| p.t_s).collect();
         assert_eq!(times, [0.1, 0.2]);
+        assert!(poses.iter().all(|p| !p.crashed));
+        let crashed = text.replace(r#""flight":"flying""#, r#""flight":"crashed""#);
+        let poses = poses_from_log(&crashed).unwrap();
+        assert!(poses[1].crashed, "a crashed vehicle is kept, marked");
+        // The simulator's collision record, logged after the last pose of the flight.
+        let collided = format!(
+            "{text}{}\n",
+            r#"{"t":0.21,"drone":"d0","type":"collision","reason":"collision with obstacle 3"}"#
+        );
+        let poses = poses_from_log(&collided).unwrap();
+        let marked: Vec<bool> = poses.iter().map(|p| p.crashed).collect();
+        assert_eq!(marked, [false, true]);
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! [`Separation`] (least distances and collision counts).
 
 use super::{EvalParams, PoseSample};
+use crate::sim::shape::Shape;
 use crate::sim::spatial::ShapeIndex;
 use crate::types::Vec3;
 use std::collections::BTreeMap;
@@ -120,10 +121,12 @@ impl Tracks {
     }
 }
 
-/// Least distance from the airborne samples to obstacles, and the samples that touched one.
+/// Least distance from the airborne flight to obstacles, and the contacts with one.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Clearance {
     pub min_m: Option<f64>,
+    /// Airborne samples closer than the body radius, plus flights between two samples that
+    /// came that close with neither sample doing so (a contact between samples).
     pub collisions: usize,
 }
 
@@ -135,28 +138,100 @@ pub fn clearance(index: &ShapeIndex, tracks: &Tracks, params: &EvalParams) -> Cl
     };
     // Obstacles farther than the beam range are looked up only when nothing nearer exists.
     let reach_m = params.beam_range_m;
+    let body_m = params.body_radius_m;
     for d in tracks.drones() {
-        for s in d.samples.iter().filter(|s| d.airborne(s)) {
+        let mut previous: Option<Vec3> = None;
+        for s in &d.samples {
+            if !d.airborne(s) {
+                previous = None;
+                continue;
+            }
             let p = Vec3::new(s.x_m, s.y_m, s.z_m);
             let nearest = |ids: &mut dyn Iterator<Item = usize>| {
                 ids.filter_map(|i| shapes.get(i).and_then(|sh| sh.distance_m(&p)))
                     .reduce(f64::min)
             };
             let near = index.near(s.x_m, s.y_m, reach_m);
-            let dist = match nearest(&mut near.into_iter()) {
+            let dist = match nearest(&mut near.iter().copied()) {
                 Some(v) => Some(v),
                 None if out.min_m.is_some_and(|m| m < reach_m) => None,
                 None => nearest(&mut (0..shapes.len())),
             };
             if let Some(v) = dist {
                 out.min_m = Some(out.min_m.map_or(v, |m| m.min(v)));
-                if v < params.body_radius_m {
+                if v < body_m {
                     out.collisions += 1;
                 }
             }
+            if let Some(a) = previous {
+                for sh in near.iter().filter_map(|&i| shapes.get(i)) {
+                    let Some(between) = between_samples_m(sh, &a, &p, out.min_m, body_m) else {
+                        continue;
+                    };
+                    out.min_m = Some(
+                        out.min_m
+                            .map_or(between.least_m, |m| m.min(between.least_m)),
+                    );
+                    if between.least_m < body_m && between.ends_m >= body_m {
+                        out.collisions += 1;
+                    }
+                }
+            }
+            previous = Some(p);
         }
     }
     out
+}
+
+/// How near a straight flight between two samples came to a shape.
+struct Between {
+    least_m: f64,
+    /// The nearer of the two samples' distances.
+    ends_m: f64,
+}
+
+/// The least distance to `shape` on the segment from `a` to `b` (at the lower sample's height),
+/// `None` when it cannot be below `below_m` nor `body_m` (each point of the segment is within
+/// half its length of a sample) or the shape is below the flight. The distance to a convex
+/// shape is convex along a segment, so a ternary search finds its least value.
+fn between_samples_m(
+    shape: &Shape,
+    a: &Vec3,
+    b: &Vec3,
+    below_m: Option<f64>,
+    body_m: f64,
+) -> Option<Between> {
+    let z = a.z.min(b.z);
+    let at = |t: f64| shape.distance_m(&Vec3::new(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), z));
+    let ends_m = at(0.0)?.min(at(1.0)?);
+    let half_m = 0.5 * (b.xy() - a.xy()).norm();
+    let bound_m = below_m.map_or(f64::INFINITY, |m| m.max(body_m));
+    if ends_m - half_m >= bound_m {
+        return None;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0);
+    // (2/3)^40 of a segment: far below a millimetre for any flight between two samples.
+    for _ in 0..40 {
+        let (m1, m2) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+        if at(m1)? <= at(m2)? {
+            hi = m2;
+        } else {
+            lo = m1;
+        }
+    }
+    Some(Between {
+        least_m: at(0.5 * (lo + hi))?.min(ends_m),
+        ends_m,
+    })
+}
+
+/// Drones whose flight ended in a crash (the simulator's `crashed` state in the log).
+pub fn crashes(tracks: &Tracks) -> usize {
+    tracks
+        .drones()
+        .iter()
+        .filter(|d| d.samples.iter().any(|s| s.crashed))
+        .count()
 }
 
 /// Least 3-D distance between airborne drones, and the time-matched pairs that touched.

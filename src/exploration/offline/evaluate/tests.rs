@@ -22,6 +22,7 @@ fn pose(t_s: f64, drone: &str, x: f64, y: f64, z: f64, yaw: f64) -> PoseSample {
         y_m: y,
         z_m: z,
         yaw_rad: yaw,
+        crashed: false,
     }
 }
 
@@ -247,4 +248,46 @@ fn the_map_lists_its_cells_in_the_order_they_became_known() {
         .filter(|&i| a_map.known[i as usize])
         .collect();
     assert_eq!(first, a_cells);
+}
+
+#[test]
+fn a_contact_between_two_samples_is_a_collision() {
+    // Past a pole at the origin (radius 0.25 m) 0.3 m off its centre: both samples are 0.33 m
+    // from its surface, the flight between them 0.05 m.
+    let w = world(&[[0.0, 0.0]]);
+    let samples = [
+        pose(0.0, "d0", -0.5, 0.3, 1.0, 0.0),
+        pose(0.1, "d0", 0.5, 0.3, 1.0, 0.0),
+    ];
+    let m = evaluate(&w, &samples, &EvalParams::default()).unwrap();
+    let clearance = m.min_obstacle_clearance_m.unwrap();
+    assert!((clearance - 0.05).abs() < 1e-6, "{clearance}");
+    assert_eq!((m.obstacle_collision_samples, m.collisions), (1, 1));
+    // 0.5 m off: near, no contact.
+    let wide = [
+        pose(0.0, "d0", -0.5, 0.5, 1.0, 0.0),
+        pose(0.1, "d0", 0.5, 0.5, 1.0, 0.0),
+    ];
+    let m = evaluate(&w, &wide, &EvalParams::default()).unwrap();
+    assert!((m.min_obstacle_clearance_m.unwrap() - 0.25).abs() < 1e-6);
+    assert_eq!(m.collisions, 0);
+}
+
+#[test]
+fn a_crashed_flight_is_a_collision() {
+    let mut samples = vec![
+        pose(0.0, "d0", 0.0, 2.0, 1.0, 0.0),
+        pose(0.1, "d0", 0.0, 2.0, 1.0, 0.0),
+    ];
+    let m = evaluate(&world(&[]), &samples, &EvalParams::default()).unwrap();
+    assert_eq!((m.crashes, m.collisions), (0, 0));
+    // The simulator ends the flight at a contact its samples need not show.
+    for t in [0.2, 0.3] {
+        samples.push(PoseSample {
+            crashed: true,
+            ..pose(t, "d0", 0.0, 2.0, 0.9, 0.0)
+        });
+    }
+    let m = evaluate(&world(&[]), &samples, &EvalParams::default()).unwrap();
+    assert_eq!((m.crashes, m.collisions), (1, 1));
 }
