@@ -18,7 +18,9 @@
 //! distance all around (plus how far this drone has lately strayed across its path,
 //! `exploration::online::tracking`, so an autopilot whose own hold wanders is kept that much farther
 //! away), so it never flies where it has not seen; it asks again every
-//! `retarget_period` s and whenever it arrives, so it re-targets without stopping. A frontier
+//! `retarget_period` s and whenever it arrives, so it re-targets without stopping; a path its
+//! own map shows an obstacle on (within half the safety distance ahead: news the plan did not
+//! have, as a drifting estimate brings) is dropped at once and asked again. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
 //! The exploration ends for this drone when the allocator has nothing for it and no other drone
 //! holds a frontier, once it has flown to one (it turns all the time, so its beams swept all
@@ -32,10 +34,12 @@
 //! stop it) and holds until they are 1.2 times that apart, then returns.
 //!
 //! The parts: [`goal`] (the arguments), [`ask`] (questions to the allocator and its answers),
-//! [`end`] (the end rule), [`give_way`] (drone avoidance), [`landing`] (where it lands); the
-//! phases run the registered primitives (`takeoff`, `follow_path`, `land`) as children.
+//! [`blocked`] (the path watched on the map), [`end`] (the end rule), [`give_way`] (drone
+//! avoidance), [`landing`] (where it lands); the phases run the registered primitives
+//! (`takeoff`, `follow_path`, `land`) as children.
 
 mod ask;
+mod blocked;
 mod end;
 mod give_way;
 mod goal;
@@ -125,6 +129,8 @@ pub struct Explore {
     tracking: TrackingMargin,
     /// The point it hovers on while it has no path to fly.
     hover_at: Option<Vec3>,
+    /// The path flown, dropped when the map shows an obstacle on it.
+    watch: blocked::PathWatch,
 }
 
 impl Explore {
@@ -149,6 +155,7 @@ impl Explore {
             clockwise: false,
             tracking: TrackingMargin::default(),
             hover_at: None,
+            watch: blocked::PathWatch::default(),
         }
     }
 
@@ -249,6 +256,7 @@ impl Explore {
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
         self.child = Some(Box::new(child));
         self.target = Some(goal);
+        self.watch.follow(ctx.position(), path);
         self.allocations += 1;
         Ok(())
     }
@@ -312,6 +320,14 @@ impl Explore {
         }
         self.drop_crumb(ctx);
         self.check_stuck(ctx);
+        // Paths keep half the safety distance from obstacles unless they start closer: an
+        // obstacle that near the path ahead was not on the map it was planned on.
+        if self.child.is_some() && self.watch.blocked(ctx, 0.5 * self.goal.safety_distance) {
+            trace(ctx, "blocked", String::new);
+            self.child = None;
+            self.watch.clear();
+            self.asked_at = None;
+        }
         if self.due_to_ask(ctx) {
             self.ask(ctx);
         }

@@ -307,3 +307,48 @@ fn a_drone_held_for_a_silent_peer_neither_gives_its_goal_up_nor_ends() {
     assert_eq!(held(false), (false, true), "unheld: gives up, then ends");
     assert_eq!(held(true), (true, false), "held: keeps its goal, waits");
 }
+
+#[test]
+fn an_obstacle_mapped_on_the_path_ahead_drops_the_path_and_asks_again() {
+    use crate::mapping::config::MapConfig;
+    use crate::mapping::server::MapServer;
+    use crate::mapping::{Beam, RangeScan};
+    // A map with one hit 2.5 m east, `y` m off the path the allocator gave (east along y = 0).
+    let hit_at = |y: f64| {
+        let mut map = MapServer::new(&MapConfig::open_field().unwrap());
+        let scan = RangeScan {
+            origin_enu_m: Vec3::new(0.0, y, 1.0),
+            yaw_rad: 0.0,
+            range_min_m: 0.05,
+            range_max_m: 4.0,
+            beams: vec![Beam {
+                angle_rad: 0.0,
+                range_m: Some(2.5),
+            }],
+        };
+        map.insert(Duration::from_secs(2), &[scan]);
+        map
+    };
+    for (y, blocked) in [(1.0, false), (0.0, true)] {
+        let mut scene = Scene::flying();
+        scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+        let mut explore = Explore::new(ExploreGoal::default());
+        explore.start_exploring(&scene.ctx(0));
+        let mut requests = Vec::new();
+        explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
+        answer_with_goal(&scene);
+        explore.explore_tick(&scene.ctx(2), &mut requests).unwrap();
+        assert!(explore.child.is_some());
+        // Before the next retarget is due.
+        let map = hit_at(y);
+        let mut ctx = scene.ctx_at(Duration::from_millis(2500));
+        ctx.map = Some(&map);
+        explore.explore_tick(&ctx, &mut requests).unwrap();
+        assert_eq!(explore.child.is_none(), blocked, "a hit {y} m off the path");
+        let asked = matches!(
+            scene.services.drain_calls().first(),
+            Some(ServiceCall::Explore(_))
+        );
+        assert_eq!(asked, blocked, "asked again: a hit {y} m off the path");
+    }
+}
