@@ -100,8 +100,14 @@ mod tests {
         let mut s = Slew::new(2.0);
         s.limit(ms(0), Vec3::new(0.7, 0.0, 0.0));
         let turned = s.limit(ms(20), Vec3::new(0.0, 0.7, 0.0));
-        assert!(turned.x.abs() < 1e-9, "east speed dropped at once: {turned:?}");
-        assert!((turned.y - 0.04).abs() < 1e-9, "north speed ramps: {turned:?}");
+        assert!(
+            turned.x.abs() < 1e-9,
+            "east speed dropped at once: {turned:?}"
+        );
+        assert!(
+            (turned.y - 0.04).abs() < 1e-9,
+            "north speed ramps: {turned:?}"
+        );
     }
 
     #[test]

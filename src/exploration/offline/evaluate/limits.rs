@@ -57,7 +57,10 @@ impl FlightLimits {
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
         for (ok, name) in [
             (within(self.speed_mps, 0.01, 100.0), "limits.speed_mps"),
-            (within(self.yaw_rate_radps, 0.01, 100.0), "limits.yaw_rate_radps"),
+            (
+                within(self.yaw_rate_radps, 0.01, 100.0),
+                "limits.yaw_rate_radps",
+            ),
             (within(self.tolerance, 0.0, 1.0), "limits.tolerance"),
             (
                 self.clearance_m.is_none_or(|c| within(c, 0.0, 100.0)),
@@ -154,7 +157,9 @@ pub fn judge(
     }
     if let (Some(s), Some(limit)) = (separation_m, limits.separation_m) {
         if s < limit {
-            breaches.push(format!("separation between drones {s:.2} m, under {limit} m"));
+            breaches.push(format!(
+                "separation between drones {s:.2} m, under {limit} m"
+            ));
         }
     }
     Flown {
@@ -210,9 +215,7 @@ fn max(values: &[f64]) -> Option<f64> {
 fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
     values.sort_by(f64::total_cmp);
     let last = values.len().checked_sub(1)?;
-    values
-        .get(((last as f64) * q).floor() as usize)
-        .copied()
+    values.get(((last as f64) * q).floor() as usize).copied()
 }
 
 #[cfg(test)]
@@ -228,6 +231,7 @@ mod tests {
             y_m: 0.0,
             z_m: 1.0,
             yaw_rad,
+            crashed: false,
         }
     }
 
@@ -286,7 +290,13 @@ mod tests {
         s.push(sample(12.1, 15.05, 0.0));
         s.push(sample(12.2, 15.10, 0.0));
         s.push(sample(12.3, 15.15, 0.0));
-        let f = judge(&Tracks::new(&s, 0.3), 0.3, None, None, &FlightLimits::default());
+        let f = judge(
+            &Tracks::new(&s, 0.3),
+            0.3,
+            None,
+            None,
+            &FlightLimits::default(),
+        );
         assert!(f.held, "{:?}", f.breaches);
         assert!((f.max_speed_mps.unwrap() - 0.5).abs() < 1e-9);
     }
