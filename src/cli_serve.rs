@@ -347,7 +347,10 @@ async fn print_events(
 /// Opens the ROS 2 bridge (its own Zenoh session): a bad configuration stops the start, the
 /// router is reached in the background.
 #[cfg(feature = "fleet-bus")]
-async fn start_ros2(section: kestrel::config::ros2::Ros2Section, handle: &HostHandle) -> Result<()> {
+async fn start_ros2(
+    section: kestrel::config::ros2::Ros2Section,
+    handle: &HostHandle,
+) -> Result<()> {
     let (domain, connect) = (section.domain_id, section.connect.join(", "));
     kestrel::ros2::node::start(section, handle.clone()).await?;
     println!("ROS 2 (rmw_zenoh): domain {domain}, connecting to [{connect}]");

@@ -192,8 +192,14 @@ mod tests {
             s
         };
         assert_eq!(field(s(|s| s.domain_id = 233), &[]), "ros2.domain_id");
-        assert_eq!(field(s(|s| s.namespace = "/a b".into()), &[]), "ros2.namespace");
-        assert_eq!(field(s(|s| s.namespace = "/a//b".into()), &[]), "ros2.namespace");
+        assert_eq!(
+            field(s(|s| s.namespace = "/a b".into()), &[]),
+            "ros2.namespace"
+        );
+        assert_eq!(
+            field(s(|s| s.namespace = "/a//b".into()), &[]),
+            "ros2.namespace"
+        );
         assert_eq!(field(s(|s| s.node = "9".into()), &[]), "ros2.node");
         assert_eq!(field(on(), &["drone-1"]), "drone.id");
         assert_eq!(field(s(|s| s.connect.clear()), &[]), "ros2.connect");
@@ -202,7 +208,10 @@ mod tests {
             "ros2.connect[1]"
         );
         assert_eq!(field(s(|s| s.rate_hz = 0.0), &[]), "ros2.rate_hz");
-        assert_eq!(field(s(|s| s.map_rate_hz = f64::NAN), &[]), "ros2.map_rate_hz");
+        assert_eq!(
+            field(s(|s| s.map_rate_hz = f64::NAN), &[]),
+            "ros2.map_rate_hz"
+        );
         assert_eq!(
             field(s(|s| s.goal_speed_mps = 100.0), &[]),
             "ros2.goal_speed_mps"

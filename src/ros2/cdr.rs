@@ -147,12 +147,7 @@ impl<'a> CdrReader<'a> {
         let at = self.at;
         let len = self.u32(what)? as usize;
         if len > max + 1 {
-            return Err(CdrError::TooLong {
-                at,
-                what,
-                len,
-                max,
-            });
+            return Err(CdrError::TooLong { at, what, len, max });
         }
         let bytes = self.take(len, 1, what)?;
         match bytes.split_last() {
@@ -185,12 +180,12 @@ mod tests {
         let bytes = w.finish();
         let expected: Vec<u8> = [
             &HEADER_LE[..],
-            &[7, 0, 0, 0],
-            &[0, 0, 0, 0],
-            &1.0f64.to_le_bytes(),
-            &[3, 0, 0, 0, b'a', b'b', 0],
-            &[0, 0, 0, 0, 0],
-            &(-2.0f64).to_le_bytes(),
+            &[7, 0, 0, 0],                // 0: u32
+            &[0, 0, 0, 0],                // 4: pad to 8
+            &1.0f64.to_le_bytes(),        // 8: f64
+            &[3, 0, 0, 0, b'a', b'b', 0], // 16: length 3 with the NUL, "ab", NUL
+            &[0],                         // 23: pad to 24
+            &(-2.0f64).to_le_bytes(),     // 24: f64
         ]
         .concat();
         assert_eq!(bytes, expected);
@@ -210,7 +205,13 @@ mod tests {
             Some(CdrError::Encapsulation(0, 0))
         );
         let mut r = CdrReader::new(&[0, 1, 0, 0, 1, 2]).unwrap();
-        assert_eq!(r.u32("count"), Err(CdrError::Short { at: 4, what: "count" }));
+        assert_eq!(
+            r.u32("count"),
+            Err(CdrError::Short {
+                at: 4,
+                what: "count"
+            })
+        );
         // A string announcing 4 GB is refused before anything is read or allocated.
         let huge = [0, 1, 0, 0, 0xff, 0xff, 0xff, 0xff];
         let mut r = CdrReader::new(&huge).unwrap();

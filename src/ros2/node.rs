@@ -278,9 +278,12 @@ fn declare_goals(
     let mut subscribers = Vec::new();
     for drone in drones {
         let topic = outbox::drone_topic(&node.naming.namespace, drone, "goal_pose");
-        let (_, token) =
-            node.naming
-                .endpoint(Entity::Subscription, &topic, &msgs::POSE_STAMPED, Qos::DEFAULT);
+        let (_, token) = node.naming.endpoint(
+            Entity::Subscription,
+            &topic,
+            &msgs::POSE_STAMPED,
+            Qos::DEFAULT,
+        );
         node.token(token)?;
         let key = keys::topic_key(node.naming.domain, &topic, &msgs::POSE_STAMPED);
         let tx = tx.clone();
@@ -315,12 +318,14 @@ fn declare_goals(
     Ok(subscribers)
 }
 
-/// Hands each goal to the host as a mission; a refusal is logged with the host's reason.
+/// Hands each goal to the host as a mission; a refusal is logged with the host's reason. A
+/// drone's goals reuse one mission id (the last goal's), so they do not pile up in its store.
 async fn fly_goals(
     handle: HostHandle,
     mut goals: mpsc::Receiver<(String, goal::Goal)>,
     speed_mps: f64,
 ) {
+    let mut mission_ids: std::collections::HashMap<String, u32> = Default::default();
     while let Some((drone, g)) = goals.recv().await {
         let snapshot = handle.snapshot();
         let aloft = snapshot
@@ -335,18 +340,23 @@ async fn fly_goals(
             .unwrap_or(Aloft::Grounded);
         let update = MissionUpdate {
             drone_id: Some(drone.clone()),
-            mission_id: None,
+            mission_id: mission_ids.get(&drone).map(|&id| i64::from(id)),
             item_id: None,
             action: Action::Execute,
             mission: Some(goal::mission(&drone, &g, aloft, speed_mps)),
         };
         match handle.call(|reply| Command::Update { update, reply }).await {
-            Ok(_) => tracing::info!(
-                "ROS 2 goal_pose: {drone} flies to ({:.2}, {:.2}, {:.2}) m",
-                g.position_m[0],
-                g.position_m[1],
-                g.position_m[2]
-            ),
+            Ok(updated) => {
+                if let Some(id) = updated.status.mission_id {
+                    mission_ids.insert(drone.clone(), id);
+                }
+                tracing::info!(
+                    "ROS 2 goal_pose: {drone} flies to ({:.2}, {:.2}, {:.2}) m",
+                    g.position_m[0],
+                    g.position_m[1],
+                    g.position_m[2]
+                );
+            }
             Err(e) => tracing::warn!("ROS 2 goal_pose for {drone} refused: {e}"),
         }
     }
@@ -394,7 +404,8 @@ impl Publishing {
             }
             let points = outbox::planned_path(d);
             if out.last_path.as_ref() != Some(&points) {
-                self.node.put(&mut out.path, outbox::path(&points, stamp), ts);
+                self.node
+                    .put(&mut out.path, outbox::path(&points, stamp), ts);
                 out.last_path = Some(points);
             }
         }

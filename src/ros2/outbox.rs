@@ -78,7 +78,11 @@ pub fn planned_path(d: &DroneStatus) -> Vec<[f64; 3]> {
         .take(MAX_PATH_POINTS)
         .filter_map(|p| {
             let p = p.as_array()?;
-            Some([p.first()?.as_f64()?, p.get(1)?.as_f64()?, p.get(2)?.as_f64()?])
+            Some([
+                p.first()?.as_f64()?,
+                p.get(1)?.as_f64()?,
+                p.get(2)?.as_f64()?,
+            ])
         })
         .collect()
 }
@@ -115,7 +119,10 @@ mod tests {
     #[test]
     fn topics_sit_under_the_namespace() {
         assert_eq!(drone_topic("", "drone_0", "pose"), "/drone_0/pose");
-        assert_eq!(drone_topic("/fleet", "drone_0", "odom"), "/fleet/drone_0/odom");
+        assert_eq!(
+            drone_topic("/fleet", "drone_0", "odom"),
+            "/fleet/drone_0/odom"
+        );
         assert_eq!(base_link("drone_0"), "drone_0/base_link");
     }
 }

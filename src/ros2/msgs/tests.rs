@@ -8,10 +8,7 @@ fn f64s(v: &[f64]) -> Vec<u8> {
 }
 
 const HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
-const STAMP: Stamp = Stamp {
-    sec: 1,
-    nanosec: 2,
-};
+const STAMP: Stamp = Stamp { sec: 1, nanosec: 2 };
 
 #[test]
 fn type_hashes_are_jazzys() {
@@ -99,11 +96,11 @@ fn path_bytes() {
     let expected: Vec<u8> = [
         &HEADER[..],
         &[1, 0, 0, 0, 2, 0, 0, 0, 4, 0, 0, 0],
-        b"map\0", // 12..16
-        &[1, 0, 0, 0], // 16: one pose
+        b"map\0",                              // 12..16
+        &[1, 0, 0, 0],                         // 16: one pose
         &[1, 0, 0, 0, 2, 0, 0, 0, 4, 0, 0, 0], // 20: its header
-        b"map\0", // 32..36
-        &[0, 0, 0, 0], // 36: pad to 40
+        b"map\0",                              // 32..36
+        &[0, 0, 0, 0],                         // 36: pad to 40
         &f64s(&[1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0]),
     ]
     .concat();
@@ -145,13 +142,13 @@ fn occupancy_grid_bytes() {
     let expected: Vec<u8> = [
         &HEADER[..],
         &[1, 0, 0, 0, 2, 0, 0, 0, 4, 0, 0, 0],
-        b"map\0",                   // 12..16
-        &[1, 0, 0, 0, 2, 0, 0, 0],  // 16: map_load_time
-        &0.5f32.to_le_bytes(),      // 24: resolution
-        &[2, 0, 0, 0, 1, 0, 0, 0],  // 28: width, height
-        &[0, 0, 0, 0],              // 36: pad to 40
+        b"map\0",                  // 12..16
+        &[1, 0, 0, 0, 2, 0, 0, 0], // 16: map_load_time
+        &0.5f32.to_le_bytes(),     // 24: resolution
+        &[2, 0, 0, 0, 1, 0, 0, 0], // 28: width, height
+        &[0, 0, 0, 0],             // 36: pad to 40
         &f64s(&[-1.0, -2.0, 0.0, 0.0, 0.0, 0.0, 1.0]),
-        &[2, 0, 0, 0],              // 96: data length
+        &[2, 0, 0, 0], // 96: data length
         &[0xff, 100],
     ]
     .concat();
