@@ -193,7 +193,7 @@ async fn ros2_sees_the_drone_and_flies_its_goal() {
     })
     .await;
     assert_eq!(&map[..4], &[0, 1, 0, 0]);
-    assert_eq!(&map[12..18], b"world\0", "the map's frame");
+    assert_eq!(&map[12..22], b"\x06\0\0\0world\0", "the map's frame");
 
     // Bad goals change nothing: garbage, another frame, beyond the 1000 m geofence.
     let goal_key = key(
