@@ -6,8 +6,8 @@
 //! wrong frame and beyond the geofence ones change nothing; a good one is flown.
 //!
 //! Margins: the drone sits on the ground while poses are compared (the simulator's position
-//! noise is centimetres); the goal is judged reached within 0.3 m, `navigate_to`'s arrival
-//! tolerance with room for the hover's wander; the simulator runs at 20 times real time.
+//! noise is centimetres); the goal is judged reached within 0.3 m of it on every axis, room for
+//! the arrival and the hover's wander; the simulator runs at 20 times real time.
 #![cfg(feature = "fleet-bus")]
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
