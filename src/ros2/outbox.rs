@@ -92,16 +92,42 @@ pub fn path(points: &[[f64; 3]], stamp: Stamp) -> Vec<u8> {
     msgs::path(stamp, WORLD_FRAME, points)
 }
 
-/// `/map` (OccupancyGrid) of the merged map.
+/// `/map` (OccupancyGrid) of the merged map, cut to the rectangle of its known cells (the
+/// simulator's default grid is 2040 × 2040 cells, 4 MB, mostly never seen); a map with no known
+/// cell is one unknown cell at the grid's origin.
 pub fn map(view: &MapView, stamp: Stamp) -> Vec<u8> {
     let spec = view.grid.spec();
-    let info = GridInfo {
-        resolution_m: spec.resolution_m as f32,
-        width_cells: spec.width_cells,
-        height_cells: spec.height_cells,
-        origin_m: [spec.origin_enu_m.x, spec.origin_enu_m.y],
+    let (w, data) = (spec.width_cells as usize, view.grid.data());
+    let mut known = data
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| **v != crate::mapping::grid::UNKNOWN)
+        .map(|(i, _)| (i % w.max(1), i / w.max(1)));
+    let (x0, y0, x1, y1) = match known.next() {
+        Some((x, y)) => known.fold((x, y, x, y), |(a, b, c, d), (x, y)| {
+            (a.min(x), b.min(y), c.max(x), d.max(y))
+        }),
+        None => (0, 0, 0, 0),
     };
-    msgs::occupancy_grid(stamp, WORLD_FRAME, &info, view.grid.data())
+    let cells: Vec<i8> = (y0..=y1)
+        .flat_map(|y| {
+            data.get(y * w + x0..=y * w + x1)
+                .unwrap_or(&[])
+                .iter()
+                .copied()
+        })
+        .collect();
+    let r = spec.resolution_m;
+    let info = GridInfo {
+        resolution_m: r as f32,
+        width_cells: u32::try_from(x1 - x0 + 1).unwrap_or(0),
+        height_cells: u32::try_from(y1 - y0 + 1).unwrap_or(0),
+        origin_m: [
+            spec.origin_enu_m.x + x0 as f64 * r,
+            spec.origin_enu_m.y + y0 as f64 * r,
+        ],
+    };
+    msgs::occupancy_grid(stamp, WORLD_FRAME, &info, &cells)
 }
 
 #[cfg(test)]
@@ -114,6 +140,51 @@ mod tests {
         assert!((v[0] - 1.0).abs() < 1e-12 && v[1].abs() < 1e-12 && v[2] == 0.5);
         let v = velocity_flu_mps([1.0, 0.0, 0.0], std::f64::consts::FRAC_PI_2);
         assert!(v[0].abs() < 1e-12 && (v[1] + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_map_is_cut_to_its_known_cells() {
+        use crate::mapping::grid::{GridSpec, OccupancyGrid};
+        let spec = GridSpec {
+            resolution_m: 0.5,
+            width_cells: 4,
+            height_cells: 3,
+            origin_enu_m: nalgebra::Vector2::new(-1.0, -1.0),
+        };
+        #[rustfmt::skip]
+        let data = vec![
+            -1, -1, -1, -1,
+            -1,  0, 100, -1,
+            -1, -1,  7, -1,
+        ];
+        let view = |data| MapView {
+            drone: None,
+            grid: OccupancyGrid::from_data(spec, data).unwrap(),
+            layers: Vec::new(),
+            revision: None,
+            updated_at_s: None,
+            occupied_threshold: None,
+        };
+        let info = GridInfo {
+            resolution_m: 0.5,
+            width_cells: 2,
+            height_cells: 2,
+            origin_m: [-0.5, -0.5],
+        };
+        assert_eq!(
+            map(&view(data), Stamp::default()),
+            msgs::occupancy_grid(Stamp::default(), "world", &info, &[0, 100, -1, 7])
+        );
+        let nothing = GridInfo {
+            width_cells: 1,
+            height_cells: 1,
+            origin_m: [-1.0, -1.0],
+            ..info
+        };
+        assert_eq!(
+            map(&view(vec![-1; 12]), Stamp::default()),
+            msgs::occupancy_grid(Stamp::default(), "world", &nothing, &[-1])
+        );
     }
 
     #[test]

@@ -55,10 +55,16 @@ impl FlightLimits {
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
         for (ok, name) in [
             (within(self.speed_mps, 0.01, 100.0), "limits.speed_mps"),
-            (within(self.yaw_rate_radps, 0.01, 100.0), "limits.yaw_rate_radps"),
+            (
+                within(self.yaw_rate_radps, 0.01, 100.0),
+                "limits.yaw_rate_radps",
+            ),
             (within(self.tolerance, 0.0, 1.0), "limits.tolerance"),
             (within(self.clearance_m, 0.0, 100.0), "limits.clearance_m"),
-            (within(self.separation_m, 0.0, 1000.0), "limits.separation_m"),
+            (
+                within(self.separation_m, 0.0, 1000.0),
+                "limits.separation_m",
+            ),
             (within(self.window_s, 0.05, MAX_GAP_S), "limits.window_s"),
         ] {
             if !ok {
@@ -204,9 +210,7 @@ fn max(values: &[f64]) -> Option<f64> {
 fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
     values.sort_by(f64::total_cmp);
     let last = values.len().checked_sub(1)?;
-    values
-        .get(((last as f64) * q).floor() as usize)
-        .copied()
+    values.get(((last as f64) * q).floor() as usize).copied()
 }
 
 #[cfg(test)]
@@ -271,7 +275,13 @@ mod tests {
         s.push(sample(12.1, 15.05, 0.0));
         s.push(sample(12.2, 15.10, 0.0));
         s.push(sample(12.3, 15.15, 0.0));
-        let f = judge(&Tracks::new(&s, 0.3), 0.3, None, None, &FlightLimits::default());
+        let f = judge(
+            &Tracks::new(&s, 0.3),
+            0.3,
+            None,
+            None,
+            &FlightLimits::default(),
+        );
         assert!(f.held, "{:?}", f.breaches);
         assert!((f.max_speed_mps.unwrap() - 0.5).abs() < 1e-9);
     }
