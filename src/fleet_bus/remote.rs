@@ -367,11 +367,7 @@ mod tests {
         assert_eq!(statuses.len(), 2);
         let listed = statuses.iter().find(|s| s.id == "drone_2").unwrap();
         assert_eq!(
-            (
-                listed.position_enu_m,
-                listed.velocity_enu_mps,
-                listed.yaw_rad
-            ),
+            (listed.position_enu_m, listed.velocity_enu_mps, listed.yaw_rad),
             (None, None, None)
         );
         let json = serde_json::to_value(listed).unwrap();
