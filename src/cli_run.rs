@@ -490,6 +490,7 @@ async fn serve_vehicles(
         max_time: (args.exit_when_done || args.no_api)
             .then(|| Duration::from_secs_f64(args.max_time_s.max(1.0))),
         between_ticks,
+        ros2: config.ros2.enabled.then(|| config.ros2.clone()),
         texts_pending: (!texts.is_empty()).then(|| {
             let senders: Vec<TextSender> = texts.iter().map(|(_, s)| s.clone()).collect();
             Box::new(move || senders.iter().any(TextSender::pending))

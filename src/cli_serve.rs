@@ -32,6 +32,8 @@ pub struct ServeOptions {
     pub max_time: Option<Duration>,
     /// Run by the control loop between ticks (the fleet bus).
     pub between_ticks: Option<kestrel::host::runtime::BetweenTicks>,
+    /// `[ros2]` when enabled: the drones as ROS 2 topics (`kestrel::ros2`).
+    pub ros2: Option<kestrel::config::ros2::Ros2Section>,
     /// Given every event the console printer receives, never waiting (texts for the ground
     /// station, `cli_announce`).
     pub on_event: Option<EventTap>,
@@ -342,6 +344,24 @@ async fn print_events(
     }
 }
 
+/// Opens the ROS 2 bridge (its own Zenoh session): a bad configuration stops the start, the
+/// router is reached in the background.
+#[cfg(feature = "fleet-bus")]
+async fn start_ros2(
+    section: kestrel::config::ros2::Ros2Section,
+    handle: &HostHandle,
+) -> Result<()> {
+    let (domain, connect) = (section.domain_id, section.connect.join(", "));
+    kestrel::ros2::node::start(section, handle.clone()).await?;
+    println!("ROS 2 (rmw_zenoh): domain {domain}, connecting to [{connect}]");
+    Ok(())
+}
+
+#[cfg(not(feature = "fleet-bus"))]
+async fn start_ros2(_: kestrel::config::ros2::Ros2Section, _: &HostHandle) -> Result<()> {
+    anyhow::bail!("ros2.enabled: this kestrel was built without Zenoh (cargo feature `fleet-bus`)")
+}
+
 /// Runs the host and the API until interrupted (or, with `exit_when_done`, until every
 /// flight ended).
 pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
@@ -369,6 +389,9 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
     let spawned = runtime::spawn(host, rt, shutdown_rx).context("starting the control loop")?;
     let handle = spawned.handle;
     tokio::spawn(cli_flights::print_status_changes(handle.watch_state()));
+    if let Some(section) = options.ros2.take() {
+        start_ros2(section, &handle).await?;
+    }
     if let Some(timeout) = options.demo_within {
         tokio::spawn(cli_flights::start_demo_when_ready(
             handle.clone(),

@@ -258,6 +258,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             .exit_when_done
             .then(|| Duration::from_secs_f64(args.max_sim_time_s)),
         between_ticks: None,
+        ros2: config.ros2.enabled.then(|| config.ros2.clone()),
         on_event: None,
         texts_pending: None,
     };

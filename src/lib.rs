@@ -28,6 +28,7 @@ pub mod mission;
 pub mod planning;
 pub mod platform;
 pub mod report;
+pub mod ros2;
 pub mod safety;
 pub mod scenario;
 pub mod sim;

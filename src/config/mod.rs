@@ -1,10 +1,11 @@
 //! Configuration: raw TOML → validated [`Config`]. Unknown keys are refused; every field's unit
 //! is in its name. Sections: `[drone]`, `[estimator]`, `[controller]`, `[behaviors]`, `[sim]`,
 //! `[mavlink]`, `[api]`, `[geofence]`, `[mission]`, `[map]`, `[safety]`, `[exploration]`,
-//! `[fleet]`, and the `[[vehicle]]` list (several autopilots on one host; without it, `[drone]`
+//! `[fleet]`, `[ros2]`, and the `[[vehicle]]` list (several autopilots on one host; without it, `[drone]`
 //! over `[mavlink]` is the one).
 
 pub mod bounds;
+pub mod ros2;
 pub mod sim;
 pub mod vehicles;
 
@@ -39,6 +40,8 @@ pub struct Config {
     pub exploration: ExplorationSettings,
     /// `[fleet]`: the bus to other Kestrels (off by default).
     pub fleet: crate::fleet_bus::config::FleetSection,
+    /// `[ros2]`: the drones as ROS 2 topics over rmw_zenoh (off by default).
+    pub ros2: ros2::Ros2Section,
     /// `[[vehicle]]` entries: several autopilots flown by `kestrel run`; empty = one vehicle,
     /// `[drone] id` over `[mavlink]`.
     #[serde(rename = "vehicle", skip_serializing_if = "Vec::is_empty")]
@@ -324,6 +327,7 @@ impl Config {
         self.validate_controller()?;
         vehicles::validate(&self.vehicles, &self.mavlink)?;
         self.fleet.validate(&self.drone_ids())?;
+        self.ros2.validate(&self.drone_ids())?;
         self.validate_behaviors()?;
         self.sim.validate()?;
         self.mavlink.validate()?;
