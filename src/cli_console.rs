@@ -11,9 +11,9 @@ use kestrel::fleet_bus::join::JoinWatch;
 use kestrel::fleet_bus::zenoh_log::{self, ZenohLog};
 use serde_json::Value;
 use std::io::IsTerminal;
+use tracing_subscriber::filter::{LevelFilter, Targets};
 use tracing_subscriber::layer::SubscriberExt;
 use tracing_subscriber::util::SubscriberInitExt;
-use tracing_subscriber::EnvFilter;
 use tracing_subscriber::Layer;
 
 /// The longest goal summary printed with a `started` line (characters).
@@ -48,15 +48,23 @@ pub fn init_logging() {
 }
 
 /// `RUST_LOG` (default `info`), with Zenoh's lines left out unless it names them.
-fn output_filter() -> EnvFilter {
-    let asked = std::env::var("RUST_LOG").unwrap_or_default();
-    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into());
+fn output_filter() -> Targets {
+    filter_for(std::env::var("RUST_LOG").ok().as_deref())
+}
+
+/// `RUST_LOG`'s per-target levels (`info,kestrel::behavior::explore=debug`): a target is a
+/// prefix of the module path, a bare level is the default. Not understood or empty: `info`.
+fn filter_for(asked: Option<&str>) -> Targets {
+    let asked = asked.unwrap_or_default();
+    let filter = asked
+        .parse::<Targets>()
+        .ok()
+        .filter(|_| !asked.trim().is_empty())
+        .unwrap_or_else(|| Targets::new().with_default(LevelFilter::INFO));
     if asked.contains("zenoh") {
-        return filter;
-    }
-    match "zenoh=off".parse() {
-        Ok(directive) => filter.add_directive(directive),
-        Err(_) => filter,
+        filter
+    } else {
+        filter.with_target("zenoh", LevelFilter::OFF)
     }
 }
 
@@ -188,6 +196,27 @@ mod tests {
             goal: huge,
         });
         assert!(line.chars().count() < 150, "{line}");
+    }
+
+    #[test]
+    fn rust_log_sets_levels_per_target_and_zenoh_stays_quiet() {
+        use tracing::Level;
+        let unset = filter_for(None);
+        assert!(unset.would_enable("kestrel::host", &Level::INFO));
+        assert!(!unset.would_enable("kestrel::host", &Level::DEBUG));
+        assert!(!unset.would_enable("zenoh_transport::unicast", &Level::ERROR));
+        let asked = filter_for(Some("warn,kestrel::behavior::explore=debug"));
+        assert!(asked.would_enable("kestrel::behavior::explore::events", &Level::DEBUG));
+        assert!(!asked.would_enable("kestrel::host", &Level::INFO));
+        assert!(asked.would_enable("kestrel::host", &Level::WARN));
+        assert!(!asked.would_enable("zenoh", &Level::ERROR));
+        let zenoh = filter_for(Some("info,zenoh=debug"));
+        assert!(zenoh.would_enable("zenoh::net::runtime", &Level::DEBUG));
+        for wrong in [Some(""), Some("kestrel=loud")] {
+            let f = filter_for(wrong);
+            assert!(f.would_enable("kestrel", &Level::INFO), "{wrong:?}");
+            assert!(!f.would_enable("kestrel", &Level::DEBUG), "{wrong:?}");
+        }
     }
 
     #[test]

@@ -31,7 +31,7 @@ use crate::host::HostHandle;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method};
 use axum::routing::{get, post};
-use axum::{middleware, Json, Router};
+use axum::{middleware, Router};
 use std::sync::atomic::AtomicUsize;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -120,7 +120,7 @@ pub fn router(state: ApiState, api: &ApiSection) -> Router {
         ));
     let open = Router::new()
         .route("/api/health", get(routes::health))
-        .route("/api/openapi.json", get(|| async { Json(openapi::spec()) }));
+        .route("/api/openapi.json", get(openapi::serve));
     let mut app = protected
         .merge(open)
         .fallback(web::static_file)

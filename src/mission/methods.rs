@@ -53,11 +53,6 @@ pub fn escape_token(s: &str) -> String {
     s.replace('~', "~0").replace('/', "~1")
 }
 
-/// Undoes [`escape_token`].
-pub fn unescape_token(s: &str) -> String {
-    s.replace("~1", "/").replace("~0", "~")
-}
-
 #[derive(Clone, Copy)]
 enum Yaw {
     Keep,

@@ -21,7 +21,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::sync::OnceLock;
 
-const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+/// DejaVu Sans cut to Latin, Greek and the usual symbols (`assets/fonts/README.md`).
+const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
 pub const FAMILY: &str = "sans-serif";
 
 /// What to draw.
@@ -197,4 +198,24 @@ fn area_curve<DB: DrawingBackend>(
         ))
         .map_err(plot_err)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ab_glyph::{Font, FontRef};
+
+    /// The cut font has a glyph for what the figures write: ASCII, the symbols of their
+    /// labels, and the accented and Greek letters a name or a unit may hold.
+    #[test]
+    fn the_embedded_font_has_the_characters_of_the_figures() {
+        let font = FontRef::try_from_slice(FONT).unwrap();
+        let symbols = "±–—…°²³µ·×÷≤≥≈→←↑↓ΔσπéèüöñçÅØ€";
+        let missing: Vec<char> = (' '..='~')
+            .chain(symbols.chars())
+            .filter(|c| font.glyph_id(*c).0 == 0)
+            .collect();
+        assert!(missing.is_empty(), "no glyph for {missing:?}");
+        assert_eq!(font.glyph_id('ж').0, 0, "Cyrillic was cut out");
+    }
 }

@@ -6,7 +6,7 @@
 //! (located with the behavior's JSON Schema), the behavior's own range checks, speeds against
 //! the vehicle's limit, heights against the ceiling, known frames, and the geofence.
 
-use super::methods::{canonicalize, escape_token, unescape_token, Canonical};
+use super::methods::{canonicalize, escape_token, Canonical};
 use super::model::{MissionItem, PlanItem, ValidMission, CALL};
 use crate::behavior::ParsedGoal;
 use serde::{Deserialize, Serialize};
@@ -14,9 +14,11 @@ use serde_json::{Map, Value};
 
 mod context;
 mod limits;
+pub mod schema_check;
 
 pub use context::{ContextSnapshot, Limits, ValidationContext, HOME_TOLERANCE_M};
 use limits::check_limits;
+use schema_check::Problem;
 
 /// One problem: where (RFC 6901 pointer into the mission) and what.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
@@ -278,42 +280,28 @@ fn schema_errors(
     canonical: &Canonical,
     args_pointer: &str,
 ) -> Vec<ValidationError> {
-    let Ok(validator) = jsonschema::validator_for(schema) else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    for e in validator.iter_errors(goal) {
-        let path = e.instance_path.as_str().trim_start_matches('/').to_string();
-        let located = |key: &str| {
-            let (first, rest) = key.split_once('/').unwrap_or((key, ""));
-            let origin = canonical.origin_of(&unescape_token(first));
-            let origin = if rest.is_empty() {
-                origin
-            } else {
-                format!("{origin}/{rest}")
-            };
-            join(args_pointer, &origin)
+    let located = |path: &[String]| {
+        let Some((first, rest)) = path.split_first() else {
+            return args_pointer.to_string();
         };
-        match &e.kind {
-            jsonschema::error::ValidationErrorKind::Required { property } => {
-                let name = property.as_str().unwrap_or_default();
-                out.push(at(
-                    &located(&escape_token(name)),
-                    format!("missing argument `{name}`"),
-                ));
-            }
-            jsonschema::error::ValidationErrorKind::AdditionalProperties { unexpected } => {
-                for name in unexpected {
-                    out.push(at(
-                        &located(&escape_token(name)),
-                        format!("unknown argument `{name}`"),
-                    ));
-                }
-            }
-            _ => out.push(at(&located(&path), e.to_string())),
+        let mut origin = canonical.origin_of(first);
+        for token in rest {
+            origin.push('/');
+            origin.push_str(&escape_token(token));
         }
-    }
-    out
+        join(args_pointer, &origin)
+    };
+    schema_check::check(schema, goal)
+        .into_iter()
+        .map(|found| {
+            let message = match found.problem {
+                Problem::Missing(name) => format!("missing argument `{name}`"),
+                Problem::Unknown(name) => format!("unknown argument `{name}`"),
+                Problem::Invalid(message) => message,
+            };
+            at(&located(&found.path), message)
+        })
+        .collect()
 }
 
 /// The argument a behavior's message starts with (`speed must be ..`, `path[2] must ..`),
@@ -341,7 +329,6 @@ mod tests {
     #[test]
     fn pointer_tokens_are_escaped() {
         assert_eq!(escape_token("a/b~c"), "a~1b~0c");
-        assert_eq!(unescape_token("a~1b~0c"), "a/b~c");
         assert_eq!(join("/plan/0/args", ""), "/plan/0/args");
     }
 
