@@ -12,7 +12,7 @@
 //! lines while it runs, and the exit status: 0 when every drone explored and landed, non-zero
 //! with the reason otherwise (a failed drone, a collision, or the simulated timeout).
 
-use crate::cli_sim::{execute, load_config, parse_speedup};
+use crate::cli::sim::{execute, load_config, parse_speedup};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
@@ -130,7 +130,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         LogFormat::Mcap => Box::new(McapLog::new(out).context("starting the MCAP flight log")?),
     };
     let mut log = FlightLog::new(out, 20.0);
-    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+    log.header(crate::cli::serve::header(&crate::cli::serve::RunInfo {
         command: "explore",
         config: &config,
         seed: Some(args.seed),
@@ -172,7 +172,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         .with_context(|| format!("reading back {}", log_path.display()))?;
     let samples = evaluate::poses_from_log(&text)?;
     let metrics = evaluate::evaluate(&world, &samples, &EvalParams::default())?;
-    print!("{}", crate::cli_evaluate::summary(&metrics));
+    print!("{}", crate::cli::evaluate::summary(&metrics));
     let report = json!({
         "metrics": metrics,
         "world": args.world.display().to_string(),

@@ -2,8 +2,8 @@
 //! flies the demo mission; `--mission FILE` flies that mission, `--scenario FILE` registers
 //! its frames and flies its mission, `--no-demo` waits for the API.
 
-use crate::cli_flights::Flights;
-use crate::cli_serve::{self, LogChoice, ServeOptions};
+use crate::cli::flights::Flights;
+use crate::cli::serve::{self, LogChoice, ServeOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
@@ -155,7 +155,7 @@ pub fn build(
     // One tick, so every drone has a position before missions are validated and started.
     host.step();
     if let Some(dir) = &args.state_dir {
-        crate::cli_serve::open_state(&mut host, dir)?;
+        crate::cli::serve::open_state(&mut host, dir)?;
     }
     for frame in scenario.map(|s| s.frames.clone()).unwrap_or_default() {
         let id = frame.frame_id.clone();
@@ -180,10 +180,10 @@ pub fn run(args: SimArgs) -> Result<()> {
     let config = load_config(args.config.as_deref())?;
     let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
     let (mut host, demos) = build(&args, &config, scenario.as_ref())?;
-    let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
-    let listener = cli_serve::bind(listen, token.as_deref())?;
+    let (listen, token) = serve::listen_and_token(args.listen.as_deref(), &config)?;
+    let listener = serve::bind(listen, token.as_deref())?;
     let start = std::time::SystemTime::now();
-    let (writer, log_file) = cli_serve::open_log(&LogChoice {
+    let (writer, log_file) = serve::open_log(&LogChoice {
         explicit: args.log.clone(),
         overwrite: args.log_overwrite,
         dir: config.drone.log_dir.clone().unwrap_or_default(),
@@ -204,7 +204,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             .and_then(|s| s.mission.clone())
     });
     let mut log = FlightLog::new(Box::new(writer), 10.0);
-    log.header(cli_serve::header(&cli_serve::RunInfo {
+    log.header(serve::header(&serve::RunInfo {
         command: "sim",
         config: &config,
         seed: Some(args.seed),
@@ -266,12 +266,12 @@ pub fn run(args: SimArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("starting tokio")?;
-    let outcome = runtime.block_on(cli_serve::serve(host, options))?;
+    let outcome = runtime.block_on(serve::serve(host, options))?;
     println!(
         "simulated {:.1} s in {:.2} s wall-clock ({:.0}x real time)",
         outcome.simulated_s,
         outcome.wall_s,
         outcome.simulated_s / outcome.wall_s.max(1e-9)
     );
-    cli_serve::report(&outcome, args.exit_when_done)
+    serve::report(&outcome, args.exit_when_done)
 }
