@@ -9,8 +9,7 @@ use clap::Args;
 use kestrel::config::Config;
 use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
-use kestrel::host::Host;
-use kestrel::mission::{Action, MissionUpdate};
+use kestrel::host::{Host, HostError, LoadOptions};
 use kestrel::scenario::coverage::fleet_missions;
 use kestrel::scenario::demo::demo_missions;
 use kestrel::scenario::file::Scenario;
@@ -99,33 +98,21 @@ fn read_json(path: &Path) -> Result<Value> {
 
 /// Loads and starts `mission` on the drone it names; returns (drone index, mission id).
 pub fn execute(host: &mut Host, mission: Value) -> Result<(usize, u32)> {
-    let target = mission
-        .get("target")
-        .and_then(Value::as_str)
-        .unwrap_or_default()
-        .to_string();
-    let index = host
-        .drone_ids()
-        .iter()
-        .position(|d| *d == target)
-        .with_context(|| format!("mission target `{target}` is not one of the drones"))?;
-    let updated = host
-        .update(&MissionUpdate {
-            drone_id: Some(target.clone()),
-            mission_id: None,
-            item_id: None,
-            action: Action::Execute,
-            mission: Some(mission),
-        })
+    let up = host
+        .load_mission(&mission, LoadOptions::start())
         .map_err(|e| match e {
-            kestrel::host::HostError::Action(kestrel::mission::ActionError::Invalid(errors)) => {
+            HostError::Invalid(errors) => {
                 let lines: Vec<String> = errors.iter().map(|e| format!("  {e}")).collect();
                 anyhow::anyhow!("the mission is invalid:\n{}", lines.join("\n"))
             }
-            other => anyhow::anyhow!("{target}: {other}"),
+            other => anyhow::anyhow!("{other}"),
         })?;
-    let id = updated.status.mission_id.context("no mission id")?;
-    Ok((index, id))
+    let index = host
+        .drone_ids()
+        .iter()
+        .position(|d| *d == up.drone)
+        .with_context(|| format!("{} is not one of the drones", up.drone))?;
+    Ok((index, up.mission_id))
 }
 
 /// Builds the simulated host (config, world, sensors, scenario frames, saved state) and the

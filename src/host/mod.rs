@@ -10,6 +10,7 @@
 pub mod bus_link;
 pub mod coverage;
 pub mod engine;
+mod load;
 pub mod map_view;
 pub mod runtime;
 pub mod scans;
@@ -18,6 +19,8 @@ pub mod store;
 pub mod vehicle;
 
 pub use crate::platform::fleet::Fleet;
-pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};
+pub use engine::{
+    Command, FrameRegistration, Host, HostConfig, HostError, LoadOptions, PersistedState, Uploaded,
+};
 pub use runtime::{HostHandle, Pace, RuntimeOptions};
 pub use status::{DroneStatus, HostEvent, HostSnapshot};

@@ -19,7 +19,7 @@ pub use bus::BusMapError;
 pub use commands::{Command, Reply};
 pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 pub use frames::{FrameRegistration, MAX_FRAMES};
-pub use missions::{MissionView, Updated, Uploaded, ValidatedUpload};
+pub use missions::{LoadOptions, MissionView, Updated, Uploaded, ValidatedUpload};
 
 use super::status::{BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::{Change, Sink};
