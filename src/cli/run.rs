@@ -29,11 +29,10 @@ use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
-use kestrel::host::vehicle::vehicle_host;
+use kestrel::host::HostBuilder;
 use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform, TextSender};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use kestrel::scenario::virtual_world::virtual_world_host;
 use kestrel::sim::spatial::ShapeIndex;
 use kestrel::sim::virtual_world::{VirtualRanges, VirtualSensors};
 use kestrel::sim::{Environment, SimWorld};
@@ -422,10 +421,12 @@ async fn serve_vehicles(
     (ready_timeout, texts): (Duration, Vec<(String, TextSender)>),
     virtual_world: Option<kestrel::sim::world::World>,
 ) -> Result<()> {
+    // In a virtual world the merged map is framed on it and exploration is judged against it.
     let mut host = match virtual_world {
-        Some(world) => virtual_world_host(fleet, config, world),
-        None => vehicle_host(fleet, config),
-    };
+        Some(world) => HostBuilder::vehicles(fleet, config).world(world),
+        None => HostBuilder::vehicles(fleet, config),
+    }
+    .build();
     let Api {
         listen,
         token,

@@ -6,6 +6,7 @@
 //! slow reader can only lag on), the flight log, the persisted missions, and systemd
 //! READY/WATCHDOG notifications from the control loop.
 
+pub mod builder;
 #[cfg(feature = "fleet-bus")]
 pub mod bus_link;
 pub mod coverage;
@@ -19,8 +20,9 @@ pub mod store;
 pub mod vehicle;
 
 pub use crate::platform::fleet::Fleet;
+pub use builder::HostBuilder;
 pub use engine::{
-    Command, FrameRegistration, Host, HostConfig, HostError, LoadOptions, PersistedState, Uploaded,
+    Command, FrameRegistration, Host, HostError, LoadOptions, PersistedState, Uploaded,
 };
 pub use runtime::{HostHandle, Pace, RuntimeOptions};
 pub use status::{DroneStatus, HostEvent, HostSnapshot};

@@ -90,7 +90,9 @@ pub struct PersistedState {
     pub frames: Vec<FrameRegistration>,
 }
 
-pub struct HostConfig {
+/// What a host is built with besides its cores and fleet (`host::builder` makes it from the
+/// config).
+pub(crate) struct HostConfig {
     pub limits: Limits,
     pub executor: ExecutorConfig,
     pub tick: Duration,
@@ -141,8 +143,8 @@ pub struct Host {
 }
 
 impl Host {
-    /// One core per vehicle of `fleet`, in the same order.
-    pub fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
+    /// One core per vehicle of `fleet`, in the same order; built by `host::HostBuilder`.
+    pub(crate) fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
         let n = cores.len();
         Self {
             executors: (0..n)
