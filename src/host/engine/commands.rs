@@ -143,7 +143,7 @@ impl Host {
                 self.answer(reply, answer);
             }
             Command::Frames { reply } => {
-                let _ = reply.send(Ok(self.frames.clone()));
+                let _ = reply.send(Ok(self.frames.list().to_vec()));
             }
             Command::Fault {
                 drone_id,
