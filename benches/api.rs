@@ -12,7 +12,7 @@ use kestrel::config::Config;
 use kestrel::control::Setpoint;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
 use kestrel::host::Fleet;
-use kestrel::host::Host;
+use kestrel::host::HostBuilder;
 use kestrel::platform::{Capabilities, PlatformFeedback, PlatformRequest};
 use kestrel::scenario::sim_host::{sim_world, simulated_parts};
 use kestrel::sim::fleet::SimFleet;
@@ -115,13 +115,16 @@ struct Setup {
 async fn setup() -> Setup {
     let config = Config::default();
     let sim = sim_world(World::empty(), 1, 0, &config);
-    let (cores, fleet, host_config) = simulated_parts(sim, &config);
+    let world = sim.world.clone();
+    let (cores, fleet) = simulated_parts(sim, &config);
     let probe = Arc::new(Probe::default());
     let fleet = ProbeFleet {
         inner: fleet,
         probe: probe.clone(),
     };
-    let mut host = Host::new(cores, Box::new(fleet), host_config);
+    let mut host = HostBuilder::new(cores, Box::new(fleet), &config)
+        .world(world)
+        .build();
     host.step();
     let (shutdown, rx) = tokio::sync::watch::channel(false);
     let spawned = runtime::spawn(host, RuntimeOptions::new(Pace::Factor(1.0)), rx).unwrap();

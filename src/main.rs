@@ -4,22 +4,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
-mod cli_announce;
-mod cli_console;
-mod cli_evaluate;
-mod cli_explore;
-mod cli_fleet;
-mod cli_flights;
-mod cli_log;
-mod cli_map;
-mod cli_mission;
-mod cli_remote;
-mod cli_report;
-mod cli_run;
-mod cli_serve;
-mod cli_sim;
-mod cli_startup;
-mod cli_world;
+mod cli;
 
 #[derive(Parser)]
 #[command(
@@ -35,27 +20,27 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Fly in the built-in simulator (no hardware needed). Without options: the demo flight.
-    Sim(cli_sim::SimArgs),
+    Sim(cli::sim::SimArgs),
     /// Explore a world with N simulated drones until no frontier is left; report the metrics.
-    Explore(cli_explore::ExploreArgs),
+    Explore(cli::explore::ExploreArgs),
     /// Fly a PX4 or ArduPilot autopilot over MAVLink (`--platform`, `--connection`).
-    Run(cli_run::RunArgs),
+    Run(cli::run::RunArgs),
     /// Missions: validate a file, fly it in the simulator, print the schema.
     #[command(subcommand)]
-    Mission(cli_mission::MissionCommand),
+    Mission(cli::mission::MissionCommand),
     /// Maps: export one in the ROS map_server format (PGM + YAML).
     #[command(subcommand)]
-    Map(cli_map::MapCommand),
+    Map(cli::map::MapCommand),
     /// Exploration worlds: generate a seeded one.
     #[command(subcommand)]
-    World(cli_world::WorldCommand),
+    World(cli::world::WorldCommand),
     /// Exploration metrics of a flight log against the true world.
-    Evaluate(cli_evaluate::EvaluateArgs),
+    Evaluate(cli::evaluate::EvaluateArgs),
     /// Flight-log files: convert a JSON-lines log to MCAP.
     #[command(subcommand)]
-    Log(cli_log::LogCommand),
+    Log(cli::log::LogCommand),
     /// A flight log as a report: index.html with figures (SVG, PNG), a table and poses.csv.
-    Report(cli_report::ReportArgs),
+    Report(cli::report::ReportArgs),
     /// Check a config file as `kestrel run` does at start (platform, token, listen address,
     /// directories) and print a short summary.
     CheckConfig {
@@ -76,22 +61,22 @@ enum Command {
 }
 
 fn main() -> Result<()> {
-    cli_console::init_logging();
-    let cli = Cli::parse();
-    match cli.command {
-        Command::Sim(args) => cli_sim::run(args),
-        Command::Run(args) => cli_run::run(args),
-        Command::Explore(args) => cli_explore::run(args),
-        Command::Mission(command) => cli_mission::run(command),
-        Command::Map(command) => cli_map::run(command),
-        Command::World(command) => cli_world::run(command),
-        Command::Evaluate(args) => cli_evaluate::run(args),
-        Command::Report(args) => cli_report::run(args),
-        Command::Log(command) => cli_log::run(command),
+    cli::console::init_logging();
+    let Cli { command } = Cli::parse();
+    match command {
+        Command::Sim(args) => cli::sim::run(args),
+        Command::Run(args) => cli::run::run(args),
+        Command::Explore(args) => cli::explore::run(args),
+        Command::Mission(command) => cli::mission::run(command),
+        Command::Map(command) => cli::map::run(command),
+        Command::World(command) => cli::world::run(command),
+        Command::Evaluate(args) => cli::evaluate::run(args),
+        Command::Report(args) => cli::report::run(args),
+        Command::Log(command) => cli::log::run(command),
         Command::CheckConfig {
             config,
             virtual_world,
-        } => cli_startup::check(&config, virtual_world),
-        Command::FleetKey { file, public } => cli_fleet::key(&file, public),
+        } => cli::startup::check(&config, virtual_world),
+        Command::FleetKey { file, public } => cli::fleet_key::key(&file, public),
     }
 }

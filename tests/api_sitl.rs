@@ -13,7 +13,7 @@ use kestrel::config::Config;
 use kestrel::core::{CoreConfig, DroneCore};
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions};
-use kestrel::host::vehicle::vehicle_host;
+use kestrel::host::HostBuilder;
 use kestrel::platform::mavlink::{LinkConfig, MavlinkPlatform, Profile};
 use kestrel::platform::Platform;
 use serde_json::{json, Value};
@@ -86,7 +86,7 @@ async fn takeoff_go_land_over_the_api_on_the_fake_px4() {
         platform.capabilities(),
         kestrel::behavior::payload::registry(),
     );
-    let host = vehicle_host(vec![(core, Box::new(platform))], &config);
+    let host = HostBuilder::vehicles(vec![(core, Box::new(platform))], &config).build();
     let (_stop, stop_rx) = tokio::sync::watch::channel(false);
     let spawned = runtime::spawn(host, RuntimeOptions::new(Pace::RealTime), stop_rx).unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();

@@ -5,6 +5,7 @@
 use kestrel::config::Config;
 use kestrel::host::engine::Command;
 use kestrel::host::runtime::{self, Pace, RuntimeOptions, MAX_COMMANDS_PER_TICK};
+use kestrel::host::{HostError, LoadOptions};
 use kestrel::scenario::sim_host::simulated_host;
 use kestrel::sim::world::World;
 use std::time::Duration;
@@ -84,5 +85,45 @@ fn a_flood_of_commands_does_not_delay_the_ticks() {
     assert!(
         late + missed <= allowed,
         "flooded: {late} late and {missed} missed of {wakes} (quiet second: {quiet:?})"
+    );
+}
+
+/// A mission loaded through the handle (validated off the loop) is answered as the loop's own
+/// path answers it: the same problems for an invalid one, and a valid one loaded and started.
+#[test]
+fn the_handle_loads_missions_as_the_loop_does() {
+    let mut host = simulated_host(World::empty(), 1, 1, &Config::default());
+    host.step();
+    let bad = serde_json::json!({"target": "drone_0", "plan": [
+        {"behavior": "takeoff", "args": {"height": -3.0}},
+        {"behavior": "fly_away", "args": {}}]});
+    let Err(HostError::Invalid(on_loop)) = host.load_mission(&bad, LoadOptions::default()) else {
+        panic!("the invalid mission was loaded");
+    };
+    let good = serde_json::json!({"target": "drone_0", "plan": [
+        {"behavior": "takeoff", "args": {"height": 2.0, "speed": 1.0}}]});
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let (stop, stop_rx) = tokio::sync::watch::channel(false);
+    let spawned = runtime::spawn(host, RuntimeOptions::new(Pace::Max), stop_rx).unwrap();
+    let handle = spawned.handle.clone();
+    let (through_handle, started) = rt.block_on(async {
+        let invalid = handle.load_mission(bad, LoadOptions::start()).await;
+        let started = handle.load_mission(good, LoadOptions::start()).await;
+        (invalid, started)
+    });
+    stop.send_replace(true);
+    let host = spawned.thread.join().unwrap();
+    assert!(!on_loop.is_empty());
+    assert_eq!(through_handle, Err(HostError::Invalid(on_loop)));
+    let up = started.unwrap();
+    let status = host.executors()[0].status(&host.cores()[0]);
+    assert_eq!(status.mission_id, Some(up.mission_id));
+    assert_eq!(
+        host.executors()[0].missions().len(),
+        1,
+        "the invalid one was not loaded"
     );
 }

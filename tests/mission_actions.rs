@@ -41,7 +41,7 @@ fn execute_flies_takeoff_go_land_with_the_thesis_status_sequence() {
     println!("takeoff-go-land took {:.1} simulated s", rig.t());
 }
 
-use kestrel::host::engine::HostError;
+use kestrel::host::engine::{HostError, LoadOptions};
 use kestrel::mission::{Action, ActionError};
 use serde_json::json;
 
@@ -114,7 +114,10 @@ fn missions_beyond_the_limit_per_drone_are_refused_and_change_nothing() {
         );
     }
     // The upload path (POST /api/missions) too.
-    let err = rig.host.upload(&square(), None).unwrap_err();
+    let err = rig
+        .host
+        .load_mission(&square(), LoadOptions::default())
+        .unwrap_err();
     assert!(err.to_string().contains("missions are loaded"), "{err}");
     assert_eq!(rig.host.executors()[0].missions().len(), before);
     assert!(rig.started().is_empty());
@@ -170,6 +173,31 @@ fn load_of_an_invalid_mission_changes_nothing() {
         other => panic!("{other:?}"),
     }
     assert!(rig.host.executors()[0].missions().is_empty());
+}
+
+/// The one load path (`Host::load_mission`, what the CLI, the demo and the API use): started
+/// at once it flies as EXECUTE does; under the id of the running mission it is refused and
+/// changes nothing, as EXECUTE and LOAD are.
+#[test]
+fn load_mission_started_flies_as_execute_and_keeps_its_refusals() {
+    let mut rig = Rig::new();
+    let up = rig
+        .host
+        .load_mission(&takeoff_go_land(), LoadOptions::start())
+        .unwrap();
+    assert_eq!(up.drone, "drone_0");
+    assert_eq!(rig.status().state, ExecState::Running);
+    assert_eq!(rig.status().mission_id, Some(up.mission_id));
+    let replace = LoadOptions {
+        mission_id: Some(up.mission_id),
+        start: false,
+    };
+    let err = rig.host.load_mission(&square(), replace).unwrap_err();
+    assert!(err.to_string().contains("is running"), "{err}");
+    assert_eq!(rig.host.executors()[0].missions().len(), 1);
+    assert!(rig.run_until(120.0, |r| r.is_idle()), "mission did not end");
+    assert_eq!(rig.started(), ["takeoff", "go_to", "land"]);
+    assert_eq!(rig.status().last_error, None);
 }
 
 // ---- START ----

@@ -5,7 +5,7 @@
 mod mission_rig;
 
 use kestrel::config::Config;
-use kestrel::host::engine::HostError;
+use kestrel::host::engine::{HostError, LoadOptions};
 use kestrel::mission::validate::{validate_text, ValidationContext};
 use kestrel::mission::{Limits, ValidationError};
 use mission_rig::Rig;
@@ -323,7 +323,7 @@ fn every_bad_mission_is_rejected_with_a_precise_pointer_and_nothing_is_loaded() 
     let cases = cases();
     assert!(cases.len() >= 40);
     for (name, mission, pointer, words) in cases {
-        let errors = match rig.host.upload(&mission, None) {
+        let errors = match rig.host.load_mission(&mission, LoadOptions::default()) {
             Err(HostError::Invalid(errors)) => errors,
             other => panic!("{name}: expected invalid, got {other:?}"),
         };
@@ -389,7 +389,8 @@ fn every_error_of_a_mission_is_listed_at_once() {
         {"behavior": "nope"},
         {"behavior": "go_to", "args": {"x": 0, "y": 0, "z": 500, "speed": 99}},
         {"behavior": "land", "args": {"speed": "slow"}}]});
-    let Err(HostError::Invalid(errors)) = rig.host.upload(&mission, None) else {
+    let Err(HostError::Invalid(errors)) = rig.host.load_mission(&mission, LoadOptions::default())
+    else {
         panic!("accepted");
     };
     let pointers: Vec<&str> = errors.iter().map(|e| e.pointer.as_str()).collect();
@@ -416,12 +417,15 @@ fn a_polygon_geofence_rejects_points_outside_it() {
     let mut rig = Rig::with_config(config, 1);
     assert!(rig
         .host
-        .upload(&plan(vec![takeoff(), go_to(15.0, 15.0, 5.0)]), None)
+        .load_mission(
+            &plan(vec![takeoff(), go_to(15.0, 15.0, 5.0)]),
+            LoadOptions::default()
+        )
         .is_ok());
-    let Err(HostError::Invalid(errors)) = rig
-        .host
-        .upload(&plan(vec![takeoff(), go_to(25.0, 0.0, 5.0)]), None)
-    else {
+    let Err(HostError::Invalid(errors)) = rig.host.load_mission(
+        &plan(vec![takeoff(), go_to(25.0, 0.0, 5.0)]),
+        LoadOptions::default(),
+    ) else {
         panic!("accepted");
     };
     assert_eq!(errors[0].pointer, "/plan/1/args/x");
@@ -436,7 +440,10 @@ fn an_aerostack2_mission_loads_unchanged_with_warnings_for_unknown_fields() {
         {"behavior": "go_to", "method": "go_to_point_path_facing", "args": {"point": [2.0, 2.0, 2.0], "speed": 1.0}},
         {"behavior": "follow_path", "args": {"path": [[0, 0, 2], [2, 0, 2]], "speed": 1.0, "yaw_mode": 1, "frame_id": "earth"}},
         {"behavior": "land", "method": "__call__", "args": {"speed": 0.5}, "note": "x"}]});
-    let up = rig.host.upload(&mission, None).unwrap();
+    let up = rig
+        .host
+        .load_mission(&mission, LoadOptions::default())
+        .unwrap();
     assert_eq!(up.warnings.len(), 2, "{:?}", up.warnings);
     assert!(up.warnings[0].contains("verbose"));
 }
@@ -448,11 +455,11 @@ fn frames_registered_over_the_api_make_a_mission_valid() {
         takeoff(),
         json!({"behavior": "go_to", "args": {"x": -10, "y": 0, "z": 0, "speed": 1, "frame_id": "wind_turbine/nacelle"}}),
     ]);
-    assert!(rig.host.upload(&m, None).is_err());
+    assert!(rig.host.load_mission(&m, LoadOptions::default()).is_err());
     rig.host
         .set_frame(serde_json::from_value(json!({"frame_id": "wind_turbine/nacelle", "translation_m": [40, 0, 30], "yaw_rate_radps": 0.01})).unwrap())
         .unwrap();
-    assert!(rig.host.upload(&m, None).is_ok());
+    assert!(rig.host.load_mission(&m, LoadOptions::default()).is_ok());
 }
 
 /// Issue 29, item 10c: `POST /api/missions` for a drone another Kestrel of the fleet flies
@@ -485,8 +492,10 @@ fn a_mission_for_a_remote_drone_is_refused_as_remote_not_invalid() {
     let mut mission = plan(vec![takeoff()]);
     mission["target"] = json!("drone_7");
     let answers = [
-        rig.host.upload_context(Some("drone_7")).map(|_| ()),
-        rig.host.upload(&mission, None).map(|_| ()),
+        rig.host.load_context(Some("drone_7")).map(|_| ()),
+        rig.host
+            .load_mission(&mission, LoadOptions::default())
+            .map(|_| ()),
     ];
     for answer in answers {
         let e = answer.unwrap_err();
@@ -498,7 +507,7 @@ fn a_mission_for_a_remote_drone_is_refused_as_remote_not_invalid() {
         assert_eq!((status.as_u16(), code), (409, "remote_drone"));
     }
     // A drone no Kestrel flies is still an error of the mission, at its target.
-    let unknown = rig.host.upload_context(Some("drone_9")).map(|_| ());
+    let unknown = rig.host.load_context(Some("drone_9")).map(|_| ());
     assert!(
         matches!(&unknown, Err(HostError::Invalid(e)) if e[0].pointer == "/target"),
         "{unknown:?}"

@@ -7,7 +7,7 @@ use common::SimConfig;
 use common::{world_with_pole, Harness};
 use kestrel::behavior::BehaviorResult;
 use kestrel::core::BehaviorCommand;
-use kestrel::host::{FrameRegistration, HostError};
+use kestrel::host::{FrameRegistration, HostError, LoadOptions};
 use kestrel::sim::world::World;
 use kestrel::sim::Environment;
 use kestrel::types::{FlightStatus, Vec3};
@@ -382,7 +382,9 @@ fn moving_a_frame_is_refused_when_it_would_invalidate_a_loaded_mission() {
     let mission = json!({"target": "drone_0", "plan": [
         {"behavior": "takeoff", "args": {"height": 2.0, "speed": 1.0}},
         {"behavior": "go_to", "args": {"x": 0.0, "y": 0.0, "z": 5.0, "speed": 1.0, "frame_id": "site"}}]});
-    h.host.upload(&mission, None).unwrap();
+    h.host
+        .load_mission(&mission, LoadOptions::default())
+        .unwrap();
     let err = frame_at(&mut h, "site", 500.0, 0.0).unwrap_err();
     assert!(
         err.to_string()

@@ -11,10 +11,10 @@ use kestrel::config::Config;
 use kestrel::core::{BehaviorCommand, CoreConfig, DroneCore};
 use kestrel::host::status::{EventBody, HostEvent};
 use kestrel::host::Host;
+use kestrel::host::HostBuilder;
 use kestrel::mapping::grid::DEFAULT_OCCUPIED_THRESHOLD;
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use kestrel::scenario::virtual_world::virtual_world_host;
 use kestrel::sim::dynamics::MultirotorParams;
 use kestrel::sim::spatial::ShapeIndex;
 use kestrel::sim::vehicle::SimVehicle;
@@ -90,7 +90,9 @@ impl Flight {
             platform.capabilities(),
             kestrel::behavior::payload::registry(),
         );
-        let host = virtual_world_host(vec![(core, Box::new(platform))], &config, world);
+        let host = HostBuilder::vehicles(vec![(core, Box::new(platform))], &config)
+            .world(world)
+            .build();
         Self {
             host,
             now: Duration::ZERO,

@@ -9,13 +9,12 @@ use super::error::{ApiError, ErrorBody};
 use super::saved::{changes_saved, Durability};
 use super::ApiState;
 use crate::flightlog::files::{self, LogEntry};
-use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded, ValidatedUpload};
+use crate::host::engine::{FrameRegistration, MissionView, Updated, Uploaded};
 use crate::host::runtime::BehaviorInfo;
 use crate::host::store::StoreHealth;
 use crate::host::HostError;
-use crate::host::{Command, DroneStatus};
-use crate::mission::validate::validate_value;
-use crate::mission::{ContextSnapshot, Mission, MissionUpdate, ValidMission, ValidationError};
+use crate::host::{Command, DroneStatus, LoadOptions};
+use crate::mission::{Mission, MissionUpdate};
 use axum::extract::{Path, Query, State};
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -117,66 +116,13 @@ pub async fn upload(
     Query(q): Query<UploadQuery>,
     JsonBody(mission): JsonBody<Value>,
 ) -> Result<(StatusCode, Json<UploadAnswer>), ApiError> {
-    // Validated here, off the control loop (a 1000-item mission costs more than a tick);
-    // the loop only loads it.
-    let target = match mission.get("target") {
-        Some(Value::String(t)) => Some(t.clone()),
-        _ => None,
-    };
-    let (drone, snapshot) = s
-        .host
-        .call(|reply| Command::UploadContext {
-            target: target.clone(),
-            reply,
-        })
-        .await?;
-    let (mission, valid, snapshot) = validate_off_loop(mission, snapshot).await?;
-    let valid = valid.map_err(HostError::Invalid)?;
-    if target.is_none() {
-        return Err(HostError::Invalid(vec![ValidationError {
-            pointer: "/target".into(),
-            message: "missing target".into(),
-        }])
-        .into());
-    }
-    let upload = Box::new(ValidatedUpload {
-        drone,
-        mission,
-        valid,
-        snapshot,
+    let options = LoadOptions {
         mission_id: q.mission_id,
-    });
-    let up = s
-        .host
-        .call(|reply| Command::UploadValidated { upload, reply })
-        .await?;
+        start: false,
+    };
+    let up = s.host.load_mission(mission, options).await?;
     let saved = changes_saved(&s).await;
     Ok((StatusCode::CREATED, Json(UploadAnswer { up, saved })))
-}
-
-/// Uploads validated at once (each on a blocking thread): more wait their turn.
-static VALIDATIONS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
-
-type Validated = (
-    Value,
-    Result<ValidMission, Vec<ValidationError>>,
-    ContextSnapshot,
-);
-
-async fn validate_off_loop(
-    mission: Value,
-    snapshot: ContextSnapshot,
-) -> Result<Validated, ApiError> {
-    let _turn = VALIDATIONS
-        .acquire()
-        .await
-        .map_err(|_| HostError::Unavailable("validation stopped".into()))?;
-    tokio::task::spawn_blocking(move || {
-        let valid = validate_value(&mission, &snapshot.context());
-        (mission, valid, snapshot)
-    })
-    .await
-    .map_err(|_| HostError::Unavailable("validating the mission failed".into()).into())
 }
 
 /// An upload's answer: the mission's id and whether it is saved.

@@ -6,10 +6,12 @@
 //! slow reader can only lag on), the flight log, the persisted missions, and systemd
 //! READY/WATCHDOG notifications from the control loop.
 
+pub mod builder;
 #[cfg(feature = "fleet-bus")]
 pub mod bus_link;
 pub mod coverage;
 pub mod engine;
+mod load;
 pub mod map_view;
 pub mod runtime;
 pub mod scans;
@@ -18,6 +20,9 @@ pub mod store;
 pub mod vehicle;
 
 pub use crate::platform::fleet::Fleet;
-pub use engine::{Command, FrameRegistration, Host, HostConfig, HostError, PersistedState};
+pub use builder::HostBuilder;
+pub use engine::{
+    Command, FrameRegistration, Host, HostError, LoadOptions, PersistedState, Uploaded,
+};
 pub use runtime::{HostHandle, Pace, RuntimeOptions};
 pub use status::{DroneStatus, HostEvent, HostSnapshot};

@@ -48,6 +48,10 @@ pub struct RuntimeOptions {
     pub stop_when: Option<StopWhen>,
     /// Run after every tick (or batch), never waiting: the fleet bus's exchange.
     pub between_ticks: Option<BetweenTicks>,
+    /// Plans and allocations answered in lock step at any pace, so a seeded run flies the same
+    /// at every speed-up (`kestrel explore`); otherwise only at [`Pace::Max`], and paced to the
+    /// wall clock a tick never waits for a plan.
+    pub lock_step: bool,
 }
 
 /// Work the loop does between ticks, with the host.
@@ -62,6 +66,7 @@ impl RuntimeOptions {
             publish_period: Duration::from_millis(20),
             stop_when: None,
             between_ticks: None,
+            lock_step: false,
         }
     }
 }
@@ -190,7 +195,7 @@ pub fn spawn(
     options: RuntimeOptions,
     shutdown: watch::Receiver<bool>,
 ) -> std::io::Result<Spawned> {
-    if options.pace != Pace::Max {
+    if options.pace != Pace::Max && !options.lock_step {
         // Paced to the wall clock, a tick never waits for a plan.
         host.set_plan_delivery(Delivery::RealTime {
             deadline: PLAN_DEADLINE,

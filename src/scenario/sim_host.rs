@@ -9,16 +9,13 @@ use crate::behavior::payload;
 use crate::config::Config;
 use crate::core::{CoreConfig, DroneCore};
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::host::{Host, HostConfig};
+use crate::host::{Host, HostBuilder};
 use crate::mapping::config::MapConfig;
-use crate::mapping::merged::FleetMap;
 use crate::platform::Platform;
 use crate::sim::fleet::SimFleet;
 use crate::sim::world::World;
 use crate::sim::{Environment, SimWorld};
 use crate::types::Vec3;
-use nalgebra::Vector2;
-use std::time::Duration;
 
 /// Physics steps per control tick, as the simulator's own runner does.
 const PHYSICS_SUBSTEPS: u32 = 2;
@@ -54,25 +51,16 @@ pub fn simulated_host_with(
     config: &Config,
     tweak: impl Fn(&mut CoreConfig),
 ) -> Host {
-    let map = sim_map_config(&sim, config);
     let truth = sim.world.clone();
-    let (cores, fleet, host_config) = simulated_parts_with(sim, config, tweak);
-    let mut host = Host::new(cores, Box::new(fleet), host_config);
-    host.set_true_world(truth);
-    if let Some(m) = map {
-        match FleetMap::new(&m) {
-            Ok(fleet_map) => host.set_map(fleet_map),
-            Err(e) => tracing::error!("no merged map: {e}"),
-        }
-    }
-    host
+    let (cores, fleet) = simulated_parts_with(sim, config, tweak);
+    HostBuilder::new(cores, Box::new(fleet), config)
+        .world(truth)
+        .build()
 }
 
 /// The `[map]` section framed on the world's bounds when it gives no extent of its own.
 fn sim_map_config(sim: &SimWorld, config: &Config) -> Option<MapConfig> {
-    let b = &sim.world.bounds_m;
-    let bounds = (Vector2::new(b.x[0], b.y[0]), Vector2::new(b.x[1], b.y[1]));
-    match config.map.config(Some(bounds)) {
+    match config.map.config(Some(sim.world.bounds_m.corners())) {
         Ok(m) => m,
         Err(e) => {
             tracing::error!("mapping is off: {e}");
@@ -81,8 +69,9 @@ fn sim_map_config(sim: &SimWorld, config: &Config) -> Option<MapConfig> {
     }
 }
 
-/// The pieces of a simulated host, for callers that wrap the fleet (benchmark probes).
-pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFleet, HostConfig) {
+/// The cores and the fleet of a simulated host, for callers that wrap the fleet (benchmark
+/// probes) before they build the host.
+pub fn simulated_parts(sim: SimWorld, config: &Config) -> (Vec<DroneCore>, SimFleet) {
     simulated_parts_with(sim, config, |_| {})
 }
 
@@ -90,7 +79,7 @@ fn simulated_parts_with(
     sim: SimWorld,
     config: &Config,
     tweak: impl Fn(&mut CoreConfig),
-) -> (Vec<DroneCore>, SimFleet, HostConfig) {
+) -> (Vec<DroneCore>, SimFleet) {
     let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
     let registry = payload::registry();
     let map = sim_map_config(&sim, config);
@@ -113,15 +102,7 @@ fn simulated_parts_with(
             DroneCore::new(c, v.capabilities(), registry.clone())
         })
         .collect();
-    (
-        cores,
-        SimFleet::new(sim, PHYSICS_SUBSTEPS),
-        HostConfig {
-            limits: config.mission_limits(),
-            executor: config.executor_config(),
-            tick: Duration::from_secs_f64(1.0 / config.drone.control_rate_hz),
-        },
-    )
+    (cores, SimFleet::new(sim, PHYSICS_SUBSTEPS))
 }
 
 /// The simulator's world of a host built over a [`SimFleet`] (ground truth for tests, benches

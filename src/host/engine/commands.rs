@@ -15,13 +15,13 @@ pub type Reply<T> = oneshot::Sender<Result<T, HostError>>;
 /// A request from the API (or the CLI) to the host.
 #[derive(Debug)]
 pub enum Command {
-    /// What an upload for `target` is validated against (see [`Host::upload_context`]).
-    UploadContext {
+    /// What a mission for `target` is validated against (see [`Host::load_context`]).
+    LoadContext {
         target: Option<String>,
         reply: Reply<(usize, ContextSnapshot)>,
     },
-    /// Load a mission validated off the loop.
-    UploadValidated {
+    /// Load a mission validated off the loop (see [`Host::load_validated`]).
+    LoadValidated {
         upload: Box<ValidatedUpload>,
         reply: Reply<Uploaded>,
     },
@@ -109,11 +109,11 @@ impl Host {
     pub fn handle(&mut self, command: Command) {
         // A client that gave up waiting dropped its receiver; nothing to answer then.
         match command {
-            Command::UploadContext { target, reply } => {
-                let _ = reply.send(self.upload_context(target.as_deref()));
+            Command::LoadContext { target, reply } => {
+                let _ = reply.send(self.load_context(target.as_deref()));
             }
-            Command::UploadValidated { upload, reply } => {
-                let answer = self.upload_validated(*upload);
+            Command::LoadValidated { upload, reply } => {
+                let answer = self.load_validated(*upload);
                 self.answer(reply, answer);
             }
             Command::Update { update, reply } => {
@@ -143,7 +143,7 @@ impl Host {
                 self.answer(reply, answer);
             }
             Command::Frames { reply } => {
-                let _ = reply.send(Ok(self.frames.clone()));
+                let _ = reply.send(Ok(self.frames.list().to_vec()));
             }
             Command::Fault {
                 drone_id,

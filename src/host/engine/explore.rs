@@ -1,5 +1,5 @@
 //! Explorations for chosen drones in one command: each drone gets a one-item mission running the
-//! `explore` behavior, loaded and started through the same path as `POST /api/missions` and a
+//! `explore` behavior, loaded as every mission is ([`Host::load_mission`]) and started by a
 //! START MissionUpdate (same validation, same errors), and joins the host's exploration run;
 //! stop sends STOP to those missions. The run's progress and report are read from here.
 //!
@@ -8,7 +8,7 @@
 //! and the goal are checked before anything is loaded, and a drone that fails to start takes
 //! back the ones started before it.
 
-use super::{Host, HostError};
+use super::{Host, HostError, LoadOptions};
 use crate::exploration::offline::evaluate::{PoseSample, TrueWorld};
 use crate::exploration::online::progress::{
     DronePose, ExplorationRun, LiveReport, ProgressView, RunDrone, RunDroneView,
@@ -167,7 +167,7 @@ impl Host {
         drone: &str,
         started: &mut Vec<(String, u32)>,
     ) -> Result<(), HostError> {
-        let up = self.upload(mission, None)?;
+        let up = self.load_mission(mission, LoadOptions::default())?;
         let update = MissionUpdate {
             drone_id: Some(drone.to_string()),
             mission_id: Some(i64::from(up.mission_id)),

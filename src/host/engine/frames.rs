@@ -1,5 +1,6 @@
 //! Frames registered over the API: a user frame's pose in its parent and how it moves, checked
-//! and bounded, set in every drone (or the one it names) all or none.
+//! and bounded, set in every drone (or the one it names) all or none; the [`FrameRegistry`]
+//! keeps them (for the API's list, the store and a restart).
 //!
 //! In: a [`FrameRegistration`]. Out: the drones' frame trees changed, or a [`HostError::Frame`]
 //! naming the field, or the loaded mission the new frame would make invalid.
@@ -101,12 +102,25 @@ impl FrameRegistration {
     }
 }
 
-impl Host {
-    /// Registers or updates a frame in every drone (or the one it names); all or none. A loaded
-    /// mission that the new frame would make invalid (a goal beyond the geofence, a frame cycle)
-    /// refuses the change, with that mission's errors.
-    pub fn set_frame(&mut self, frame: FrameRegistration) -> Result<(), HostError> {
-        frame.check()?;
+/// The frames registered so far, in order, and a revision that moves with every change.
+#[derive(Debug, Default)]
+pub(super) struct FrameRegistry {
+    frames: Vec<FrameRegistration>,
+    revision: u64,
+}
+
+impl FrameRegistry {
+    pub(super) fn list(&self) -> &[FrameRegistration] {
+        &self.frames
+    }
+
+    /// Moves with every registration, so the store is handed the frames only when they changed.
+    pub(super) fn revision(&self) -> u64 {
+        self.revision
+    }
+
+    /// Refuses a new frame beyond [`MAX_FRAMES`]; replacing a registered one is always allowed.
+    fn check_room(&self, frame: &FrameRegistration) -> Result<(), HostError> {
         let known = self
             .frames
             .iter()
@@ -117,6 +131,25 @@ impl Host {
                 frame.frame_id
             )));
         }
+        Ok(())
+    }
+
+    /// Keeps `frame`, in place of the one with its id for the same drone(s).
+    pub(super) fn insert(&mut self, frame: FrameRegistration) {
+        self.frames
+            .retain(|f| !(f.frame_id == frame.frame_id && f.drone_id == frame.drone_id));
+        self.frames.push(frame);
+        self.revision += 1;
+    }
+}
+
+impl Host {
+    /// Registers or updates a frame in every drone (or the one it names); all or none. A loaded
+    /// mission that the new frame would make invalid (a goal beyond the geofence, a frame cycle)
+    /// refuses the change, with that mission's errors.
+    pub fn set_frame(&mut self, frame: FrameRegistration) -> Result<(), HostError> {
+        frame.check()?;
+        self.frames.check_room(&frame)?;
         let targets: Vec<usize> = match &frame.drone_id {
             Some(d) => vec![self.route(Some(d))?],
             None => (0..self.cores.len()).collect(),
@@ -134,10 +167,7 @@ impl Host {
                 core.set_frame(&frame.frame_id, &frame.parent, motion)?;
             }
         }
-        self.frames
-            .retain(|f| !(f.frame_id == frame.frame_id && f.drone_id == frame.drone_id));
-        self.frames.push(frame);
-        self.revision += 1;
+        self.frames.insert(frame);
         Ok(())
     }
 
@@ -172,5 +202,44 @@ impl Host {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(id: &str, drone: Option<&str>) -> FrameRegistration {
+        let mut f: FrameRegistration =
+            serde_json::from_value(serde_json::json!({ "frame_id": id })).unwrap();
+        f.drone_id = drone.map(str::to_string);
+        f
+    }
+
+    /// A frame replaces the one with its id for the same drone(s) only; every change moves the
+    /// revision.
+    #[test]
+    fn the_registry_replaces_by_id_and_drone() {
+        let mut r = FrameRegistry::default();
+        r.insert(frame("pad", None));
+        r.insert(frame("pad", Some("drone_1")));
+        let mut moved = frame("pad", None);
+        moved.translation_m = [1.0, 2.0, 0.0];
+        r.insert(moved.clone());
+        assert_eq!(r.list(), [frame("pad", Some("drone_1")), moved]);
+        assert_eq!(r.revision(), 3);
+    }
+
+    /// The registry is bounded: a new frame beyond [`MAX_FRAMES`] is refused, a registered one
+    /// can still be replaced.
+    #[test]
+    fn the_registry_is_bounded_but_replacing_is_allowed() {
+        let mut r = FrameRegistry::default();
+        for k in 0..MAX_FRAMES {
+            r.insert(frame(&format!("f{k}"), None));
+        }
+        let refused = r.check_room(&frame("one_more", None)).unwrap_err();
+        assert!(refused.to_string().contains("one_more"), "{refused}");
+        assert_eq!(r.check_room(&frame("f7", None)), Ok(()));
     }
 }

@@ -1,5 +1,10 @@
-//! The host's missions: what an upload is validated against, loading (validated here or off
-//! the loop), MissionUpdates, the list and one mission as the API shows them, deleting.
+//! The host's missions: what a mission is validated against, loading, MissionUpdates, the list
+//! and one mission as the API shows them, deleting.
+//!
+//! Every mission is loaded one way, [`Host::load_mission`] (validated on the loop) or, through
+//! the handle, `HostHandle::load_mission` (validated off the loop, then
+//! [`Host::load_validated`]): both end in the same checks and the same load. The API's upload,
+//! the CLI's mission files and scenarios, the demo flight and exploration starts all use it.
 //!
 //! In: a mission (JSON) or a MissionUpdate for a drone, by name. Out: the executors changed, the
 //! answer ([`Uploaded`], [`Updated`], [`MissionView`]s) or a [`HostError`], and a flight-log
@@ -17,6 +22,27 @@ use crate::types::Vec3;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
+/// How a mission is loaded.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Under this id, replacing the idle mission that has it; `None`: under a new id.
+    pub mission_id: Option<u32>,
+    /// Started at once, as EXECUTE does (with EXECUTE's refusals and its one exception: a
+    /// first item whose behavior refuses its goal leaves the mission loaded, the failure in
+    /// its status); `false`: only loaded, as LOAD does.
+    pub start: bool,
+}
+
+impl LoadOptions {
+    /// Loaded under a new id and started at once.
+    pub fn start() -> Self {
+        Self {
+            mission_id: None,
+            start: true,
+        }
+    }
+}
+
 /// A mission validated off the control loop, with what it was validated against.
 #[derive(Debug)]
 pub struct ValidatedUpload {
@@ -24,7 +50,7 @@ pub struct ValidatedUpload {
     pub mission: Value,
     pub valid: crate::mission::ValidMission,
     pub snapshot: ContextSnapshot,
-    pub mission_id: Option<u32>,
+    pub options: LoadOptions,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
@@ -117,11 +143,13 @@ impl Host {
         crate::mission::validate::validate_value(mission, &ctx).map_err(HostError::Invalid)
     }
 
-    /// Loads a mission for the drone its target names.
-    pub fn upload(
+    /// Validates a mission and loads it for the drone its target names: the one way a mission
+    /// is loaded on the loop (the handle's way validates off it and ends in
+    /// [`Host::load_validated`]).
+    pub fn load_mission(
         &mut self,
         mission: &Value,
-        mission_id: Option<u32>,
+        options: LoadOptions,
     ) -> Result<Uploaded, HostError> {
         let target = match mission.get("target") {
             Some(Value::String(t)) => t.clone(),
@@ -138,7 +166,7 @@ impl Host {
         };
         let i = self.route_target(&target)?;
         let valid = self.validate(i, mission)?;
-        self.load_valid(i, target, mission.clone(), valid, mission_id)
+        self.load_valid(i, target, mission.clone(), valid, options)
     }
 
     /// The drone a mission's `target` names. A drone this Kestrel does not know is an error of
@@ -155,9 +183,9 @@ impl Host {
     }
 
     /// The validation context of drone `target` (the first drone when the mission names none:
-    /// the API then reports every problem along with the missing target), so that an upload
-    /// is validated off the control loop.
-    pub fn upload_context(
+    /// validation then reports every problem along with the missing target), so that a
+    /// mission is validated off the control loop.
+    pub fn load_context(
         &self,
         target: Option<&str>,
     ) -> Result<(usize, ContextSnapshot), HostError> {
@@ -173,13 +201,13 @@ impl Host {
 
     /// Loads a mission validated off the loop with `snapshot`; validated again here only if
     /// the drone's frames, home or limits changed since.
-    pub fn upload_validated(&mut self, upload: ValidatedUpload) -> Result<Uploaded, HostError> {
+    pub fn load_validated(&mut self, upload: ValidatedUpload) -> Result<Uploaded, HostError> {
         let ValidatedUpload {
             drone: i,
             mission,
             valid,
             snapshot,
-            mission_id,
+            options,
         } = upload;
         let holds = self
             .validation_context(i)
@@ -189,18 +217,24 @@ impl Host {
         } else {
             self.validate(i, &mission)?
         };
-        self.load_valid(i, snapshot.drone_id, mission, valid, mission_id)
+        self.load_valid(i, snapshot.drone_id, mission, valid, options)
     }
 
-    /// Loads a validated mission for drone `i` (named `target`).
+    /// Loads a validated mission for drone `i` (named `target`), and starts it with
+    /// `options.start` (as EXECUTE, with its checks: the fleet joined, not a landing on the
+    /// ground).
     fn load_valid(
         &mut self,
         i: usize,
         target: String,
         mission: Value,
         valid: crate::mission::ValidMission,
-        mission_id: Option<u32>,
+        options: LoadOptions,
     ) -> Result<Uploaded, HostError> {
+        if options.start {
+            self.refuse_before_joining(i)?;
+            self.refuse_landing_on_ground(i, &valid)?;
+        }
         let warnings = valid.warnings.clone();
         for w in &warnings {
             tracing::warn!("mission for {target}: {w}");
@@ -209,20 +243,28 @@ impl Host {
         let (Some(ex), Some(core)) = (self.executors.get_mut(i), self.cores.get_mut(i)) else {
             return Err(HostError::UnknownDrone(target, String::new()));
         };
-        let id = match mission_id {
-            None => ex.load_new(valid)?,
-            Some(id) => {
+        let id = match (options.mission_id, options.start) {
+            (None, false) => ex.load_new(valid)?,
+            (mission_id, start) => {
                 let req = Request {
-                    action: crate::mission::Action::Load,
-                    mission_id: Some(id),
+                    action: if start { Action::Execute } else { Action::Load },
+                    mission_id,
                     item_id: None,
                     mission: Some(valid),
                 };
-                ex.apply(req, core, now)?;
-                id
+                let status = ex.apply(req, core, now)?;
+                // EXECUTE under a new id: the mission it started is the one running.
+                match mission_id.or(status.mission_id) {
+                    Some(id) => id,
+                    None => return Err(ActionError::Refused("the mission got no id".into()).into()),
+                }
             }
         };
-        self.log_command(i, "upload", json!({ "mission_id": id, "mission": mission }));
+        self.log_command(
+            i,
+            "upload",
+            json!({ "mission_id": id, "start": options.start, "mission": mission }),
+        );
         Ok(Uploaded {
             drone: target,
             mission_id: id,

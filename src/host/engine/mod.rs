@@ -12,6 +12,7 @@ mod explore;
 mod frames;
 mod maps;
 mod missions;
+mod persist;
 mod tick;
 
 pub use super::map_view::MapView;
@@ -19,10 +20,10 @@ pub use bus::BusMapError;
 pub use commands::{Command, Reply};
 pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 pub use frames::{FrameRegistration, MAX_FRAMES};
-pub use missions::{MissionView, Updated, Uploaded, ValidatedUpload};
+pub use missions::{LoadOptions, MissionView, Updated, Uploaded, ValidatedUpload};
 
 use super::status::{BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
-use super::store::{Change, Sink};
+use super::store::Sink;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
@@ -41,6 +42,8 @@ use crate::planning::worker::{Delivery, PlanWorker};
 use crate::platform::fleet::Fleet;
 use crate::types::FleetView;
 use crate::types::LinkHealth;
+use frames::FrameRegistry;
+use persist::Persistence;
 use serde::{Deserialize, Serialize};
 use std::any::Any;
 use std::collections::BTreeMap;
@@ -90,7 +93,9 @@ pub struct PersistedState {
     pub frames: Vec<FrameRegistration>,
 }
 
-pub struct HostConfig {
+/// What a host is built with besides its cores and fleet (`host::builder` makes it from the
+/// config).
+pub(crate) struct HostConfig {
     pub limits: Limits,
     pub executor: ExecutorConfig,
     pub tick: Duration,
@@ -102,8 +107,8 @@ pub struct Host {
     executor_config: ExecutorConfig,
     fleet: Box<dyn Fleet>,
     limits: Limits,
-    frames: Vec<FrameRegistration>,
-    revision: u64,
+    /// The frames registered over the API.
+    frames: FrameRegistry,
     log: Option<FlightLog>,
     now: Duration,
     tick: Duration,
@@ -125,12 +130,8 @@ pub struct Host {
     explore_jobs: Vec<(usize, ExploreJob)>,
     /// The exploration started over the API (`POST /api/exploration/start`), the last one.
     exploration: Option<ExplorationRun>,
-    /// Where changes to save go (`None`: nothing is kept).
-    store: Option<Sink>,
-    /// Each executor's revision when its state was last handed to the store.
-    committed: Vec<u64>,
-    /// `revision` (frames) when last handed to the store.
-    frames_committed: u64,
+    /// What changed, handed to the state directory's store.
+    persistence: Persistence,
     /// The drones other Kestrels fly, heard over the fleet bus (`None`: no bus).
     remote: Option<RemoteFleet>,
     /// The fleet bus's last report, for the snapshot.
@@ -141,8 +142,8 @@ pub struct Host {
 }
 
 impl Host {
-    /// One core per vehicle of `fleet`, in the same order.
-    pub fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
+    /// One core per vehicle of `fleet`, in the same order; built by `host::HostBuilder`.
+    pub(crate) fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
         let n = cores.len();
         Self {
             executors: (0..n)
@@ -152,8 +153,7 @@ impl Host {
             fleet,
             executor_config: config.executor,
             limits: config.limits,
-            frames: Vec::new(),
-            revision: 0,
+            frames: FrameRegistry::default(),
             log: None,
             now: Duration::ZERO,
             tick: config.tick,
@@ -169,9 +169,7 @@ impl Host {
             frontiers: FrontierWorker::new(Delivery::Lockstep),
             explore_jobs: Vec::new(),
             exploration: None,
-            store: None,
-            committed: vec![0; n],
-            frames_committed: 0,
+            persistence: Persistence::new(n),
             remote: None,
             bus_report: None,
             truth: None,
@@ -180,46 +178,22 @@ impl Host {
 
     /// Keeps what changes from now on in the state directory behind `store`.
     pub fn set_store(&mut self, store: Sink) {
-        self.store = Some(store);
+        self.persistence.set_store(store);
     }
 
     pub fn store(&self) -> Option<&Sink> {
-        self.store.as_ref()
+        self.persistence.store()
     }
 
     /// Hands what changed since the last call to the store: the missions that changed (copied
     /// one by one, never all of them), an executor's small state, the frames. No I/O here.
     pub fn commit(&mut self) {
-        let mut changes = Vec::new();
-        for ((core, ex), committed) in self
+        let executors = self
             .cores
             .iter()
-            .zip(self.executors.iter_mut())
-            .zip(self.committed.iter_mut())
-        {
-            let drone = core.drone_id();
-            for (id, loaded) in ex.take_changed() {
-                changes.push(Change::Mission {
-                    drone: drone.to_string(),
-                    id,
-                    loaded: loaded.map(Box::new),
-                });
-            }
-            if *committed != ex.revision() {
-                *committed = ex.revision();
-                changes.push(Change::Meta {
-                    drone: drone.to_string(),
-                    meta: ex.meta(),
-                });
-            }
-        }
-        if self.frames_committed != self.revision {
-            self.frames_committed = self.revision;
-            changes.push(Change::Frames(self.frames.clone()));
-        }
-        if let Some(store) = &self.store {
-            store.push(changes);
-        }
+            .map(|c| c.drone_id())
+            .zip(self.executors.iter_mut());
+        self.persistence.commit(executors, &self.frames);
     }
 
     /// How plans and the frontier allocator's answers reach the behaviors: in lock step (the
@@ -341,7 +315,7 @@ impl Host {
                 .zip(&self.executors)
                 .map(|(c, e)| (c.drone_id().to_string(), e.snapshot()))
                 .collect(),
-            frames: self.frames.clone(),
+            frames: self.frames.list().to_vec(),
         }
     }
 

@@ -1,5 +1,6 @@
 //! `kestrel explore`: N simulated drones explore a world together with the `explore` behavior
-//! until no frontier is left, land, and the run is reported.
+//! until no frontier is left, land, and the run is reported. The host runs on the control loop
+//! `kestrel sim` serves (`host::runtime`), with plans in lock step: a seed flies the same run.
 //!
 //! In: a world file (its `starts_xy_yaw[N]` place the drones), the thesis's simulation
 //! parameters as defaults (0.1 m map, four 4 m beams at 20 Hz, 1.0 m height, 0.75 m/s, turns at
@@ -12,7 +13,7 @@
 //! lines while it runs, and the exit status: 0 when every drone explored and landed, non-zero
 //! with the reason otherwise (a failed drone, a collision, or the simulated timeout).
 
-use crate::cli_sim::{execute, load_config, parse_speedup};
+use crate::cli::sim::{execute, load_config, parse_speedup};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
@@ -21,7 +22,7 @@ use kestrel::exploration::online::allocation::AllocatorKind;
 use kestrel::flightlog::files;
 use kestrel::flightlog::mcap_log::McapLog;
 use kestrel::flightlog::{reader, FlightLog, LogFormat};
-use kestrel::host::runtime::Pace;
+use kestrel::host::runtime::{self, Pace, RuntimeOptions};
 use kestrel::host::Host;
 use kestrel::mapping::grid::UNKNOWN;
 use kestrel::scenario::sim_host::{sim_world, simulated_host_in};
@@ -130,7 +131,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         LogFormat::Mcap => Box::new(McapLog::new(out).context("starting the MCAP flight log")?),
     };
     let mut log = FlightLog::new(out, 20.0);
-    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+    log.header(crate::cli::serve::header(&crate::cli::serve::RunInfo {
         command: "explore",
         config: &config,
         seed: Some(args.seed),
@@ -152,7 +153,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         log_path.display()
     );
     let started = Instant::now();
-    let outcome = fly(&mut host, &flights, &args, pace, started);
+    let (mut host, outcome) = fly(host, &flights, &args, pace, started)?;
     host.close_log();
     let wall_s = started.elapsed().as_secs_f64();
     let sim_s = host.now().as_secs_f64();
@@ -172,7 +173,7 @@ pub fn run(args: ExploreArgs) -> Result<()> {
         .with_context(|| format!("reading back {}", log_path.display()))?;
     let samples = evaluate::poses_from_log(&text)?;
     let metrics = evaluate::evaluate(&world, &samples, &EvalParams::default())?;
-    print!("{}", crate::cli_evaluate::summary(&metrics));
+    print!("{}", crate::cli::evaluate::summary(&metrics));
     let report = json!({
         "metrics": metrics,
         "world": args.world.display().to_string(),
@@ -298,53 +299,67 @@ fn start_explorations(
 /// How each flight ended (`None`: not yet), in words.
 type Outcomes = Vec<Option<std::result::Result<(), String>>>;
 
-/// Steps the host (paced to `pace`) until every flight ended, printing progress; each flight's
-/// outcome, or the timeout in words.
+/// Runs the host on the control loop of `kestrel sim` (`host::runtime`, paced to `pace`, plans
+/// in lock step so a seed flies the same at any pace) until every flight ended or the
+/// simulated time is up, printing progress; gives the host back with each flight's outcome, or
+/// the timeout in words.
 fn fly(
-    host: &mut Host,
+    host: Host,
     flights: &[(usize, u32)],
     args: &ExploreArgs,
     pace: Pace,
     started: Instant,
-) -> std::result::Result<Outcomes, String> {
+) -> Result<(Host, std::result::Result<Outcomes, String>)> {
     let max_time = Duration::from_secs_f64(args.max_sim_time_s);
-    let mut next_progress = args.progress_every_s;
-    loop {
-        host.step();
+    let every_s = args.progress_every_s;
+    let mut next_progress = every_s;
+    let watched = flights.to_vec();
+    let stop_when = move |host: &Host| {
         let t = host.now().as_secs_f64();
-        if let Pace::Factor(f) = pace {
-            let ahead = t / f - started.elapsed().as_secs_f64();
-            if ahead > 0.0 {
-                std::thread::sleep(Duration::from_secs_f64(ahead));
-            }
-        }
         if t >= next_progress {
-            next_progress += args.progress_every_s;
-            let view = host.exploration_view();
+            next_progress += every_s;
             println!(
                 "t {t:7.1} s  known {:5.1} %  frontiers {:3}  ({:.1} s wall)",
                 known_pct(host),
-                view.frontiers.len(),
+                host.exploration_view().frontiers.len(),
                 started.elapsed().as_secs_f64()
             );
         }
-        let results: Outcomes = flights
-            .iter()
-            .map(|&(i, id)| {
-                let (ex, core) = (host.executors().get(i)?, host.cores().get(i)?);
-                Some(ex.status(core).outcome(id)?.map_err(|e| e.to_string()))
-            })
-            .collect();
-        if results.iter().all(Option::is_some) {
-            return Ok(results);
-        }
-        if host.now() >= max_time {
-            return Err(format!(
-                "timeout: exploration not finished after {:.0} s",
-                args.max_sim_time_s
-            ));
-        }
+        outcomes(host, &watched).iter().all(Option::is_some) || host.now() >= max_time
+    };
+    let mut options = RuntimeOptions::new(pace);
+    options.stop_when = Some(Box::new(stop_when));
+    options.lock_step = true;
+    // The loop ends when its handle's commands close or `shutdown` drops: both are held until
+    // it has stopped by itself.
+    let (shutdown, shutdown_rx) = tokio::sync::watch::channel(false);
+    let spawned =
+        runtime::spawn(host, options, shutdown_rx).context("starting the control loop")?;
+    let host = spawned
+        .thread
+        .join()
+        .map_err(|_| anyhow::anyhow!("the control loop panicked"))?;
+    drop((spawned.handle, shutdown));
+    let results = outcomes(&host, flights);
+    if results.iter().all(Option::is_some) {
+        return Ok((host, Ok(results)));
     }
+    let timeout = format!(
+        "timeout: exploration not finished after {:.0} s",
+        args.max_sim_time_s
+    );
+    Ok((host, Err(timeout)))
+}
+
+/// Each flight's outcome so far.
+fn outcomes(host: &Host, flights: &[(usize, u32)]) -> Outcomes {
+    flights
+        .iter()
+        .map(|&(i, id)| {
+            let (ex, core) = (host.executors().get(i)?, host.cores().get(i)?);
+            Some(ex.status(core).outcome(id)?.map_err(|e| e.to_string()))
+        })
+        .collect()
 }
 
 fn write_report(path: &std::path::Path, report: &Value) -> Result<()> {

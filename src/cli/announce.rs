@@ -10,7 +10,7 @@
 //! Left out: the autopilot's own words (the ground station has them from the autopilot), mode
 //! changes (it shows the mode) and link alerts (about the very link the text would travel on).
 
-use crate::cli_console::behavior_line;
+use crate::cli::console::behavior_line;
 use kestrel::behavior::{BehaviorEvent, BehaviorResult};
 use kestrel::host::status::{EventBody, HostEvent};
 use kestrel::mission::{ExecState, MissionStatus};

@@ -1,7 +1,7 @@
 //! `kestrel mission validate|run|schema`: check a mission file against this build's behaviors,
 //! the config's limits and a scenario's frames; fly it in the simulator; print the schema.
 
-use crate::cli_sim::{self, SimArgs};
+use crate::cli::sim::{self, SimArgs};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use kestrel::mission::schema::mission_schema;
@@ -76,7 +76,7 @@ pub fn run(command: MissionCommand) -> Result<()> {
     match command {
         MissionCommand::Validate(a) => validate(a),
         MissionCommand::Run(a) if a.api.is_some() => remote(a),
-        MissionCommand::Run(a) => cli_sim::run(SimArgs {
+        MissionCommand::Run(a) => sim::run(SimArgs {
             world: a.world,
             drones: a.drones,
             speedup: a.speedup,
@@ -113,7 +113,7 @@ fn remote(a: RunArgs) -> Result<()> {
         ),
         (None, None) => None,
     };
-    let remote = crate::cli_remote::Remote::new(a.api.as_deref().unwrap_or_default(), token)?;
+    let remote = crate::cli::api_client::Remote::new(a.api.as_deref().unwrap_or_default(), token)?;
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {}", a.file.display()))?;
     let mission: serde_json::Value = serde_json::from_str(&text)
@@ -134,12 +134,12 @@ fn remote(a: RunArgs) -> Result<()> {
                     bail!("registering frame {}: HTTP {code}: {answer}", f.frame_id);
                 }
             }
-            crate::cli_remote::run(remote, mission).await
+            crate::cli::api_client::run(remote, mission).await
         })
 }
 
 fn validate(a: ValidateArgs) -> Result<()> {
-    let config = cli_sim::load_config(a.config.as_deref())?;
+    let config = sim::load_config(a.config.as_deref())?;
     let scenario = a.scenario.as_deref().map(Scenario::load).transpose()?;
     let args = SimArgs {
         world: None,
@@ -159,7 +159,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
         no_demo: true,
         state_dir: None,
     };
-    let (host, _) = cli_sim::build(&args, &config, scenario.as_ref())?;
+    let (host, _) = sim::build(&args, &config, scenario.as_ref())?;
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {}", a.file.display()))?;
     let value: serde_json::Value = match serde_json::from_str(&text) {

@@ -8,8 +8,7 @@
 
 use kestrel::host::runtime::HostHandle;
 use kestrel::host::status::{DroneStatus, HostSnapshot};
-use kestrel::host::Command;
-use kestrel::mission::{Action, MissionUpdate};
+use kestrel::host::LoadOptions;
 use kestrel::scenario::demo::{as_mission, demo_plan};
 use kestrel::types::{LinkHealth, Vec3};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -113,21 +112,11 @@ pub async fn start_demo_when_ready(
         return;
     };
     let mission = as_mission(&drone.drone, demo_plan(Vec3::new(x, y, z), yaw_rad));
-    let update = MissionUpdate {
-        drone_id: Some(drone.drone.clone()),
-        mission_id: None,
-        item_id: None,
-        action: Action::Execute,
-        mission: Some(mission),
-    };
-    match handle.call(|reply| Command::Update { update, reply }).await {
-        Ok(updated) => match updated.status.mission_id {
-            Some(id) => {
-                println!("demo flight started as mission {id}");
-                flights.demo_started((0, id));
-            }
-            None => flights.demo_failed("the demo mission got no id".into()),
-        },
+    match handle.load_mission(mission, LoadOptions::start()).await {
+        Ok(up) => {
+            println!("demo flight started as mission {}", up.mission_id);
+            flights.demo_started((0, up.mission_id));
+        }
         Err(e) => flights.demo_failed(format!("the demo mission was refused: {e}")),
     }
 }

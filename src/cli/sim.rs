@@ -2,15 +2,14 @@
 //! flies the demo mission; `--mission FILE` flies that mission, `--scenario FILE` registers
 //! its frames and flies its mission, `--no-demo` waits for the API.
 
-use crate::cli_flights::Flights;
-use crate::cli_serve::{self, LogChoice, ServeOptions};
+use crate::cli::flights::Flights;
+use crate::cli::serve::{self, LogChoice, ServeOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use kestrel::config::Config;
 use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
-use kestrel::host::Host;
-use kestrel::mission::{Action, MissionUpdate};
+use kestrel::host::{Host, HostError, LoadOptions};
 use kestrel::scenario::coverage::fleet_missions;
 use kestrel::scenario::demo::demo_missions;
 use kestrel::scenario::file::Scenario;
@@ -99,33 +98,21 @@ fn read_json(path: &Path) -> Result<Value> {
 
 /// Loads and starts `mission` on the drone it names; returns (drone index, mission id).
 pub fn execute(host: &mut Host, mission: Value) -> Result<(usize, u32)> {
-    let target = mission
-        .get("target")
-        .and_then(Value::as_str)
-        .unwrap_or_default()
-        .to_string();
-    let index = host
-        .drone_ids()
-        .iter()
-        .position(|d| *d == target)
-        .with_context(|| format!("mission target `{target}` is not one of the drones"))?;
-    let updated = host
-        .update(&MissionUpdate {
-            drone_id: Some(target.clone()),
-            mission_id: None,
-            item_id: None,
-            action: Action::Execute,
-            mission: Some(mission),
-        })
+    let up = host
+        .load_mission(&mission, LoadOptions::start())
         .map_err(|e| match e {
-            kestrel::host::HostError::Action(kestrel::mission::ActionError::Invalid(errors)) => {
+            HostError::Invalid(errors) => {
                 let lines: Vec<String> = errors.iter().map(|e| format!("  {e}")).collect();
                 anyhow::anyhow!("the mission is invalid:\n{}", lines.join("\n"))
             }
-            other => anyhow::anyhow!("{target}: {other}"),
+            other => anyhow::anyhow!("{other}"),
         })?;
-    let id = updated.status.mission_id.context("no mission id")?;
-    Ok((index, id))
+    let index = host
+        .drone_ids()
+        .iter()
+        .position(|d| *d == up.drone)
+        .with_context(|| format!("{} is not one of the drones", up.drone))?;
+    Ok((index, up.mission_id))
 }
 
 /// Builds the simulated host (config, world, sensors, scenario frames, saved state) and the
@@ -155,7 +142,7 @@ pub fn build(
     // One tick, so every drone has a position before missions are validated and started.
     host.step();
     if let Some(dir) = &args.state_dir {
-        crate::cli_serve::open_state(&mut host, dir)?;
+        crate::cli::serve::open_state(&mut host, dir)?;
     }
     for frame in scenario.map(|s| s.frames.clone()).unwrap_or_default() {
         let id = frame.frame_id.clone();
@@ -180,10 +167,10 @@ pub fn run(args: SimArgs) -> Result<()> {
     let config = load_config(args.config.as_deref())?;
     let scenario = args.scenario.as_deref().map(Scenario::load).transpose()?;
     let (mut host, demos) = build(&args, &config, scenario.as_ref())?;
-    let (listen, token) = cli_serve::listen_and_token(args.listen.as_deref(), &config)?;
-    let listener = cli_serve::bind(listen, token.as_deref())?;
+    let (listen, token) = serve::listen_and_token(args.listen.as_deref(), &config)?;
+    let listener = serve::bind(listen, token.as_deref())?;
     let start = std::time::SystemTime::now();
-    let (writer, log_file) = cli_serve::open_log(&LogChoice {
+    let (writer, log_file) = serve::open_log(&LogChoice {
         explicit: args.log.clone(),
         overwrite: args.log_overwrite,
         dir: config.drone.log_dir.clone().unwrap_or_default(),
@@ -204,7 +191,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             .and_then(|s| s.mission.clone())
     });
     let mut log = FlightLog::new(Box::new(writer), 10.0);
-    log.header(cli_serve::header(&cli_serve::RunInfo {
+    log.header(serve::header(&serve::RunInfo {
         command: "sim",
         config: &config,
         seed: Some(args.seed),
@@ -267,12 +254,12 @@ pub fn run(args: SimArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("starting tokio")?;
-    let outcome = runtime.block_on(cli_serve::serve(host, options))?;
+    let outcome = runtime.block_on(serve::serve(host, options))?;
     println!(
         "simulated {:.1} s in {:.2} s wall-clock ({:.0}x real time)",
         outcome.simulated_s,
         outcome.wall_s,
         outcome.simulated_s / outcome.wall_s.max(1e-9)
     );
-    cli_serve::report(&outcome, args.exit_when_done)
+    serve::report(&outcome, args.exit_when_done)
 }

@@ -15,11 +15,11 @@
 //! on_link_regained` after a link loss, as on every platform. It writes a JSON-lines flight
 //! log, one line per behavior event and one per change of link, mode, arming and readiness, and
 //! tells each autopilot's ground station the behavior and mission events as STATUSTEXT
-//! (`cli_announce`).
+//! (`cli::announce`).
 
-use crate::cli_flights::Flights;
-use crate::cli_serve::ServeOptions;
-use crate::cli_startup::{prepare, Overrides, PlatformPlan, Startup, VehiclePlan};
+use crate::cli::flights::Flights;
+use crate::cli::serve::ServeOptions;
+use crate::cli::startup::{prepare, Overrides, PlatformPlan, Startup, VehiclePlan};
 use anyhow::{Context, Result};
 use clap::Args;
 use kestrel::config::vehicles::same_endpoint;
@@ -30,11 +30,10 @@ use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
-use kestrel::host::vehicle::vehicle_host;
+use kestrel::host::HostBuilder;
 use kestrel::platform::mavlink::{start_hub, LinkConfig, LinkHub, MavlinkPlatform, TextSender};
 use kestrel::platform::shifted::Shifted;
 use kestrel::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use kestrel::scenario::virtual_world::virtual_world_host;
 use kestrel::sim::spatial::ShapeIndex;
 use kestrel::sim::virtual_world::{VirtualRanges, VirtualSensors};
 use kestrel::sim::{Environment, SimWorld};
@@ -221,7 +220,7 @@ type Started = (
     Option<TextSender>,
 );
 
-/// Starts a vehicle's platform prepared by [`crate::cli_startup::prepare`]. `several`: name
+/// Starts a vehicle's platform prepared by [`crate::cli::startup::prepare`]. `several`: name
 /// the vehicle in the banner.
 fn start_platform(
     config: &Config,
@@ -424,21 +423,23 @@ async fn serve_vehicles(
     (ready_timeout, texts): (Duration, Vec<(String, TextSender)>),
     virtual_world: Option<kestrel::sim::world::World>,
 ) -> Result<()> {
+    // In a virtual world the merged map is framed on it and exploration is judged against it.
     let mut host = match virtual_world {
-        Some(world) => virtual_world_host(fleet, config, world),
-        None => vehicle_host(fleet, config),
-    };
+        Some(world) => HostBuilder::vehicles(fleet, config).world(world),
+        None => HostBuilder::vehicles(fleet, config),
+    }
+    .build();
     let Api {
         listen,
         token,
         state_dir: dir,
     } = api;
     let listener = match listen {
-        Some(listen) => Some(crate::cli_serve::bind(listen, token.as_deref())?),
+        Some(listen) => Some(crate::cli::serve::bind(listen, token.as_deref())?),
         None => None,
     };
     let start = std::time::SystemTime::now();
-    let (writer, log_file) = crate::cli_serve::open_log(&crate::cli_serve::LogChoice {
+    let (writer, log_file) = crate::cli::serve::open_log(&crate::cli::serve::LogChoice {
         explicit: args.log.clone(),
         overwrite: args.log_overwrite,
         dir: config.drone.log_dir.clone().unwrap_or_default(),
@@ -449,7 +450,7 @@ async fn serve_vehicles(
     })?;
     let log_path = log_file.path.clone();
     let mut log = FlightLog::new(Box::new(writer), 10.0);
-    log.header(crate::cli_serve::header(&crate::cli_serve::RunInfo {
+    log.header(crate::cli::serve::header(&crate::cli::serve::RunInfo {
         command: "run",
         config,
         seed: None,
@@ -462,14 +463,14 @@ async fn serve_vehicles(
         start,
     }));
     host.set_log(log);
-    crate::cli_serve::open_state(&mut host, &dir)?;
+    crate::cli::serve::open_state(&mut host, &dir)?;
     let flights = match &args.mission {
         Some(file) => {
             let text = std::fs::read_to_string(file)
                 .with_context(|| format!("cannot read {}", file.display()))?;
             let mission = serde_json::from_str(&text)
                 .with_context(|| format!("{} is not valid JSON", file.display()))?;
-            vec![crate::cli_sim::execute(&mut host, mission)
+            vec![crate::cli::sim::execute(&mut host, mission)
                 .with_context(|| format!("flying {}", file.display()))?]
         }
         None => Vec::new(),
@@ -497,12 +498,12 @@ async fn serve_vehicles(
                 as Box<dyn Fn() -> bool + Send>
         }),
         on_event: (!texts.is_empty()).then(|| {
-            let mut ground = crate::cli_announce::GroundTexts::new(texts);
-            Box::new(move |e: &_| ground.on_event(e)) as crate::cli_serve::EventTap
+            let mut ground = crate::cli::announce::GroundTexts::new(texts);
+            Box::new(move |e: &_| ground.on_event(e)) as crate::cli::serve::EventTap
         }),
     };
-    let outcome = crate::cli_serve::serve(host, options).await?;
-    crate::cli_serve::report(&outcome, args.exit_when_done)
+    let outcome = crate::cli::serve::serve(host, options).await?;
+    crate::cli::serve::report(&outcome, args.exit_when_done)
 }
 
 /// Opens the fleet bus when `[fleet] enabled`: the session is opened now (a bad configuration
@@ -521,7 +522,7 @@ async fn join_fleet_bus(
         return Ok(None);
     }
     let node = fleet.node_name(&host.drone_ids());
-    let (signer, members) = crate::cli_fleet::identity(fleet, &node)?;
+    let (signer, members) = crate::cli::fleet_key::identity(fleet, &node)?;
     let roster = members
         .iter()
         .map(|(n, m)| (n.clone(), m.drones.clone()))

@@ -162,7 +162,7 @@ pub fn prepare(config_path: Option<&Path>, overrides: &Overrides) -> Result<Star
         .with_context(|| format!("{file}: [map]"))?;
     let (listen, token) = api(&config, overrides, &file)?;
     let mut warnings = token_warnings(&config);
-    crate::cli_fleet::check(&config, &file, &mut warnings)?;
+    crate::cli::fleet_key::check(&config, &file, &mut warnings)?;
     let log_dir = config.drone.log_dir.clone().unwrap_or_default();
     directory(&log_dir, &format!("{file}: drone.log_dir"))?;
     let state_dir = kestrel::host::vehicle::state_dir(overrides.state_dir.clone(), &config);
@@ -482,7 +482,7 @@ pub fn check(config_path: &Path, virtual_world: Option<PathBuf>) -> Result<()> {
     );
     println!("  log dir    {}", shown(&s.log_dir));
     println!("  state dir  {}", shown(&s.state_dir));
-    if let Some(line) = crate::cli_fleet::summary(&s.config) {
+    if let Some(line) = crate::cli::fleet_key::summary(&s.config) {
         println!("  fleet      {line}");
     }
     for w in &s.warnings {

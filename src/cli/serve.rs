@@ -1,7 +1,7 @@
 //! Serving a host: the control loop, the API, event printing and shutdown, shared by
 //! `kestrel sim` and `kestrel run`.
 
-use crate::cli_flights::{self, Flights};
+use crate::cli::flights::{self, Flights};
 use anyhow::{Context, Result};
 use kestrel::api::{self, ApiState};
 use kestrel::config::ApiSection;
@@ -35,7 +35,7 @@ pub struct ServeOptions {
     /// `[ros2]` when enabled: the drones as ROS 2 topics (`kestrel::ros2`).
     pub ros2: Option<kestrel::config::ros2::Ros2Section>,
     /// Given every event the console printer receives, never waiting (texts for the ground
-    /// station, `cli_announce`).
+    /// station, `cli::announce`).
     pub on_event: Option<EventTap>,
     /// True while texts for the ground station have not left yet: waited for (at most
     /// [`TEXTS_FLUSH`]) before exiting, so the ground station sees the mission's last words.
@@ -290,7 +290,7 @@ fn print_event(e: &HostEvent) {
     {
         println!(
             "[{t:8.2} s] {drone}: {}",
-            crate::cli_console::behavior_line(b)
+            crate::cli::console::behavior_line(b)
         );
     }
 }
@@ -388,12 +388,12 @@ pub async fn serve(host: Host, mut options: ServeOptions) -> Result<Outcome> {
     let wall = Instant::now();
     let spawned = runtime::spawn(host, rt, shutdown_rx).context("starting the control loop")?;
     let handle = spawned.handle;
-    tokio::spawn(cli_flights::print_status_changes(handle.watch_state()));
+    tokio::spawn(flights::print_status_changes(handle.watch_state()));
     if let Some(section) = options.ros2.take() {
         start_ros2(section, &handle).await?;
     }
     if let Some(timeout) = options.demo_within {
-        tokio::spawn(cli_flights::start_demo_when_ready(
+        tokio::spawn(flights::start_demo_when_ready(
             handle.clone(),
             handle.watch_state(),
             flights.clone(),

@@ -70,7 +70,7 @@ fn fetch(args: &ExportArgs) -> Result<Value> {
         ),
         (None, None) => None,
     };
-    let remote = crate::cli_remote::Remote::new(&args.from, token)?;
+    let remote = crate::cli::api_client::Remote::new(&args.from, token)?;
     let path = match &args.drone {
         Some(d) => format!("/api/map?drone={d}"),
         None => "/api/map".to_string(),
