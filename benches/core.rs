@@ -67,6 +67,7 @@ fn busy_core(behavior: &str, goal: serde_json::Value) -> (DroneCore, PlatformFee
         native_takeoff: false,
         native_land: false,
         velocity_lag_s: None,
+        velocity_overshoot: None,
     };
     let mut core = DroneCore::new(
         CoreConfig::new("drone_0"),

@@ -127,6 +127,17 @@ impl DroneCore {
             .or(capabilities.velocity_lag_s);
         config.controller.velocity_lag_s = lag;
         config.safety.limits.velocity_lag_s = lag;
+        // The same for the vehicle's overshoot: behaviors plan with it, the controller caps
+        // with it.
+        let overshoot = config
+            .controller
+            .velocity_overshoot
+            .or(capabilities.velocity_overshoot);
+        config.controller.velocity_overshoot = overshoot;
+        let capabilities = Capabilities {
+            velocity_overshoot: overshoot,
+            ..capabilities
+        };
         Self {
             estimator: estimator::build(config.estimator),
             controller: Controller::new(config.controller, capabilities.setpoints),

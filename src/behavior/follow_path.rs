@@ -98,7 +98,7 @@ impl FollowPath {
     /// Plans the trajectory from where the vehicle is through the waypoints not yet passed.
     fn plan(&mut self, ctx: &BehaviorContext) {
         let limits = TrajectoryLimits {
-            cruise_speed_mps: self.goal.speed,
+            cruise_speed_mps: ctx.planned_speed_mps(self.goal.speed),
             max_acceleration_mps2: ctx.config.max_acceleration_mps2,
             ..TrajectoryLimits::default()
         };

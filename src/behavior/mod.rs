@@ -126,6 +126,12 @@ impl BehaviorContext<'_> {
     pub fn yaw(&self) -> f64 {
         self.state.pose.yaw_rad()
     }
+    /// The speed to plan a path with for a goal's `speed_mps`: the share of it the vehicle can
+    /// be sent without flying faster than the goal says (its profile's overshoot; the controller
+    /// caps every command the same way).
+    pub fn planned_speed_mps(&self, speed_mps: f64) -> f64 {
+        speed_mps * crate::control::commanded_speed_share(self.capabilities.velocity_overshoot)
+    }
     /// A reference that holds the current position and heading.
     pub fn hold_here(&self) -> MotionReference {
         MotionReference::hold(self.position(), self.yaw(), self.config.hold_speed_mps)

@@ -59,6 +59,7 @@ impl Scene {
                 native_takeoff: false,
                 native_land: false,
                 velocity_lag_s: None,
+                velocity_overshoot: None,
             },
             dt_s: 1.0,
             held_at_enu_m: None,

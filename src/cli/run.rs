@@ -133,6 +133,7 @@ impl Platform for RealtimeSim {
                 native_takeoff: false,
                 native_land: false,
                 velocity_lag_s: None,
+                velocity_overshoot: None,
             },
             |v| v.capabilities(),
         )

@@ -496,6 +496,9 @@ impl Config {
         if let Some(lag) = c.velocity_lag_s {
             non_negative("controller.velocity_lag_s", lag, 5.0, "s")?;
         }
+        if let Some(share) = c.velocity_overshoot {
+            non_negative("controller.velocity_overshoot", share, 1.0, "")?;
+        }
         for (name, g) in [
             ("position", &c.position),
             ("trajectory", &c.trajectory),

@@ -29,6 +29,10 @@ pub struct ControllerConfig {
     /// speeding-up reference instead of lagging and then overshooting the speed to catch up.
     /// Absent: the platform profile's (`[drive] velocity_lag_s`), else 0.25 s.
     pub velocity_lag_s: Option<f64>,
+    /// How much faster than a velocity it is sent the vehicle may fly, as a fraction: every
+    /// speed cap is divided by one plus it, so the flown speed holds the limit. Absent: the
+    /// platform profile's (`[drive] velocity_overshoot`), else 0.
+    pub velocity_overshoot: Option<f64>,
     /// Acceleration of the reference point handed to an autopilot that closes the position
     /// loop itself (m/s^2): how fast it speeds up toward a goal and brakes onto it.
     pub max_acceleration_mps2: f64,
@@ -39,6 +43,18 @@ impl ControllerConfig {
     pub fn velocity_lag(&self) -> f64 {
         self.velocity_lag_s.unwrap_or(DEFAULT_VELOCITY_LAG_S)
     }
+
+    /// The share of a speed limit that is commanded, so that the vehicle's overshoot stays
+    /// within the limit (1 when the vehicle flies what it is sent).
+    pub fn commanded_speed_share(&self) -> f64 {
+        commanded_speed_share(self.velocity_overshoot)
+    }
+}
+
+/// The share of a speed limit to plan and command with, for a vehicle that flies up to
+/// `overshoot` (a fraction) faster than it is sent.
+pub fn commanded_speed_share(overshoot: Option<f64>) -> f64 {
+    1.0 / (1.0 + overshoot.unwrap_or(0.0).max(0.0))
 }
 
 /// The velocity lag assumed when neither the config nor the platform says (s).
@@ -57,6 +73,7 @@ impl Default for ControllerConfig {
             max_down_speed_mps: 1.5,
             max_yaw_rate_radps: 1.5,
             velocity_lag_s: None,
+            velocity_overshoot: None,
             max_acceleration_mps2: 1.5,
         }
     }
@@ -230,10 +247,11 @@ impl Controller {
     /// The caps of this tick: the reference's speed and the vehicle's limits, whichever is lower.
     pub fn caps(&self, max_speed_mps: f64) -> SpeedCaps {
         let c = &self.config;
+        let share = c.commanded_speed_share();
         SpeedCaps {
-            horizontal_mps: max_speed_mps.min(c.max_horizontal_speed_mps),
-            up_mps: max_speed_mps.min(c.max_up_speed_mps),
-            down_mps: max_speed_mps.min(c.max_down_speed_mps),
+            horizontal_mps: max_speed_mps.min(c.max_horizontal_speed_mps) * share,
+            up_mps: max_speed_mps.min(c.max_up_speed_mps) * share,
+            down_mps: max_speed_mps.min(c.max_down_speed_mps) * share,
         }
     }
 
@@ -462,6 +480,38 @@ mod tests {
         };
         let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &r, 0.01));
         assert!((v.norm() - 0.75).abs() < 1e-9, "{v}");
+    }
+
+    #[test]
+    fn a_vehicle_that_overshoots_is_sent_the_share_of_the_speed_it_flies_within() {
+        let mut c = Controller::new(
+            ControllerConfig {
+                velocity_overshoot: Some(0.15),
+                ..ControllerConfig::default()
+            },
+            AcceptedSetpoints {
+                velocity: true,
+                position: true,
+                position_loop: None,
+            },
+        );
+        let far = MotionReference::Position {
+            position_enu_m: Vec3::new(20.0, 0.0, 0.0),
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Rate(0.0),
+            max_speed_mps: 0.75,
+        };
+        let mut fastest: f64 = 0.0;
+        for _ in 0..500 {
+            let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &far, 0.01));
+            fastest = fastest.max(v.norm());
+        }
+        assert!((fastest - 0.75 / 1.15).abs() < 1e-9, "{fastest}");
+        // The caps handed to the safety stage are the same share.
+        assert!((c.caps(0.75).horizontal_mps - 0.75 / 1.15).abs() < 1e-12);
+        // Without an overshoot the whole speed is sent.
+        let plain = Controller::new(ControllerConfig::default(), c.accepted);
+        assert_eq!(plain.caps(0.75).horizontal_mps, 0.75);
     }
 
     #[test]

@@ -87,6 +87,7 @@ mod tests {
                 native_takeoff: false,
                 native_land: false,
                 velocity_lag_s: None,
+                velocity_overshoot: None,
             }
         }
         fn poll(&mut self, _now: Duration) -> PlatformFeedback {

@@ -297,6 +297,7 @@ impl Platform for SimVehicle {
             native_takeoff: false,
             native_land: false,
             velocity_lag_s: None,
+            velocity_overshoot: None,
         }
     }
 

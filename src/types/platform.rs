@@ -46,6 +46,11 @@ pub struct Capabilities {
     /// Time constant of the autopilot's velocity response (s), when the profile knows it; the
     /// config's `[controller] velocity_lag_s` overrides it.
     pub velocity_lag_s: Option<f64>,
+    /// How much faster than a velocity it is sent the vehicle may fly, as a fraction (0.15: up
+    /// to 15 % faster), when the profile knows it. Kestrel plans and commands within each speed
+    /// limit divided by one plus it, so the flown speed holds the limit. The config's
+    /// `[controller] velocity_overshoot` overrides it.
+    pub velocity_overshoot: Option<f64>,
 }
 
 /// Everything the platform reports for one tick.

@@ -104,6 +104,9 @@ struct RawDrive {
     /// [`super::slew`].
     #[serde(default)]
     command_slew_mps2: Option<f64>,
+    /// How much faster than a velocity it is sent the vehicle may fly (a fraction; absent: 0).
+    #[serde(default)]
+    velocity_overshoot: Option<f64>,
 }
 
 fn unit_gain() -> f64 {
@@ -123,6 +126,7 @@ impl Default for RawDrive {
             position_gain_z_per_s: 1.0,
             velocity_check_s: None,
             command_slew_mps2: None,
+            velocity_overshoot: None,
         }
     }
 }
@@ -286,6 +290,10 @@ pub struct Profile {
     /// Fastest change of the velocity setpoints sent (`[drive] command_slew_mps2`, m/s^2);
     /// `None`: sent as commanded.
     pub command_slew_mps2: Option<f64>,
+    /// How much faster than a velocity it is sent the vehicle may fly, as a fraction
+    /// (`[drive] velocity_overshoot`); speeds are planned and commanded within each limit
+    /// divided by one plus it. `None`: the vehicle flies what it is sent.
+    pub velocity_overshoot: Option<f64>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -500,6 +508,20 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
                 }
             })
             .transpose()?,
+        velocity_overshoot: raw
+            .drive
+            .velocity_overshoot
+            .map(|share| {
+                if share.is_finite() && (0.0..=1.0).contains(&share) {
+                    Ok(share)
+                } else {
+                    Err((
+                        "drive.velocity_overshoot".to_string(),
+                        format!("must be a fraction within 0..=1, got {share}"),
+                    ))
+                }
+            })
+            .transpose()?,
     })
 }
 
@@ -606,5 +628,14 @@ mod tests {
         let bad = text.replace("setpoint_max_age_s = 0.1", "setpoint_max_age_s = 2.0");
         let e = Profile::parse(&bad, "t").unwrap_err();
         assert!(e.to_string().contains("setpoint_max_age_s"), "{e}");
+        let bad = text.replace("velocity_overshoot = 0.15", "velocity_overshoot = -0.1");
+        let e = Profile::parse(&bad, "t").unwrap_err();
+        assert!(e.to_string().contains("drive.velocity_overshoot"), "{e}");
+    }
+
+    #[test]
+    fn px4_says_how_much_faster_than_sent_it_flies() {
+        assert_eq!(load("px4.toml").velocity_overshoot, Some(0.15));
+        assert_eq!(load("ardupilot-copter.toml").velocity_overshoot, None);
     }
 }

@@ -159,6 +159,7 @@ impl Session {
             native_takeoff: self.profile.takeoff == TakeoffMethod::NavTakeoff,
             native_land: self.profile.land != LandMethod::Setpoints,
             velocity_lag_s: Some(self.profile.velocity_lag.as_secs_f64()),
+            velocity_overshoot: self.profile.velocity_overshoot,
         }
     }
 
