@@ -21,7 +21,9 @@
 use super::sensors;
 use super::spatial::ShapeIndex;
 use crate::platform::{Capabilities, Platform, PlatformFeedback, PlatformRequest};
-use crate::types::{LinkHealth, Measurement, RangeScan, SensorConfig, Setpoint, Vec3};
+use crate::types::{
+    FlightStatus, LinkHealth, Measurement, RangeScan, SensorConfig, Setpoint, Vec3,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
@@ -30,6 +32,11 @@ use std::time::Duration;
 /// A collision episode ends once the vehicle is this much farther out than its radius (m), so
 /// a vehicle held at the edge does not collide again with every jitter.
 const EPISODE_MARGIN_M: f64 = 0.1;
+
+/// A landing vehicle this high or lower (shared frame, the world's ground at 0, m) has touched
+/// down: what still moves its reported position there is the estimator settling on the ground
+/// before the autopilot's land detector says so (PX4 SIH: 0.4 m in 3 s), not flight.
+const TOUCHDOWN_HEIGHT_M: f64 = 0.05;
 
 /// One vehicle's sensor and radius against the world's obstacles (shared frame).
 #[derive(Debug, Clone)]
@@ -151,7 +158,9 @@ impl Platform for VirtualSensors {
                     .extend(self.ranges.scan(&position, yaw_rad, &mut self.rng));
             }
         }
-        if !feedback.status.flight.is_airborne() {
+        let flight = feedback.status.flight;
+        let touched_down = flight == FlightStatus::Landing && position.z <= TOUCHDOWN_HEIGHT_M;
+        if !flight.is_airborne() || touched_down {
             self.touching = false;
         } else if self.touching {
             self.touching = self.ranges.touching(&position, EPISODE_MARGIN_M).is_some();
@@ -172,7 +181,7 @@ mod tests {
     use super::*;
     use crate::platform::shifted::Shifted;
     use crate::sim::world::{Cylinder, World};
-    use crate::types::{FlightStatus, Pose, Validity};
+    use crate::types::{Pose, Validity};
     use std::f64::consts::FRAC_PI_2;
     use std::sync::Mutex;
 
@@ -374,5 +383,25 @@ mod tests {
         let feedback = v.poll(Duration::ZERO);
         assert!(feedback.virtual_collision.is_none());
         assert_eq!(feedback.scans.len(), 1, "the sensor works on the ground");
+    }
+
+    #[test]
+    fn a_landing_vehicle_settling_on_the_ground_collides_with_nothing() {
+        // Landing: 0.2 m from the pole's surface, inside the 0.3 m radius. At 0.5 m up that is
+        // a collision; on the ground (the estimate below 0.05 m) it is the estimator settling.
+        let at = Arc::new(Mutex::new(Vec3::new(2.3, 0.0, -0.1)));
+        let landing = Autopilot {
+            at: at.clone(),
+            yaw_rad: 0.0,
+            flight: FlightStatus::Landing,
+        };
+        let ranges = VirtualRanges::new(obstacles(), noiseless(4.0), 0.3);
+        let mut v = VirtualSensors::new(Box::new(landing), ranges, "drone_0", 1);
+        assert!(v.poll(Duration::ZERO).virtual_collision.is_none());
+        *at.lock().unwrap() = Vec3::new(2.3, 0.0, 0.5);
+        assert!(v
+            .poll(Duration::from_millis(10))
+            .virtual_collision
+            .is_some());
     }
 }

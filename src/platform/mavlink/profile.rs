@@ -628,14 +628,14 @@ mod tests {
         let bad = text.replace("setpoint_max_age_s = 0.1", "setpoint_max_age_s = 2.0");
         let e = Profile::parse(&bad, "t").unwrap_err();
         assert!(e.to_string().contains("setpoint_max_age_s"), "{e}");
-        let bad = text.replace("velocity_overshoot = 0.15", "velocity_overshoot = -0.1");
+        let bad = text.replace("velocity_overshoot = 0.2", "velocity_overshoot = -0.1");
         let e = Profile::parse(&bad, "t").unwrap_err();
         assert!(e.to_string().contains("drive.velocity_overshoot"), "{e}");
     }
 
     #[test]
     fn px4_says_how_much_faster_than_sent_it_flies() {
-        assert_eq!(load("px4.toml").velocity_overshoot, Some(0.15));
+        assert_eq!(load("px4.toml").velocity_overshoot, Some(0.2));
         assert_eq!(load("ardupilot-copter.toml").velocity_overshoot, None);
     }
 }
