@@ -126,7 +126,7 @@ impl Host {
         let drones = self
             .cores
             .iter()
-            .zip(&self.executors)
+            .zip(self.executors.list())
             .map(|(core, ex)| {
                 let view = core.fleet_entry(self.now);
                 let status = core.platform_status();

@@ -85,8 +85,7 @@ impl Host {
     fn exploring(&self, i: usize, drone: &str) -> Option<u32> {
         let run = self.exploration.as_ref()?;
         let d = run.drones().iter().find(|d| d.drone == drone)?;
-        let ex = self.executors.get(i)?;
-        (!d.stopped && ex.running_id() == Some(d.mission_id)).then_some(d.mission_id)
+        (!d.stopped && self.executors.is_running(i, d.mission_id)).then_some(d.mission_id)
     }
 
     /// Starts the `explore` behavior with `args` on every drone of `drones`.
@@ -244,7 +243,7 @@ impl Host {
         let any_running =
             run.drones().iter().any(|d| {
                 !d.stopped
-                    && self.cores.iter().zip(&self.executors).any(|(c, ex)| {
+                    && self.cores.iter().zip(self.executors.list()).any(|(c, ex)| {
                         c.drone_id() == d.drone && ex.running_id() == Some(d.mission_id)
                     })
             });

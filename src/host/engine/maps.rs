@@ -30,7 +30,7 @@ impl Host {
 
     /// What missions are checked against (speed limit, geofence).
     pub fn limits(&self) -> &Limits {
-        &self.limits
+        self.executors.limits()
     }
 
     /// The merged map's regions changed since the last call, as `map_update` events.

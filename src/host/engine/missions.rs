@@ -123,7 +123,7 @@ impl Host {
         Some(ValidationContext {
             drone_id: core.drone_id(),
             registry: core.server().registry(),
-            limits: &self.limits,
+            limits: self.executors.limits(),
             frames: core.frames(),
             now: self.now,
             home_enu_m: home,
@@ -411,20 +411,11 @@ impl Host {
     pub(super) fn delete(&mut self, drone: Option<&str>, id: u32) -> Result<(), HostError> {
         let i = match drone {
             Some(d) => self.route(Some(d))?,
-            None => {
-                let owners: Vec<usize> = (0..self.executors.len())
-                    .filter(|i| {
-                        self.executors
-                            .get(*i)
-                            .is_some_and(|e| e.missions().contains_key(&id))
-                    })
-                    .collect();
-                match owners.as_slice() {
-                    [] => return Err(ActionError::UnknownMission(id).into()),
-                    [one] => *one,
-                    _ => return Err(HostError::DroneNeeded(self.ids())),
-                }
-            }
+            None => match self.executors.holders(id).as_slice() {
+                [] => return Err(ActionError::UnknownMission(id).into()),
+                [one] => *one,
+                _ => return Err(HostError::DroneNeeded(self.ids())),
+            },
         };
         let ex = self
             .executors

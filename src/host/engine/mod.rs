@@ -8,6 +8,7 @@
 
 mod bus;
 mod commands;
+mod executors;
 mod explore;
 mod frames;
 mod maps;
@@ -42,6 +43,7 @@ use crate::planning::worker::{Delivery, PlanWorker};
 use crate::platform::fleet::Fleet;
 use crate::types::FleetView;
 use crate::types::LinkHealth;
+use executors::Executors;
 use frames::FrameRegistry;
 use persist::Persistence;
 use serde::{Deserialize, Serialize};
@@ -103,17 +105,15 @@ pub(crate) struct HostConfig {
 
 pub struct Host {
     cores: Vec<DroneCore>,
-    executors: Vec<MissionExecutor>,
-    executor_config: ExecutorConfig,
+    /// Each drone's missions, and what missions are checked against.
+    executors: Executors,
     fleet: Box<dyn Fleet>,
-    limits: Limits,
     /// The frames registered over the API.
     frames: FrameRegistry,
     log: Option<FlightLog>,
     now: Duration,
     tick: Duration,
     events: Vec<HostEvent>,
-    published: Vec<u64>,
     links: Vec<LinkHealth>,
     errors: Vec<Option<String>>,
     modes: Vec<String>,
@@ -146,19 +146,14 @@ impl Host {
     pub(crate) fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
         let n = cores.len();
         Self {
-            executors: (0..n)
-                .map(|_| MissionExecutor::new(config.executor))
-                .collect(),
+            executors: Executors::new(n, config.executor, config.limits),
             cores,
             fleet,
-            executor_config: config.executor,
-            limits: config.limits,
             frames: FrameRegistry::default(),
             log: None,
             now: Duration::ZERO,
             tick: config.tick,
             events: Vec::new(),
-            published: vec![u64::MAX; n],
             links: vec![LinkHealth::Connecting; n],
             errors: vec![None; n],
             modes: vec![String::new(); n],
@@ -237,7 +232,7 @@ impl Host {
 
     /// Nothing is flying or about to: no mission runs, no behavior is active, no drone is armed.
     pub fn is_idle(&self) -> bool {
-        self.executors.iter().all(|e| e.running_id().is_none())
+        self.executors.all_idle()
             && self
                 .cores
                 .iter()
@@ -288,16 +283,14 @@ impl Host {
     }
 
     pub fn executors(&self) -> &[MissionExecutor] {
-        &self.executors
+        self.executors.list()
     }
 
     /// Restores missions (never running) and frames kept by a previous run.
     pub fn restore(&mut self, state: PersistedState) {
         for (i, core) in self.cores.iter().enumerate() {
-            if let (Some(snap), Some(ex)) =
-                (state.drones.get(core.drone_id()), self.executors.get_mut(i))
-            {
-                *ex = MissionExecutor::restore(snap.clone(), self.executor_config);
+            if let Some(snap) = state.drones.get(core.drone_id()) {
+                self.executors.restore(i, snap);
             }
         }
         for frame in state.frames {
@@ -312,7 +305,7 @@ impl Host {
             drones: self
                 .cores
                 .iter()
-                .zip(&self.executors)
+                .zip(self.executors.list())
                 .map(|(c, e)| (c.drone_id().to_string(), e.snapshot()))
                 .collect(),
             frames: self.frames.list().to_vec(),
@@ -331,7 +324,7 @@ impl Host {
             drones: self
                 .cores
                 .iter()
-                .zip(&self.executors)
+                .zip(self.executors.list())
                 .map(|(c, e)| DroneStatus::of(c, e))
                 .collect(),
         }
@@ -339,15 +332,12 @@ impl Host {
 
     /// Events since the last call, with a mission status for every executor that changed.
     pub fn drain_events(&mut self) -> Vec<HostEvent> {
-        for (i, (core, ex)) in self.cores.iter().zip(&self.executors).enumerate() {
-            if self.published.get(i) != Some(&ex.revision()) {
+        for i in self.executors.take_unpublished() {
+            if let (Some(core), Some(ex)) = (self.cores.get(i), self.executors.get(i)) {
                 self.events.push(HostEvent::MissionStatus {
                     drone: core.drone_id().to_string(),
                     status: ex.status(core),
                 });
-                if let Some(p) = self.published.get_mut(i) {
-                    *p = ex.revision();
-                }
             }
         }
         std::mem::take(&mut self.events)
