@@ -90,7 +90,7 @@ impl Host {
             .into_iter()
             .map(|(drone, goal, heard)| (drone, Vec3::new(goal[0], goal[1], 0.0), heard))
             .collect();
-        self.frontiers.set_remote_claims(claims);
+        self.exploration.set_remote_claims(claims);
         refused
     }
 
@@ -154,12 +154,7 @@ impl Host {
                         }
                         .to_string(),
                     ),
-                    claim_enu_m: self
-                        .frontiers
-                        .claims()
-                        .iter()
-                        .find(|c| c.drone == core.drone_id())
-                        .map(|c| c.goal_enu_m),
+                    claim_enu_m: self.exploration.claim_of(core.drone_id()),
                 }
             })
             .collect();

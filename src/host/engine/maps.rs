@@ -21,7 +21,7 @@ impl Host {
     /// Keeps the fleet's merged map, fed with every drone's scans.
     pub fn set_map(&mut self, map: FleetMap) {
         self.map = Some(map);
-        self.frontiers.resync();
+        self.exploration.resync();
     }
 
     pub fn map(&self) -> Option<&FleetMap> {

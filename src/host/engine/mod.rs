@@ -14,6 +14,7 @@ mod frames;
 mod maps;
 mod missions;
 mod persist;
+mod runs;
 mod tick;
 
 pub use super::map_view::MapView;
@@ -28,10 +29,7 @@ use super::store::Sink;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
-use crate::exploration::offline::evaluate::TrueWorld;
-use crate::exploration::online::progress::ExplorationRun;
 use crate::exploration::online::service::{ExplorationView, RemoteClaim};
-use crate::exploration::online::worker::{ExploreJob, FrontierWorker};
 use crate::fleet_bus::remote::RemoteFleet;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
@@ -46,6 +44,7 @@ use crate::types::LinkHealth;
 use executors::Executors;
 use frames::FrameRegistry;
 use persist::Persistence;
+use runs::ExplorationRuns;
 use serde::{Deserialize, Serialize};
 use std::any::Any;
 use std::collections::BTreeMap;
@@ -125,20 +124,14 @@ pub struct Host {
     planner: PlanWorker,
     /// The fleet view the cores saw this tick.
     fleet_view: Arc<FleetView>,
-    /// The fleet's frontier allocator (exploration) on its thread, asked after every core ticked.
-    frontiers: FrontierWorker,
-    explore_jobs: Vec<(usize, ExploreJob)>,
-    /// The exploration started over the API (`POST /api/exploration/start`), the last one.
-    exploration: Option<ExplorationRun>,
+    /// The frontier allocator, the exploration run started over the API and its true world.
+    exploration: ExplorationRuns,
     /// What changed, handed to the state directory's store.
     persistence: Persistence,
     /// The drones other Kestrels fly, heard over the fleet bus (`None`: no bus).
     remote: Option<RemoteFleet>,
     /// The fleet bus's last report, for the snapshot.
     bus_report: Option<BusReport>,
-    /// The true world the exploration report judges runs against, handed in by whoever built
-    /// the host over a simulated fleet or a virtual world; `None` in the real world.
-    truth: Option<Box<TrueWorld>>,
 }
 
 impl Host {
@@ -161,13 +154,10 @@ impl Host {
             api_scans: vec![Vec::new(); n],
             planner: PlanWorker::new(Delivery::Lockstep),
             fleet_view: Arc::default(),
-            frontiers: FrontierWorker::new(Delivery::Lockstep),
-            explore_jobs: Vec::new(),
-            exploration: None,
+            exploration: ExplorationRuns::new(),
             persistence: Persistence::new(n),
             remote: None,
             bus_report: None,
-            truth: None,
         }
     }
 
@@ -198,9 +188,7 @@ impl Host {
         if self.planner.delivery() != delivery {
             self.planner = PlanWorker::new(delivery);
         }
-        if self.frontiers.delivery() != delivery {
-            self.frontiers = FrontierWorker::new(delivery);
-        }
+        self.exploration.set_delivery(delivery);
     }
 
     /// Writes the wall clock at this moment's host time to the flight log (a `clock` record).
@@ -359,14 +347,14 @@ impl Host {
     /// The goals of drones other Kestrel processes fly, for this fleet's frontier allocator:
     /// (drone, goal, stamp on this host's clock, as [`Host::now`]); each replaces the last set.
     pub fn set_remote_claims(&mut self, claims: Vec<RemoteClaim>) {
-        self.frontiers.set_remote_claims(claims);
+        self.exploration.set_remote_claims(claims);
     }
 
     /// The frontiers and the goals the drones hold, as the allocator last saw them.
     pub fn exploration_view(&self) -> ExplorationView {
         ExplorationView {
-            frontiers: self.frontiers.frontiers().to_vec(),
-            goals: self.frontiers.claims().to_vec(),
+            frontiers: self.exploration.frontiers().to_vec(),
+            goals: self.exploration.claims().to_vec(),
             known_pct: self.map.as_ref().map(|m| known_pct(m.merged())),
             progress: self.exploration_progress(),
         }

@@ -34,8 +34,7 @@ impl Host {
         for i in 0..self.cores.len() {
             self.tick_drone(i, now, &view);
         }
-        let jobs = std::mem::take(&mut self.explore_jobs);
-        self.frontiers.submit(now, jobs, self.map.as_mut());
+        self.exploration.ask(now, self.map.as_mut());
         self.record_exploration(now);
         self.commit();
         self.fleet.advance(now, self.tick);
@@ -54,7 +53,7 @@ impl Host {
                 core.deliver_plan(answer);
             }
         }
-        for a in self.frontiers.collect() {
+        for a in self.exploration.collect() {
             if let Some(core) = self.cores.get(a.drone) {
                 core.deliver(a.ticket, ServiceAnswer::Explore(a.result), a.cancel);
             }
@@ -107,7 +106,7 @@ impl Host {
         self.fleet.command(i, now, out.setpoint, &out.requests);
         for call in std::mem::take(&mut out.service_calls) {
             if let Some(job) = call.submit(i, &mut self.planner) {
-                self.explore_jobs.push((i, job));
+                self.exploration.queue(i, job);
             }
         }
         if let Some(map) = self.map.as_mut() {
