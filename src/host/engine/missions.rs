@@ -347,8 +347,8 @@ impl Host {
     }
 
     fn log_command(&mut self, i: usize, command: &str, fields: Value) {
-        if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-            log.command(self.now, core.drone_id(), command, fields);
+        if let Some(core) = self.cores.get(i) {
+            self.log.command(self.now, core.drone_id(), command, fields);
         }
     }
 

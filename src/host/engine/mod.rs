@@ -11,6 +11,7 @@ mod commands;
 mod executors;
 mod explore;
 mod frames;
+mod log;
 mod maps;
 mod missions;
 mod persist;
@@ -43,6 +44,7 @@ use crate::types::FleetView;
 use crate::types::LinkHealth;
 use executors::Executors;
 use frames::FrameRegistry;
+use log::HostLog;
 use persist::Persistence;
 use runs::ExplorationRuns;
 use serde::{Deserialize, Serialize};
@@ -109,7 +111,8 @@ pub struct Host {
     fleet: Box<dyn Fleet>,
     /// The frames registered over the API.
     frames: FrameRegistry,
-    log: Option<FlightLog>,
+    /// The flight log (off until one is set).
+    log: HostLog,
     now: Duration,
     tick: Duration,
     events: Vec<HostEvent>,
@@ -143,7 +146,7 @@ impl Host {
             cores,
             fleet,
             frames: FrameRegistry::default(),
-            log: None,
+            log: HostLog::default(),
             now: Duration::ZERO,
             tick: config.tick,
             events: Vec::new(),
@@ -193,17 +196,11 @@ impl Host {
 
     /// Writes the wall clock at this moment's host time to the flight log (a `clock` record).
     pub fn log_wall_clock(&mut self, now: std::time::SystemTime) {
-        let unix_s = now
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
-        let t = self.now();
-        if let Some(log) = self.log.as_mut() {
-            log.clock(t, unix_s);
-        }
+        self.log.wall_clock(self.now, now);
     }
 
     pub fn set_log(&mut self, log: FlightLog) {
-        self.log = Some(log);
+        self.log.set(log);
     }
 
     pub fn now(&self) -> Duration {
@@ -361,16 +358,13 @@ impl Host {
     }
 
     pub fn flush_log(&mut self) {
-        if let Some(log) = self.log.as_mut() {
-            log.flush();
-        }
+        self.log.flush();
     }
 
     /// Flushes the flight log and lets it go: nothing is logged after this, and a log written
     /// in place (an MCAP log's summary) is finished.
     pub fn close_log(&mut self) {
-        self.flush_log();
-        self.log = None;
+        self.log.close();
     }
 }
 
