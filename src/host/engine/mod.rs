@@ -1,5 +1,7 @@
 //! The synchronous host: every drone's core and mission executor, the vehicles, the frames
-//! registered over the API and the flight log, stepped one tick at a time.
+//! registered over the API and the flight log, stepped one tick at a time. What it keeps lives
+//! in services it owns, each a module with its own state and tests (`executors`, `runs`, `log`,
+//! `peers`, the frame registry in `frames`, `persist`); its own methods orchestrate them.
 //!
 //! In: [`Command`]s (each with a one-shot reply) and ticks. Out: replies, the published
 //! [`HostSnapshot`], [`HostEvent`]s, the changes to save (handed to the store after every tick
@@ -14,6 +16,7 @@ mod frames;
 mod log;
 mod maps;
 mod missions;
+mod peers;
 mod persist;
 mod runs;
 mod tick;
@@ -25,13 +28,12 @@ pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 pub use frames::{FrameRegistration, MAX_FRAMES};
 pub use missions::{LoadOptions, MissionView, Updated, Uploaded, ValidatedUpload};
 
-use super::status::{BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use super::status::{DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::Sink;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
 use crate::exploration::online::service::{ExplorationView, RemoteClaim};
-use crate::fleet_bus::remote::RemoteFleet;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
@@ -45,6 +47,7 @@ use crate::types::LinkHealth;
 use executors::Executors;
 use frames::FrameRegistry;
 use log::HostLog;
+use peers::Peers;
 use persist::Persistence;
 use runs::ExplorationRuns;
 use serde::{Deserialize, Serialize};
@@ -131,10 +134,8 @@ pub struct Host {
     exploration: ExplorationRuns,
     /// What changed, handed to the state directory's store.
     persistence: Persistence,
-    /// The drones other Kestrels fly, heard over the fleet bus (`None`: no bus).
-    remote: Option<RemoteFleet>,
-    /// The fleet bus's last report, for the snapshot.
-    bus_report: Option<BusReport>,
+    /// The drones other Kestrels fly, heard over the fleet bus, and the bus's last report.
+    peers: Peers,
 }
 
 impl Host {
@@ -159,8 +160,7 @@ impl Host {
             fleet_view: Arc::default(),
             exploration: ExplorationRuns::new(),
             persistence: Persistence::new(n),
-            remote: None,
-            bus_report: None,
+            peers: Peers::default(),
         }
     }
 
@@ -299,12 +299,8 @@ impl Host {
 
     pub fn snapshot(&self) -> HostSnapshot {
         HostSnapshot {
-            remote: self
-                .remote
-                .as_ref()
-                .map(|r| r.statuses(self.now))
-                .unwrap_or_default(),
-            fleet_bus: self.bus_report.clone(),
+            remote: self.peers.statuses(self.now),
+            fleet_bus: self.peers.report().cloned(),
             t: self.now.as_secs_f64(),
             drones: self
                 .cores

@@ -62,7 +62,7 @@ impl Host {
 
     /// One snapshot of the fleet for every core this tick, as the last tick left it.
     fn take_fleet_view(&mut self, now: Duration) -> Arc<FleetView> {
-        let remote = self.remote.iter().flat_map(|r| r.views(now));
+        let remote = self.peers.views(now);
         self.fleet_view = Arc::new(FleetView {
             drones: self
                 .cores
