@@ -12,12 +12,11 @@ use std::time::Duration;
 
 use super::{Host, HostError};
 use crate::fleet_bus::inbox::Slice;
-use crate::fleet_bus::remote::{RemoteFleet, Roster, SilencePolicy};
+use crate::fleet_bus::remote::{Roster, SilencePolicy};
 use crate::fleet_bus::wire::{DroneState, MapHeader, MapMsg, StateMsg, WIRE_VERSION};
 use crate::mapping::merged::LayerRegion;
 use crate::mapping::MapError;
 use crate::mission::ExecState;
-use crate::types::Vec3;
 
 /// Why a peer's map region was not taken in.
 #[derive(Debug, thiserror::Error)]
@@ -35,7 +34,7 @@ impl Host {
     /// for sending.
     /// `roster`: the other members of the fleet and their drones.
     pub fn enable_fleet_bus(&mut self, policy: SilencePolicy, roster: Roster) {
-        self.remote = Some(RemoteFleet::new(policy, roster));
+        self.peers.enable(policy, roster);
         if let Some(map) = self.map.as_mut() {
             map.enable_bus();
         }
@@ -45,11 +44,7 @@ impl Host {
     /// `[fleet] connect` lists (`require_join`): refused by them, or not reaching them, it would
     /// fly unseen by their separation and allocation. A drone already in the air is not held.
     pub(super) fn refuse_before_joining(&self, i: usize) -> Result<(), HostError> {
-        let Some(report) = self
-            .bus_report
-            .as_ref()
-            .filter(|r| r.join_required && !r.joined)
-        else {
+        let Some(refusal) = self.peers.join_refusal() else {
             return Ok(());
         };
         let airborne = self
@@ -59,15 +54,12 @@ impl Host {
         if airborne {
             return Ok(());
         }
-        Err(HostError::FleetNotJoined {
-            fleet: report.fleet.clone(),
-            waiting_for: report.waiting_for.join(", "),
-        })
+        Err(refusal)
     }
 
     /// Which node flies `drone`, when another Kestrel does.
     pub fn remote_node_of(&self, drone: &str) -> Option<&str> {
-        self.remote.as_ref()?.node_of(drone)
+        self.peers.node_of(drone)
     }
 
     /// Cells of the merged map's grid (bounds a peer's map region); 0 without a map.
@@ -80,25 +72,17 @@ impl Host {
     /// Takes in a peer's drones. Returns why some were refused, if any were.
     pub fn apply_bus_state(&mut self, msg: StateMsg) -> Vec<String> {
         let local = self.drone_ids();
-        let now = self.now;
-        let Some(remote) = self.remote.as_mut() else {
+        let Some((refused, claims)) = self.peers.apply(msg, self.now, &local) else {
             return Vec::new();
         };
-        let refused = remote.apply(msg, now, &local);
-        let claims = remote
-            .claims()
-            .into_iter()
-            .map(|(drone, goal, heard)| (drone, Vec3::new(goal[0], goal[1], 0.0), heard))
-            .collect();
-        self.frontiers.set_remote_claims(claims);
+        self.exploration.set_remote_claims(claims);
         refused
     }
 
     /// Writes a slice of a peer's drone's waiting map regions into its layer (a drone the
     /// roster gives that node: its map may come before its first state).
     pub fn apply_bus_region(&mut self, slice: Slice) -> Result<(), BusMapError> {
-        let owner = self.remote.as_ref().and_then(|r| r.owner_of(&slice.drone));
-        if owner != Some(slice.node.as_str()) {
+        if !self.peers.flies(&slice.node, &slice.drone) {
             return Err(BusMapError::NotItsDrone {
                 drone: slice.drone,
                 node: slice.node,
@@ -126,7 +110,7 @@ impl Host {
         let drones = self
             .cores
             .iter()
-            .zip(&self.executors)
+            .zip(self.executors.list())
             .map(|(core, ex)| {
                 let view = core.fleet_entry(self.now);
                 let status = core.platform_status();
@@ -154,12 +138,7 @@ impl Host {
                         }
                         .to_string(),
                     ),
-                    claim_enu_m: self
-                        .frontiers
-                        .claims()
-                        .iter()
-                        .find(|c| c.drone == core.drone_id())
-                        .map(|c| c.goal_enu_m),
+                    claim_enu_m: self.exploration.claim_of(core.drone_id()),
                 }
             })
             .collect();
@@ -207,12 +186,12 @@ impl Host {
 
     /// The bus's traffic and latency, shown in the snapshot.
     pub fn set_bus_report(&mut self, report: crate::host::status::BusReport) {
-        self.bus_report = Some(report);
+        self.peers.set_report(report);
     }
 
     /// Whether a fleet bus is joined.
     pub fn on_fleet_bus(&self) -> bool {
-        self.remote.is_some()
+        self.peers.is_on()
     }
 
     /// Host time now (for the bus's timers).

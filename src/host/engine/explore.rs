@@ -11,7 +11,7 @@
 use super::{Host, HostError, LoadOptions};
 use crate::exploration::offline::evaluate::{PoseSample, TrueWorld};
 use crate::exploration::online::progress::{
-    DronePose, ExplorationRun, LiveReport, ProgressView, RunDrone, RunDroneView,
+    DronePose, LiveReport, ProgressView, RunDrone, RunDroneView,
 };
 use crate::mission::{Action, ActionError, ExecState, MissionUpdate, ValidationError};
 use serde::Serialize;
@@ -83,10 +83,10 @@ impl Host {
 
     /// The run's mission of drone `drone` while it runs or is paused.
     fn exploring(&self, i: usize, drone: &str) -> Option<u32> {
-        let run = self.exploration.as_ref()?;
-        let d = run.drones().iter().find(|d| d.drone == drone)?;
-        let ex = self.executors.get(i)?;
-        (!d.stopped && ex.running_id() == Some(d.mission_id)).then_some(d.mission_id)
+        let mission_id = self.exploration.mission_of(drone)?;
+        self.executors
+            .is_running(i, mission_id)
+            .then_some(mission_id)
     }
 
     /// Starts the `explore` behavior with `args` on every drone of `drones`.
@@ -141,16 +141,7 @@ impl Host {
                 return Err(e);
             }
         }
-        let now = self.now;
-        let run = match self.exploration.as_mut() {
-            Some(run) if !run.is_finished() => {
-                run.join(started.clone());
-                run
-            }
-            _ => self
-                .exploration
-                .insert(ExplorationRun::new(now, started.clone())),
-        };
+        let run = self.exploration.start(self.now, started.clone());
         Ok(ExplorationStarted {
             started_at_s: run.started_at().as_secs_f64(),
             drones: started
@@ -213,9 +204,7 @@ impl Host {
         }
         for (d, id) in drones.iter().zip(missions) {
             self.mission_action(d, id, Action::Stop);
-            if let Some(run) = self.exploration.as_mut() {
-                run.stop(d);
-            }
+            self.exploration.stop(d);
         }
         Ok(drones.to_vec())
     }
@@ -223,34 +212,26 @@ impl Host {
     /// One tick of the run: poses and the known area recorded; finished once no drone of it
     /// runs its mission any more.
     pub(super) fn record_exploration(&mut self, now: Duration) {
-        let Some(run) = self.exploration.as_mut() else {
-            return;
+        let (cores, executors, map) = (&self.cores, &self.executors, self.map.as_ref());
+        let poses = || {
+            cores
+                .iter()
+                .map(|c| DronePose {
+                    drone: c.drone_id(),
+                    position_enu_m: c.estimate().pose.position_m,
+                    yaw_rad: c.estimate().pose.yaw_rad(),
+                    airborne: c.platform_status().armed && c.platform_status().flight.is_airborne(),
+                })
+                .collect()
         };
-        if run.is_finished() {
-            return;
-        }
-        let poses: Vec<DronePose> = self
-            .cores
-            .iter()
-            .map(|c| DronePose {
-                drone: c.drone_id(),
-                position_enu_m: c.estimate().pose.position_m,
-                yaw_rad: c.estimate().pose.yaw_rad(),
-                airborne: c.platform_status().armed && c.platform_status().flight.is_airborne(),
-            })
-            .collect();
-        let map = self.map.as_ref();
-        run.record(now, || map.map(|m| super::known_pct(m.merged())), &poses);
-        let any_running =
-            run.drones().iter().any(|d| {
-                !d.stopped
-                    && self.cores.iter().zip(&self.executors).any(|(c, ex)| {
-                        c.drone_id() == d.drone && ex.running_id() == Some(d.mission_id)
-                    })
-            });
-        if !any_running {
-            run.finish(now);
-        }
+        let running = |d: &RunDrone| {
+            cores
+                .iter()
+                .enumerate()
+                .any(|(i, c)| c.drone_id() == d.drone && executors.is_running(i, d.mission_id))
+        };
+        let known_pct = || map.map(|m| super::known_pct(m.merged()));
+        self.exploration.record(now, known_pct, poses, running);
     }
 
     /// How one drone of the run is doing.
@@ -278,13 +259,7 @@ impl Host {
             None => "stopped".to_string(),
         };
         let goal_enu_m = running
-            .then(|| {
-                self.frontiers
-                    .claims()
-                    .iter()
-                    .find(|c| c.drone == d.drone)
-                    .map(|c| c.goal_enu_m)
-            })
+            .then(|| self.exploration.claim_of(&d.drone))
             .flatten();
         RunDroneView {
             drone: d.drone.clone(),
@@ -297,7 +272,7 @@ impl Host {
 
     /// The run's progress, `None` before any exploration was started.
     pub fn exploration_progress(&self) -> Option<ProgressView> {
-        let run = self.exploration.as_ref()?;
+        let run = self.exploration.run()?;
         let drones = run
             .drones()
             .iter()
@@ -309,33 +284,19 @@ impl Host {
     /// Judges explorations against `world`: the simulator's, or the virtual world real vehicles
     /// fly in with virtual range sensors. Their reports get the evaluator's metrics.
     pub fn set_true_world(&mut self, world: TrueWorld) {
-        self.truth = Some(Box::new(world));
+        self.exploration.set_truth(world);
     }
 
     /// What the report needs; `not_found`-like `NotSupported` before any exploration.
     pub fn exploration_report(&self) -> Result<ReportInput, HostError> {
-        let (Some(run), Some(progress)) = (self.exploration.as_ref(), self.exploration_progress())
-        else {
-            return Err(HostError::NotSupported(
-                "no exploration was started: POST /api/exploration/start first".into(),
-            ));
-        };
-        let (kept, dropped) = run.sample_counts();
-        let live = LiveReport {
-            path_m: progress.drones.iter().map(|d| d.path_m).sum(),
-            progress,
-            known_pct: self.map.as_ref().map(|m| super::known_pct(m.merged())),
-            frontiers_left: self.frontiers.frontiers().len(),
-            area_curve: run.curve().to_vec(),
-            min_separation_m: run.min_separation_m(),
-            pose_samples: kept,
-            pose_samples_dropped: dropped,
-        };
-        Ok(ReportInput {
-            live,
-            world: self.truth.as_deref().cloned(),
-            samples: run.sample_chunks(),
-        })
+        let known_pct = || self.map.as_ref().map(|m| super::known_pct(m.merged()));
+        self.exploration_progress()
+            .and_then(|progress| self.exploration.report(progress, known_pct))
+            .ok_or_else(|| {
+                HostError::NotSupported(
+                    "no exploration was started: POST /api/exploration/start first".into(),
+                )
+            })
     }
 }
 

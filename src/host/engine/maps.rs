@@ -21,7 +21,7 @@ impl Host {
     /// Keeps the fleet's merged map, fed with every drone's scans.
     pub fn set_map(&mut self, map: FleetMap) {
         self.map = Some(map);
-        self.frontiers.resync();
+        self.exploration.resync();
     }
 
     pub fn map(&self) -> Option<&FleetMap> {
@@ -30,7 +30,7 @@ impl Host {
 
     /// What missions are checked against (speed limit, geofence).
     pub fn limits(&self) -> &Limits {
-        &self.limits
+        self.executors.limits()
     }
 
     /// The merged map's regions changed since the last call, as `map_update` events.

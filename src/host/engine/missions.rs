@@ -123,7 +123,7 @@ impl Host {
         Some(ValidationContext {
             drone_id: core.drone_id(),
             registry: core.server().registry(),
-            limits: &self.limits,
+            limits: self.executors.limits(),
             frames: core.frames(),
             now: self.now,
             home_enu_m: home,
@@ -347,8 +347,8 @@ impl Host {
     }
 
     fn log_command(&mut self, i: usize, command: &str, fields: Value) {
-        if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-            log.command(self.now, core.drone_id(), command, fields);
+        if let Some(core) = self.cores.get(i) {
+            self.log.command(self.now, core.drone_id(), command, fields);
         }
     }
 
@@ -411,20 +411,11 @@ impl Host {
     pub(super) fn delete(&mut self, drone: Option<&str>, id: u32) -> Result<(), HostError> {
         let i = match drone {
             Some(d) => self.route(Some(d))?,
-            None => {
-                let owners: Vec<usize> = (0..self.executors.len())
-                    .filter(|i| {
-                        self.executors
-                            .get(*i)
-                            .is_some_and(|e| e.missions().contains_key(&id))
-                    })
-                    .collect();
-                match owners.as_slice() {
-                    [] => return Err(ActionError::UnknownMission(id).into()),
-                    [one] => *one,
-                    _ => return Err(HostError::DroneNeeded(self.ids())),
-                }
-            }
+            None => match self.executors.holders(id).as_slice() {
+                [] => return Err(ActionError::UnknownMission(id).into()),
+                [one] => *one,
+                _ => return Err(HostError::DroneNeeded(self.ids())),
+            },
         };
         let ex = self
             .executors

@@ -1,5 +1,7 @@
 //! The synchronous host: every drone's core and mission executor, the vehicles, the frames
-//! registered over the API and the flight log, stepped one tick at a time.
+//! registered over the API and the flight log, stepped one tick at a time. What it keeps lives
+//! in services it owns, each a module with its own state and tests (`executors`, `runs`, `log`,
+//! `peers`, the frame registry in `frames`, `persist`); its own methods orchestrate them.
 //!
 //! In: [`Command`]s (each with a one-shot reply) and ticks. Out: replies, the published
 //! [`HostSnapshot`], [`HostEvent`]s, the changes to save (handed to the store after every tick
@@ -8,11 +10,15 @@
 
 mod bus;
 mod commands;
+mod executors;
 mod explore;
 mod frames;
+mod log;
 mod maps;
 mod missions;
+mod peers;
 mod persist;
+mod runs;
 mod tick;
 
 pub use super::map_view::MapView;
@@ -22,16 +28,12 @@ pub use explore::{ExplorationStarted, ReportInput, StartedDrone};
 pub use frames::{FrameRegistration, MAX_FRAMES};
 pub use missions::{LoadOptions, MissionView, Updated, Uploaded, ValidatedUpload};
 
-use super::status::{BusReport, DroneStatus, EventBody, HostEvent, HostSnapshot};
+use super::status::{DroneStatus, EventBody, HostEvent, HostSnapshot};
 use super::store::Sink;
 use crate::behavior::{BehaviorId, ServerError};
 use crate::core::{BehaviorCommand, DroneCore};
 use crate::estimator::frames::FrameError;
-use crate::exploration::offline::evaluate::TrueWorld;
-use crate::exploration::online::progress::ExplorationRun;
 use crate::exploration::online::service::{ExplorationView, RemoteClaim};
-use crate::exploration::online::worker::{ExploreJob, FrontierWorker};
-use crate::fleet_bus::remote::RemoteFleet;
 use crate::flightlog::FlightLog;
 use crate::mapping::merged::FleetMap;
 use crate::mapping::scan::RangeScan;
@@ -42,8 +44,12 @@ use crate::planning::worker::{Delivery, PlanWorker};
 use crate::platform::fleet::Fleet;
 use crate::types::FleetView;
 use crate::types::LinkHealth;
+use executors::Executors;
 use frames::FrameRegistry;
+use log::HostLog;
+use peers::Peers;
 use persist::Persistence;
+use runs::ExplorationRuns;
 use serde::{Deserialize, Serialize};
 use std::any::Any;
 use std::collections::BTreeMap;
@@ -103,17 +109,16 @@ pub(crate) struct HostConfig {
 
 pub struct Host {
     cores: Vec<DroneCore>,
-    executors: Vec<MissionExecutor>,
-    executor_config: ExecutorConfig,
+    /// Each drone's missions, and what missions are checked against.
+    executors: Executors,
     fleet: Box<dyn Fleet>,
-    limits: Limits,
     /// The frames registered over the API.
     frames: FrameRegistry,
-    log: Option<FlightLog>,
+    /// The flight log (off until one is set).
+    log: HostLog,
     now: Duration,
     tick: Duration,
     events: Vec<HostEvent>,
-    published: Vec<u64>,
     links: Vec<LinkHealth>,
     errors: Vec<Option<String>>,
     modes: Vec<String>,
@@ -125,20 +130,12 @@ pub struct Host {
     planner: PlanWorker,
     /// The fleet view the cores saw this tick.
     fleet_view: Arc<FleetView>,
-    /// The fleet's frontier allocator (exploration) on its thread, asked after every core ticked.
-    frontiers: FrontierWorker,
-    explore_jobs: Vec<(usize, ExploreJob)>,
-    /// The exploration started over the API (`POST /api/exploration/start`), the last one.
-    exploration: Option<ExplorationRun>,
+    /// The frontier allocator, the exploration run started over the API and its true world.
+    exploration: ExplorationRuns,
     /// What changed, handed to the state directory's store.
     persistence: Persistence,
-    /// The drones other Kestrels fly, heard over the fleet bus (`None`: no bus).
-    remote: Option<RemoteFleet>,
-    /// The fleet bus's last report, for the snapshot.
-    bus_report: Option<BusReport>,
-    /// The true world the exploration report judges runs against, handed in by whoever built
-    /// the host over a simulated fleet or a virtual world; `None` in the real world.
-    truth: Option<Box<TrueWorld>>,
+    /// The drones other Kestrels fly, heard over the fleet bus, and the bus's last report.
+    peers: Peers,
 }
 
 impl Host {
@@ -146,19 +143,14 @@ impl Host {
     pub(crate) fn new(cores: Vec<DroneCore>, fleet: Box<dyn Fleet>, config: HostConfig) -> Self {
         let n = cores.len();
         Self {
-            executors: (0..n)
-                .map(|_| MissionExecutor::new(config.executor))
-                .collect(),
+            executors: Executors::new(n, config.executor, config.limits),
             cores,
             fleet,
-            executor_config: config.executor,
-            limits: config.limits,
             frames: FrameRegistry::default(),
-            log: None,
+            log: HostLog::default(),
             now: Duration::ZERO,
             tick: config.tick,
             events: Vec::new(),
-            published: vec![u64::MAX; n],
             links: vec![LinkHealth::Connecting; n],
             errors: vec![None; n],
             modes: vec![String::new(); n],
@@ -166,13 +158,9 @@ impl Host {
             api_scans: vec![Vec::new(); n],
             planner: PlanWorker::new(Delivery::Lockstep),
             fleet_view: Arc::default(),
-            frontiers: FrontierWorker::new(Delivery::Lockstep),
-            explore_jobs: Vec::new(),
-            exploration: None,
+            exploration: ExplorationRuns::new(),
             persistence: Persistence::new(n),
-            remote: None,
-            bus_report: None,
-            truth: None,
+            peers: Peers::default(),
         }
     }
 
@@ -203,24 +191,16 @@ impl Host {
         if self.planner.delivery() != delivery {
             self.planner = PlanWorker::new(delivery);
         }
-        if self.frontiers.delivery() != delivery {
-            self.frontiers = FrontierWorker::new(delivery);
-        }
+        self.exploration.set_delivery(delivery);
     }
 
     /// Writes the wall clock at this moment's host time to the flight log (a `clock` record).
     pub fn log_wall_clock(&mut self, now: std::time::SystemTime) {
-        let unix_s = now
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
-        let t = self.now();
-        if let Some(log) = self.log.as_mut() {
-            log.clock(t, unix_s);
-        }
+        self.log.wall_clock(self.now, now);
     }
 
     pub fn set_log(&mut self, log: FlightLog) {
-        self.log = Some(log);
+        self.log.set(log);
     }
 
     pub fn now(&self) -> Duration {
@@ -237,7 +217,7 @@ impl Host {
 
     /// Nothing is flying or about to: no mission runs, no behavior is active, no drone is armed.
     pub fn is_idle(&self) -> bool {
-        self.executors.iter().all(|e| e.running_id().is_none())
+        self.executors.all_idle()
             && self
                 .cores
                 .iter()
@@ -288,16 +268,14 @@ impl Host {
     }
 
     pub fn executors(&self) -> &[MissionExecutor] {
-        &self.executors
+        self.executors.list()
     }
 
     /// Restores missions (never running) and frames kept by a previous run.
     pub fn restore(&mut self, state: PersistedState) {
         for (i, core) in self.cores.iter().enumerate() {
-            if let (Some(snap), Some(ex)) =
-                (state.drones.get(core.drone_id()), self.executors.get_mut(i))
-            {
-                *ex = MissionExecutor::restore(snap.clone(), self.executor_config);
+            if let Some(snap) = state.drones.get(core.drone_id()) {
+                self.executors.restore(i, snap);
             }
         }
         for frame in state.frames {
@@ -312,7 +290,7 @@ impl Host {
             drones: self
                 .cores
                 .iter()
-                .zip(&self.executors)
+                .zip(self.executors.list())
                 .map(|(c, e)| (c.drone_id().to_string(), e.snapshot()))
                 .collect(),
             frames: self.frames.list().to_vec(),
@@ -321,17 +299,13 @@ impl Host {
 
     pub fn snapshot(&self) -> HostSnapshot {
         HostSnapshot {
-            remote: self
-                .remote
-                .as_ref()
-                .map(|r| r.statuses(self.now))
-                .unwrap_or_default(),
-            fleet_bus: self.bus_report.clone(),
+            remote: self.peers.statuses(self.now),
+            fleet_bus: self.peers.report().cloned(),
             t: self.now.as_secs_f64(),
             drones: self
                 .cores
                 .iter()
-                .zip(&self.executors)
+                .zip(self.executors.list())
                 .map(|(c, e)| DroneStatus::of(c, e))
                 .collect(),
         }
@@ -339,15 +313,12 @@ impl Host {
 
     /// Events since the last call, with a mission status for every executor that changed.
     pub fn drain_events(&mut self) -> Vec<HostEvent> {
-        for (i, (core, ex)) in self.cores.iter().zip(&self.executors).enumerate() {
-            if self.published.get(i) != Some(&ex.revision()) {
+        for i in self.executors.take_unpublished() {
+            if let (Some(core), Some(ex)) = (self.cores.get(i), self.executors.get(i)) {
                 self.events.push(HostEvent::MissionStatus {
                     drone: core.drone_id().to_string(),
                     status: ex.status(core),
                 });
-                if let Some(p) = self.published.get_mut(i) {
-                    *p = ex.revision();
-                }
             }
         }
         std::mem::take(&mut self.events)
@@ -369,30 +340,27 @@ impl Host {
     /// The goals of drones other Kestrel processes fly, for this fleet's frontier allocator:
     /// (drone, goal, stamp on this host's clock, as [`Host::now`]); each replaces the last set.
     pub fn set_remote_claims(&mut self, claims: Vec<RemoteClaim>) {
-        self.frontiers.set_remote_claims(claims);
+        self.exploration.set_remote_claims(claims);
     }
 
     /// The frontiers and the goals the drones hold, as the allocator last saw them.
     pub fn exploration_view(&self) -> ExplorationView {
         ExplorationView {
-            frontiers: self.frontiers.frontiers().to_vec(),
-            goals: self.frontiers.claims().to_vec(),
+            frontiers: self.exploration.frontiers().to_vec(),
+            goals: self.exploration.claims().to_vec(),
             known_pct: self.map.as_ref().map(|m| known_pct(m.merged())),
             progress: self.exploration_progress(),
         }
     }
 
     pub fn flush_log(&mut self) {
-        if let Some(log) = self.log.as_mut() {
-            log.flush();
-        }
+        self.log.flush();
     }
 
     /// Flushes the flight log and lets it go: nothing is logged after this, and a log written
     /// in place (an MCAP log's summary) is finished.
     pub fn close_log(&mut self) {
-        self.flush_log();
-        self.log = None;
+        self.log.close();
     }
 }
 

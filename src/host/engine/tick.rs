@@ -34,14 +34,13 @@ impl Host {
         for i in 0..self.cores.len() {
             self.tick_drone(i, now, &view);
         }
-        let jobs = std::mem::take(&mut self.explore_jobs);
-        self.frontiers.submit(now, jobs, self.map.as_mut());
+        self.exploration.ask(now, self.map.as_mut());
         self.record_exploration(now);
         self.commit();
         self.fleet.advance(now, self.tick);
         for (i, message) in self.fleet.take_alerts() {
-            if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-                log.event(now, core.drone_id(), "collision", &message);
+            if let Some(core) = self.cores.get(i) {
+                self.log.event(now, core.drone_id(), "collision", &message);
             }
             self.event(i, EventBody::Alert { message });
         }
@@ -54,7 +53,7 @@ impl Host {
                 core.deliver_plan(answer);
             }
         }
-        for a in self.frontiers.collect() {
+        for a in self.exploration.collect() {
             if let Some(core) = self.cores.get(a.drone) {
                 core.deliver(a.ticket, ServiceAnswer::Explore(a.result), a.cancel);
             }
@@ -63,7 +62,7 @@ impl Host {
 
     /// One snapshot of the fleet for every core this tick, as the last tick left it.
     fn take_fleet_view(&mut self, now: Duration) -> Arc<FleetView> {
-        let remote = self.remote.iter().flat_map(|r| r.views(now));
+        let remote = self.peers.views(now);
         self.fleet_view = Arc::new(FleetView {
             drones: self
                 .cores
@@ -107,7 +106,7 @@ impl Host {
         self.fleet.command(i, now, out.setpoint, &out.requests);
         for call in std::mem::take(&mut out.service_calls) {
             if let Some(job) = call.submit(i, &mut self.planner) {
-                self.explore_jobs.push((i, job));
+                self.exploration.queue(i, job);
             }
         }
         if let Some(map) = self.map.as_mut() {
@@ -123,8 +122,8 @@ impl Host {
             return Vec::new();
         };
         // The mission item each behavior event belongs to: the one running when it happened.
-        let item = match (&self.log, self.executors.get(i)) {
-            (Some(_), Some(ex)) if !out.events.is_empty() => {
+        let item = match self.executors.get(i) {
+            Some(ex) if self.log.is_on() && !out.events.is_empty() => {
                 let st = ex.status(core);
                 (st.state != crate::mission::ExecState::Idle).then(|| {
                     serde_json::json!({
@@ -151,16 +150,9 @@ impl Host {
             );
             alerts.push(reason.clone());
         }
-        if let Some(log) = self.log.as_mut() {
-            let state = core.vehicle_state();
-            let motion = core.server().motion().map(|(name, _)| name);
-            // A simulated drone whose estimate drifts: the truth beside it, for the evaluator.
-            let truth = self.fleet.truth_behind_estimate(i);
-            log.pose(now, &state, motion, out.setpoint.as_ref(), truth.as_ref());
-            for e in &out.events {
-                log.behavior(now, core.drone_id(), e, item.as_ref());
-            }
-        }
+        // A simulated drone whose estimate drifts: the truth beside it, for the evaluator.
+        let truth = || self.fleet.truth_behind_estimate(i);
+        self.log.tick(now, core, out, item.as_ref(), truth);
         alerts
     }
 
@@ -173,14 +165,14 @@ impl Host {
         safety: Option<Override>,
     ) {
         for message in alerts {
-            if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-                log.event(now, core.drone_id(), "mission", &message);
+            if let Some(core) = self.cores.get(i) {
+                self.log.event(now, core.drone_id(), "mission", &message);
             }
             self.event(i, EventBody::Alert { message });
         }
         if let Some(o) = safety {
-            if let (Some(log), Some(core)) = (self.log.as_mut(), self.cores.get(i)) {
-                log.event(now, core.drone_id(), "safety", &o.reason);
+            if let Some(core) = self.cores.get(i) {
+                self.log.event(now, core.drone_id(), "safety", &o.reason);
             }
             tracing::warn!("safety: {}", o.reason);
             self.event(
