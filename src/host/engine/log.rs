@@ -133,6 +133,7 @@ mod tests {
             native_takeoff: false,
             native_land: false,
             velocity_lag_s: None,
+            velocity_overshoot: None,
         };
         DroneCore::new(
             CoreConfig::new("drone_0"),
