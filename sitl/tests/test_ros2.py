@@ -37,9 +37,9 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 TYPES = get_typestore(Stores.ROS2_JAZZY)
 
 # rmw's QoS enums (rmw/types.h) and rmw_zenoh's defaults, which its QoS string leaves empty.
-RELIABLE, BEST_EFFORT = 1, 2
+RELIABLE = 1
 TRANSIENT_LOCAL, VOLATILE = 1, 2
-KEEP_LAST, KEEP_ALL = 1, 2
+KEEP_LAST = 1
 AUTOMATIC = 1
 DEFAULT_QOS = {"reliability": RELIABLE, "durability": VOLATILE, "history": KEEP_LAST,
                "depth": 42, "deadline": (0, 0), "lifespan": (0, 0), "liveliness": AUTOMATIC,
