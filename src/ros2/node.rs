@@ -10,8 +10,12 @@
 //! `/map` is transient local as rmw_zenoh makes it (Zenoh's advanced publisher): the latest map
 //! is answered on `<key>/@adv/pub/<zid>/<eid>/_` (announced by a liveliness token there, so a
 //! subscriber that comes later finds it), on `@adv/pub/<zid>/<eid>/_/@/<key>` and on the key
-//! itself. The session runs in peer mode with scouting off: it reaches ROS through the router
-//! in `connect`, which brokers between peers.
+//! itself. The session is a Zenoh client of the router in `connect` (scouting off): the router
+//! routes a client's samples, tokens and queries to the peers rmw_zenoh's nodes are. A peer
+//! session that neither listens nor gossips exchanged nothing with such peers through a router
+//! (Zenoh 1.10.2; `sitl/tests/test_ros2.py` checks the client). A client cannot open without a
+//! router: the session is opened, and everything declared, in the background, trying again
+//! until one answers.
 
 use super::goal::{self, Aloft};
 use super::keys::{self, Attachment, Endpoint, Entity, Owner, Qos};
@@ -39,15 +43,14 @@ pub enum Ros2Error {
     Declare { key: String, why: String },
 }
 
-/// The session's configuration: peer mode, the routers, no scouting, nothing listened on.
+/// The session's configuration: a client of the routers, no scouting.
 fn zenoh_config(section: &Ros2Section) -> Result<zenoh::Config, Ros2Error> {
     let json = serde_json::json!({
-        "mode": "peer",
+        "mode": "client",
         "connect": {
             "endpoints": section.connect,
             "retry": { "period_init_ms": 500, "period_max_ms": 4000, "period_increase_factor": 2 },
         },
-        "listen": { "endpoints": [] },
         "scouting": { "multicast": { "enabled": false }, "gossip": { "enabled": false } },
     });
     zenoh::Config::from_json5(&json.to_string()).map_err(|e| Ros2Error::Config(e.to_string()))
@@ -172,13 +175,55 @@ struct DroneOutlets {
 /// The latest `/map` and its attachment, for late joiners.
 type Latest = Arc<Mutex<Option<(Vec<u8>, Vec<u8>)>>>;
 
-/// Opens the session, declares the node, its publishers and its `goal_pose` subscriptions, and
-/// starts publishing. Returns once everything is declared; routers are reached in the
-/// background.
+/// Checks the configuration, then, in the background, opens the session once a router answers,
+/// declares the node, its publishers and its `goal_pose` subscriptions, and starts publishing.
 pub async fn start(section: Ros2Section, handle: HostHandle) -> Result<(), Ros2Error> {
-    let session = zenoh::open(zenoh_config(&section)?)
-        .await
-        .map_err(|e| Ros2Error::Open(e.to_string()))?;
+    let config = zenoh_config(&section)?;
+    tokio::spawn(async move {
+        let session = open_when_reached(config, &section.connect).await;
+        if let Err(e) = serve(session, section, handle).await {
+            tracing::error!("{e}");
+        }
+    });
+    Ok(())
+}
+
+/// Longest wait between two tries to reach a router.
+const RETRY_MAX: Duration = Duration::from_secs(4);
+
+/// Opens the client session, trying again (500 ms, doubling up to [`RETRY_MAX`]) until a
+/// router answers; says so once when none does at first.
+async fn open_when_reached(config: zenoh::Config, routers: &[String]) -> zenoh::Session {
+    let mut wait = Duration::from_millis(500);
+    let mut said = false;
+    loop {
+        match zenoh::open(config.clone()).await {
+            Ok(session) => {
+                if said {
+                    tracing::info!("ROS 2 bridge: router reached");
+                }
+                return session;
+            }
+            Err(e) if !said => {
+                tracing::warn!(
+                    "ROS 2 bridge: no Zenoh router answers at [{}] yet ({e}); trying again in the background",
+                    routers.join(", ")
+                );
+                said = true;
+            }
+            Err(e) => tracing::debug!("ROS 2 bridge: {}", Ros2Error::Open(e.to_string())),
+        }
+        tokio::time::sleep(wait).await;
+        wait = (wait * 2).min(RETRY_MAX);
+    }
+}
+
+/// Declares everything on the open session and starts publishing.
+async fn serve(
+    session: zenoh::Session,
+    section: Ros2Section,
+    handle: HostHandle,
+) -> Result<(), Ros2Error> {
     let naming = Naming {
         domain: section.domain_id,
         zid: session.zid().to_string(),
