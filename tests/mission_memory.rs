@@ -6,6 +6,8 @@
 //! is exact, not a timing. `cargo nextest run --test mission_memory --no-capture` prints the
 //! figures recorded in BENCHMARKS.md ("Memory of a stored mission").
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use kestrel::behavior::Registry;
 use kestrel::config::Config;
 use kestrel::estimator::frames::FrameTree;

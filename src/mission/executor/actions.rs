@@ -392,7 +392,7 @@ impl MissionExecutor {
                         old.behavior()
                     )));
                 }
-                let goal = new.goal().map_err(refused)?;
+                let goal = new.goal().map_err(|e| refused(e.to_string()))?;
                 core.command(BehaviorCommand::Modify {
                     id: current.id,
                     goal,

@@ -456,9 +456,9 @@ impl MissionExecutor {
                     behavior: item.behavior().to_string(),
                     goal,
                 }),
-                Err(message) => Err(ServerError::Rejected {
+                Err(e) => Err(ServerError::Rejected {
                     behavior: item.behavior().to_string(),
-                    reason: Failure::invalid(message),
+                    reason: Failure::invalid(e.to_string()),
                 }),
             };
             match started {

@@ -352,6 +352,18 @@ mod tests {
     use super::*;
 
     #[test]
+    fn warnings_beyond_the_most_kept_are_counted_in_one() {
+        let mut warnings = Warnings::default();
+        for k in 0..MAX_WARNINGS + 5 {
+            warnings.push(|| format!("w{k}"));
+        }
+        let list = warnings.into_list();
+        assert_eq!(list.len(), MAX_WARNINGS + 1);
+        assert_eq!(list[0], "w0");
+        assert_eq!(list[MAX_WARNINGS], "5 more warnings not listed");
+    }
+
+    #[test]
     fn pointer_tokens_are_escaped() {
         assert_eq!(escape_token("a/b~c"), "a~1b~0c");
         assert_eq!(join("/plan/0/args", ""), "/plan/0/args");
