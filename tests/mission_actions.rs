@@ -558,7 +558,7 @@ fn insert_into_an_idle_mission_at_the_start_and_the_end() {
         .mission
         .items
         .iter()
-        .map(|i| i.item.behavior.clone())
+        .map(|i| i.behavior().to_string())
         .collect();
     assert_eq!(plan, ["hover", "takeoff", "go_to", "land", "hover"]);
     let reason = refused(rig.send(

@@ -5,6 +5,7 @@
 //! Out: behavior commands to the core, the mission status, and a snapshot to persist.
 
 pub mod executor;
+mod item;
 pub mod methods;
 pub mod model;
 pub mod schema;

@@ -1,7 +1,8 @@
 //! Mission data: the JSON mission (Aerostack2's format), validated plan items, the
 //! MissionUpdate message and the mission status.
 
-use crate::behavior::{FailureCode, ParsedGoal};
+pub use super::item::PlanItem;
+use crate::behavior::FailureCode;
 use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use serde_json::{Map, Value};
@@ -61,19 +62,6 @@ pub struct ItemOptions {
     pub run_for_s: Option<f64>,
 }
 
-/// A validated plan item: as written (for status displays) and as the behavior gets it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PlanItem {
-    pub item: MissionItem,
-    /// The goal passed to the behavior: the method mapped to canonical arguments, options removed.
-    pub goal: Value,
-    pub options: ItemOptions,
-    /// The goal as validation parsed and checked it, handed to the behavior as is (absent for a
-    /// mission restored from disk: its goal is parsed again when it starts).
-    #[serde(skip)]
-    pub parsed: Option<ParsedGoal>,
-}
-
 /// A mission that passed validation; nothing in it can be rejected for its form any more.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ValidMission {
@@ -84,11 +72,15 @@ pub struct ValidMission {
 
 impl ValidMission {
     /// The mission as written (method defaults filled in).
-    pub fn as_written(&self) -> Mission {
-        Mission {
+    pub fn as_written(&self) -> Result<Mission, serde_json::Error> {
+        Ok(Mission {
             target: self.target.clone(),
-            plan: self.items.iter().map(|i| i.item.clone()).collect(),
-        }
+            plan: self
+                .items
+                .iter()
+                .map(PlanItem::written)
+                .collect::<Result<_, _>>()?,
+        })
     }
 }
 

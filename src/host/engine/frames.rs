@@ -184,15 +184,17 @@ impl Host {
         let ctx = ValidationContext { frames, ..ctx };
         for (id, loaded) in ex.missions() {
             let uses = loaded.mission.items.iter().any(|item| {
-                item.parsed
-                    .as_ref()
-                    .is_some_and(|g| g.summary().targets.iter().any(|t| t.frame_id == frame_id))
-                    || item.goal.get("frame_id").and_then(Value::as_str) == Some(frame_id)
+                item.goal()
+                    .is_ok_and(|g| g.get("frame_id").and_then(Value::as_str) == Some(frame_id))
             });
             if !uses {
                 continue;
             }
-            let written = serde_json::to_value(loaded.mission.as_written()).unwrap_or_default();
+            let written = loaded
+                .mission
+                .as_written()
+                .and_then(serde_json::to_value)
+                .unwrap_or_default();
             if let Err(errors) = crate::mission::validate::validate_value(&written, &ctx) {
                 let first: Vec<String> = errors.iter().take(3).map(ToString::to_string).collect();
                 return Err(HostError::Frame(format!(

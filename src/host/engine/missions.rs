@@ -337,7 +337,7 @@ impl Host {
         let lands_first = mission
             .items
             .first()
-            .is_some_and(|p| p.item.behavior == "land");
+            .is_some_and(|p| p.behavior() == "land");
         let on_ground =
             platform.link == LinkHealth::Ok && !platform.armed && !platform.flight.is_airborne();
         if lands_first && on_ground {
@@ -387,7 +387,10 @@ impl Host {
                     cursor: loaded.progress.cursor,
                     finished: loaded.progress.finished,
                     warnings: loaded.mission.warnings.clone(),
-                    plan: with_plan.then(|| loaded.mission.as_written()),
+                    plan: with_plan
+                        .then(|| loaded.mission.as_written())
+                        .transpose()
+                        .map_err(|e| HostError::Unavailable(format!("mission {id}: {e}")))?,
                     progress: with_plan.then(|| progress_json(&loaded.progress)),
                 });
             }

@@ -386,15 +386,16 @@ impl MissionExecutor {
             }
             if let Some(current) = run.current.as_ref().filter(|c| c.index == index) {
                 let old = &self.loaded(id)?.mission.items[index];
-                if old.item.behavior != new.item.behavior {
+                if old.behavior() != new.behavior() {
                     return Err(refused(format!(
                         "item {index} is running {}; MODIFY in flight keeps the behavior (INSERT a new item and use NEXT_ITEM to change it)",
-                        old.item.behavior
+                        old.behavior()
                     )));
                 }
+                let goal = new.goal().map_err(|e| refused(e.to_string()))?;
                 core.command(BehaviorCommand::Modify {
                     id: current.id,
-                    goal: new.goal.clone(),
+                    goal,
                 })
                 .map_err(|e| refused(e.to_string()))?;
             }

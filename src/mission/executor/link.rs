@@ -125,7 +125,7 @@ impl MissionExecutor {
             .missions
             .get(&id)
             .and_then(|l| l.mission.items.get(wait.index))
-            .map(|i| i.item.behavior.clone())
+            .map(|i| i.behavior().to_string())
             .unwrap_or_default();
         let link_back =
             core.platform_status().link == LinkHealth::Ok && core.estimate().valid.position;

@@ -23,7 +23,9 @@ pub use link::{ExecutorConfig, LinkRegained};
 pub use loaded::{ExecutorMeta, ExecutorSnapshot, Loaded, Progress, MAX_MISSIONS};
 
 use super::model::{DoneResult, ExecState, ItemResult, MissionStatus, OnFailure};
-use crate::behavior::{BehaviorEvent, BehaviorId, BehaviorResult, FailureCode};
+use crate::behavior::{
+    BehaviorEvent, BehaviorId, BehaviorResult, Failure, FailureCode, ServerError,
+};
 use crate::core::{BehaviorCommand, DroneCore};
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
@@ -150,7 +152,11 @@ impl MissionExecutor {
         let cursor = loaded.progress.cursor.min(len);
         let active = self.run.is_some();
         let current_item = if active {
-            loaded.mission.items.get(cursor).map(|i| i.item.clone())
+            loaded
+                .mission
+                .items
+                .get(cursor)
+                .and_then(|i| i.written().ok())
         } else {
             None
         };
@@ -219,7 +225,7 @@ impl MissionExecutor {
                 .mission
                 .items
                 .get(index)
-                .map(|i| i.item.behavior.clone())
+                .map(|i| i.behavior().to_string())
                 .unwrap_or_default();
             l.progress.done.push(DoneResult {
                 item: index,
@@ -444,14 +450,17 @@ impl MissionExecutor {
                 self.complete(core);
                 return;
             };
-            let command = match item.parsed.clone() {
-                Some(goal) => BehaviorCommand::StartParsed(goal),
-                None => BehaviorCommand::Start {
-                    behavior: item.item.behavior.clone(),
-                    goal: item.goal.clone(),
-                },
+            // The goal is parsed again from the item as written, as the behavior starts.
+            let started = match item.goal() {
+                Ok(goal) => core.command(BehaviorCommand::Start {
+                    behavior: item.behavior().to_string(),
+                    goal,
+                }),
+                Err(e) => Err(ServerError::Rejected {
+                    behavior: item.behavior().to_string(),
+                    reason: Failure::invalid(e.to_string()),
+                }),
             };
-            let started = core.command(command);
             match started {
                 Ok(Some(behavior_id)) if item.options.wait => {
                     if let Some(run) = self.run.as_mut() {
@@ -483,7 +492,7 @@ impl MissionExecutor {
                     };
                     self.record(id, index, ItemResult::Failed, Some(reason.clone()), code);
                     if item.options.on_failure == OnFailure::Abort {
-                        self.fail(core, index, &item.item.behavior, &reason, code);
+                        self.fail(core, index, item.behavior(), &reason, code);
                         return;
                     }
                     self.with_progress(id, |p| p.cursor = index + 1);

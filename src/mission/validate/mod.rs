@@ -39,6 +39,35 @@ impl std::fmt::Display for ValidationError {
 }
 
 const TOP_LEVEL: [&str; 2] = ["target", "plan"];
+/// Most warnings a mission keeps; the rest are counted in one more. A warning per unknown field
+/// would let a mission hold ten times its JSON in words (issue 29, item 10).
+pub const MAX_WARNINGS: usize = 20;
+
+/// The warnings kept and how many more there were.
+#[derive(Default)]
+struct Warnings {
+    kept: Vec<String>,
+    more: usize,
+}
+
+impl Warnings {
+    fn push(&mut self, warning: impl FnOnce() -> String) {
+        if self.kept.len() < MAX_WARNINGS {
+            self.kept.push(warning());
+        } else {
+            self.more += 1;
+        }
+    }
+
+    fn into_list(mut self) -> Vec<String> {
+        if self.more > 0 {
+            self.kept
+                .push(format!("{} more warnings not listed", self.more));
+        }
+        self.kept
+    }
+}
+
 const ITEM_KEYS: [&str; 3] = ["behavior", "method", "args"];
 fn at(pointer: &str, message: impl Into<String>) -> ValidationError {
     ValidationError {
@@ -64,7 +93,7 @@ pub fn validate_value(
     ctx: &ValidationContext,
 ) -> Result<ValidMission, Vec<ValidationError>> {
     let mut errors = Vec::new();
-    let mut warnings = Vec::new();
+    let mut warnings = Warnings::default();
     let Some(obj) = value.as_object() else {
         return Err(vec![at(
             "",
@@ -72,7 +101,7 @@ pub fn validate_value(
         )]);
     };
     for key in obj.keys().filter(|k| !TOP_LEVEL.contains(&k.as_str())) {
-        warnings.push(format!("unknown top-level field `{key}` ignored"));
+        warnings.push(|| format!("unknown top-level field `{key}` ignored"));
     }
     let target = match obj.get("target") {
         Some(Value::String(t)) if t == ctx.drone_id => t.clone(),
@@ -136,7 +165,7 @@ pub fn validate_value(
         Ok(ValidMission {
             target,
             items,
-            warnings,
+            warnings: warnings.into_list(),
         })
     } else {
         Err(errors)
@@ -147,7 +176,7 @@ fn validate_item(
     raw: &Value,
     pointer: &str,
     ctx: &ValidationContext,
-    warnings: &mut Vec<String>,
+    warnings: &mut Warnings,
 ) -> Result<PlanItem, Vec<ValidationError>> {
     let Some(obj) = raw.as_object() else {
         return Err(vec![at(
@@ -156,7 +185,7 @@ fn validate_item(
         )]);
     };
     for key in obj.keys().filter(|k| !ITEM_KEYS.contains(&k.as_str())) {
-        warnings.push(format!("{pointer}: unknown field `{key}` ignored"));
+        warnings.push(|| format!("{pointer}: unknown field `{key}` ignored"));
     }
     let mut errors = Vec::new();
     let behavior = match obj.get("behavior") {
@@ -224,16 +253,12 @@ fn validate_item(
     let goal = Value::Object(canonical.goal.clone());
     let parsed = check_goal(&behavior, &goal, &canonical, &args_pointer, ctx)?;
     check_limits(&goal, parsed.summary(), &canonical, &args_pointer, ctx)?;
-    Ok(PlanItem {
-        item: MissionItem {
-            behavior,
-            method,
-            args,
-        },
-        goal,
-        options: canonical.options,
-        parsed: Some(parsed),
-    })
+    let written = MissionItem {
+        behavior,
+        method,
+        args,
+    };
+    PlanItem::new(&written, canonical.options).map_err(|e| vec![at(&args_pointer, e.to_string())])
 }
 
 /// `base` + `/` + `suffix`, where `suffix` is already a JSON pointer below `base`.
@@ -325,6 +350,18 @@ fn leading_key(message: &str, goal: &Value) -> Option<(String, Option<usize>)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn warnings_beyond_the_most_kept_are_counted_in_one() {
+        let mut warnings = Warnings::default();
+        for k in 0..MAX_WARNINGS + 5 {
+            warnings.push(|| format!("w{k}"));
+        }
+        let list = warnings.into_list();
+        assert_eq!(list.len(), MAX_WARNINGS + 1);
+        assert_eq!(list[0], "w0");
+        assert_eq!(list[MAX_WARNINGS], "5 more warnings not listed");
+    }
 
     #[test]
     fn pointer_tokens_are_escaped() {
