@@ -58,17 +58,7 @@ fn flying_feedback(position_m: Vec3) -> PlatformFeedback {
 
 /// A core flying `behavior` (started on a first tick), ready for timed ticks.
 fn busy_core(behavior: &str, goal: serde_json::Value) -> (DroneCore, PlatformFeedback) {
-    let sim_capabilities = Capabilities {
-        setpoints: kestrel::control::AcceptedSetpoints {
-            velocity: true,
-            position: true,
-            position_loop: None,
-        },
-        native_takeoff: false,
-        native_land: false,
-        velocity_lag_s: None,
-        velocity_overshoot: None,
-    };
+    let sim_capabilities = Capabilities::setpoints_only();
     let mut core = DroneCore::new(
         CoreConfig::new("drone_0"),
         sim_capabilities,

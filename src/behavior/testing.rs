@@ -2,7 +2,6 @@
 
 use super::services::ServiceDesk;
 use super::{BehaviorConfig, BehaviorContext};
-use crate::control::AcceptedSetpoints;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
 use crate::exploration::online::settings::ExplorationSettings;
@@ -50,17 +49,7 @@ impl Scene {
             origin: GeodeticOrigin::default(),
             config: BehaviorConfig::default(),
             exploration: ExplorationSettings::default(),
-            capabilities: Capabilities {
-                setpoints: AcceptedSetpoints {
-                    velocity: true,
-                    position: true,
-                    position_loop: None,
-                },
-                native_takeoff: false,
-                native_land: false,
-                velocity_lag_s: None,
-                velocity_overshoot: None,
-            },
+            capabilities: Capabilities::setpoints_only(),
             dt_s: 1.0,
             held_at_enu_m: None,
             request_results: Vec::new(),

@@ -24,7 +24,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use kestrel::config::vehicles::same_endpoint;
 use kestrel::config::Config;
-use kestrel::control::{AcceptedSetpoints, Setpoint};
+use kestrel::control::Setpoint;
 use kestrel::core::{CoreConfig, DroneCore};
 use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::estimator::EstimatorPlugin;
@@ -123,20 +123,10 @@ const SIM_STEP: Duration = Duration::from_millis(5);
 
 impl Platform for RealtimeSim {
     fn capabilities(&self) -> Capabilities {
-        self.world.vehicles.first().map_or(
-            Capabilities {
-                setpoints: AcceptedSetpoints {
-                    velocity: true,
-                    position: true,
-                    position_loop: None,
-                },
-                native_takeoff: false,
-                native_land: false,
-                velocity_lag_s: None,
-                velocity_overshoot: None,
-            },
-            |v| v.capabilities(),
-        )
+        self.world
+            .vehicles
+            .first()
+            .map_or(Capabilities::setpoints_only(), |v| v.capabilities())
     }
 
     fn poll(&mut self, now: Duration) -> PlatformFeedback {

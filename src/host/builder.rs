@@ -87,24 +87,14 @@ mod tests {
     use crate::behavior::Registry;
     use crate::core::CoreConfig;
     use crate::platform::{Capabilities, PlatformFeedback, PlatformRequest};
-    use crate::types::{AcceptedSetpoints, Setpoint, Vec3};
+    use crate::types::{Setpoint, Vec3};
 
     /// A vehicle that stays on the ground and reports nothing: what hosting needs of one.
     struct Grounded;
 
     impl Platform for Grounded {
         fn capabilities(&self) -> Capabilities {
-            Capabilities {
-                setpoints: AcceptedSetpoints {
-                    velocity: true,
-                    position: true,
-                    position_loop: None,
-                },
-                native_takeoff: false,
-                native_land: false,
-                velocity_lag_s: None,
-                velocity_overshoot: None,
-            }
+            Capabilities::setpoints_only()
         }
         fn poll(&mut self, _now: Duration) -> PlatformFeedback {
             PlatformFeedback::default()

@@ -78,17 +78,7 @@ mod tests {
 
     impl Platform for Local {
         fn capabilities(&self) -> Capabilities {
-            Capabilities {
-                setpoints: crate::types::AcceptedSetpoints {
-                    velocity: true,
-                    position: true,
-                    position_loop: None,
-                },
-                native_takeoff: false,
-                native_land: false,
-                velocity_lag_s: None,
-                velocity_overshoot: None,
-            }
+            Capabilities::setpoints_only()
         }
         fn poll(&mut self, _now: Duration) -> PlatformFeedback {
             let pose = Pose {

@@ -14,10 +14,10 @@ use crate::types::RangeScan;
 use crate::types::{
     wrap_angle_rad, Battery, FlightStatus, LinkHealth, PlatformStatus, Pose, Validity, Vec3,
 };
-use crate::types::{AcceptedSetpoints, Setpoint, YawTarget};
 use crate::types::{
     Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest, RequestRefused, RequestResult,
 };
+use crate::types::{Setpoint, YawTarget};
 use std::time::Duration;
 
 /// Offboard ends (and the vehicle holds) when no setpoint came for this long, as on PX4.
@@ -288,17 +288,7 @@ impl SimVehicle {
 
 impl Platform for SimVehicle {
     fn capabilities(&self) -> Capabilities {
-        Capabilities {
-            setpoints: AcceptedSetpoints {
-                velocity: true,
-                position: true,
-                position_loop: None,
-            },
-            native_takeoff: false,
-            native_land: false,
-            velocity_lag_s: None,
-            velocity_overshoot: None,
-        }
+        Capabilities::setpoints_only()
     }
 
     fn poll(&mut self, now: Duration) -> PlatformFeedback {

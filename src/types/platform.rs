@@ -53,6 +53,24 @@ pub struct Capabilities {
     pub velocity_overshoot: Option<f64>,
 }
 
+impl Capabilities {
+    /// A platform that takes velocity and position setpoints, closes no position loop of its
+    /// own, takes off and lands on setpoints and flies what it is sent (the simulator's).
+    pub fn setpoints_only() -> Self {
+        Self {
+            setpoints: AcceptedSetpoints {
+                velocity: true,
+                position: true,
+                position_loop: None,
+            },
+            native_takeoff: false,
+            native_land: false,
+            velocity_lag_s: None,
+            velocity_overshoot: None,
+        }
+    }
+}
+
 /// Everything the platform reports for one tick.
 #[derive(Debug, Clone, Default)]
 pub struct PlatformFeedback {

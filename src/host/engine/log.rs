@@ -92,7 +92,7 @@ mod tests {
     use super::*;
     use crate::behavior::{BehaviorEvent, Registry};
     use crate::core::CoreConfig;
-    use crate::types::{AcceptedSetpoints, Capabilities, Vec3};
+    use crate::types::{Capabilities, Vec3};
     use std::io::Write;
     use std::sync::{Arc, Mutex};
 
@@ -124,17 +124,7 @@ mod tests {
     }
 
     fn core() -> DroneCore {
-        let capabilities = Capabilities {
-            setpoints: AcceptedSetpoints {
-                velocity: true,
-                position: true,
-                position_loop: None,
-            },
-            native_takeoff: false,
-            native_land: false,
-            velocity_lag_s: None,
-            velocity_overshoot: None,
-        };
+        let capabilities = Capabilities::setpoints_only();
         DroneCore::new(
             CoreConfig::new("drone_0"),
             capabilities,
