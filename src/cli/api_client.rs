@@ -6,6 +6,7 @@
 
 use anyhow::{bail, Context, Result};
 use serde_json::{json, Value};
+use std::path::Path;
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -140,5 +141,41 @@ pub async fn run(remote: Remote, mission: Value) -> Result<()> {
             println!("{drone}: mission {id} succeeded");
             return Ok(());
         }
+    }
+}
+
+/// The API token a command presents: `--token` as given, else the text of
+/// `--token-file` trimmed, else none.
+pub fn token(token: Option<&str>, file: Option<&Path>) -> Result<Option<String>> {
+    match (token, file) {
+        (Some(t), _) => Ok(Some(t.to_string())),
+        (None, Some(f)) => Ok(Some(
+            std::fs::read_to_string(f)
+                .with_context(|| format!("cannot read {}", f.display()))?
+                .trim()
+                .to_string(),
+        )),
+        (None, None) => Ok(None),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_token_is_the_flag_else_the_files_text_trimmed_else_none() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("token");
+        std::fs::write(&file, "  s3cret\n").unwrap();
+        assert_eq!(
+            token(Some("flag"), Some(&file)).unwrap().as_deref(),
+            Some("flag")
+        );
+        assert_eq!(token(None, Some(&file)).unwrap().as_deref(), Some("s3cret"));
+        assert_eq!(token(None, None).unwrap(), None);
+        let missing = dir.path().join("absent");
+        let e = token(None, Some(&missing)).unwrap_err();
+        assert!(format!("{e:#}").contains("absent"), "{e:#}");
     }
 }

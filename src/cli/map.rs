@@ -60,16 +60,7 @@ fn export(args: &ExportArgs) -> Result<()> {
 
 /// `GET /api/map` from the running Kestrel.
 fn fetch(args: &ExportArgs) -> Result<Value> {
-    let token = match (&args.token, &args.token_file) {
-        (Some(t), _) => Some(t.clone()),
-        (None, Some(f)) => Some(
-            std::fs::read_to_string(f)
-                .with_context(|| format!("cannot read {}", f.display()))?
-                .trim()
-                .to_string(),
-        ),
-        (None, None) => None,
-    };
+    let token = super::api_client::token(args.token.as_deref(), args.token_file.as_deref())?;
     let remote = crate::cli::api_client::Remote::new(&args.from, token)?;
     let path = match &args.drone {
         Some(d) => format!("/api/map?drone={d}"),

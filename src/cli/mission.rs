@@ -103,16 +103,7 @@ pub fn run(command: MissionCommand) -> Result<()> {
 }
 
 fn remote(a: RunArgs) -> Result<()> {
-    let token = match (&a.token, &a.token_file) {
-        (Some(t), _) => Some(t.clone()),
-        (None, Some(f)) => Some(
-            std::fs::read_to_string(f)
-                .with_context(|| format!("cannot read {}", f.display()))?
-                .trim()
-                .to_string(),
-        ),
-        (None, None) => None,
-    };
+    let token = super::api_client::token(a.token.as_deref(), a.token_file.as_deref())?;
     let remote = crate::cli::api_client::Remote::new(a.api.as_deref().unwrap_or_default(), token)?;
     let text = std::fs::read_to_string(&a.file)
         .with_context(|| format!("cannot read {}", a.file.display()))?;
