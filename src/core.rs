@@ -15,7 +15,7 @@ use crate::behavior::{
 use crate::control::{Controller, ControllerConfig, MotionReference, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::estimator::map_correction::{MapCorrection, MapCorrectionSettings};
+use crate::estimator::map_correction::{FitQuality, MapCorrection, MapCorrectionSettings};
 use crate::estimator::{self, Estimator, EstimatorPlugin};
 use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
@@ -416,10 +416,15 @@ impl DroneCore {
             let now_s = self.now.as_secs_f64();
             correction.predict(dt_s);
             correction.add_hits(now_s, scans.iter().flat_map(hits_of));
-            let settled_before_s = now_s - correction.settings().settle_s;
+            let settle_s = correction.settings().settle_s;
             correction.fit(now_s, |hits, offset| {
-                let fit = map.fit_score(hits, offset, settled_before_s);
-                (fit.score, fit.span_m)
+                let fit = map.fit_score(hits, offset, now_s, settle_s);
+                FitQuality {
+                    score: fit.score,
+                    span_m: fit.span_m,
+                    age_s: fit.age_s,
+                    on_obstacles: fit.on_obstacles,
+                }
             });
         }
         self.state = reported;

@@ -4,21 +4,24 @@
 //!
 //! In: time steps while flying, the hits of the range sensor (ENU m, placed at the reported
 //! pose), and a score of how well the hits, moved by an offset, fit the map
-//! (`mapping::registration`: on obstacles it has held for a while, not in space it holds free). Out: the offset (ENU m, horizontal) the core adds to
-//! the reported position before mapping, planning and control, and subtracts from every
-//! position setpoint it sends. The reported estimate is never changed: the correction is
-//! Kestrel's own, so it works the same over the simulator and over an autopilot that drifts.
+//! (`mapping::registration`: on obstacles it has held for a while, not in space it holds free).
+//! Out: the offset (ENU m, horizontal) the core adds to the reported position before mapping,
+//! planning and control, and subtracts from every position setpoint it sends. The reported
+//! estimate is never changed: the correction is Kestrel's own, so it works the same over the
+//! simulator and over an autopilot that drifts.
 //!
-//! Every [`FIT_PERIOD_S`] the hits of the last [`WINDOW_S`] are fitted: every offset on a
-//! [`FIT_STEP_M`] grid around the current one is tried, within three standard deviations of the
-//! filter's offset (at most `search_radius_m`: a confident filter does not look for a far fit, a
-//! pole's far face mapped by another drone), and the offsets of the best score (at least
-//! `min_hits` and [`MIN_FIT_SHARE`] of the hits, resting on obstacles `min_span_m` apart, and
-//! all close together) give the measured offset, their mean, when they score clearly better
-//! than the offset as it is ([`MIN_GAIN_SHARE`]); else the fit confirms the offset. A Kalman filter of the 2D offset takes it: the offset wanders as
-//! a drift does (process noise from the drift speed the settings expect), a fit far from the
-//! filter's offset is clipped to [`CLIP_SIGMAS`] standard deviations (one wrong fit moves it
-//! little), and the offset never exceeds `max_offset_m` (past it, a fit is wrong, not the drift).
+//! Every [`FIT_PERIOD_S`] the hits of the last [`WINDOW_S`] are fitted: every offset within
+//! `search_radius_m` of the current one is tried, on a [`COARSE_STEP_M`] grid and then a
+//! [`FIT_STEP_M`] one around the best, and the offsets of the best score (at least `min_hits`
+//! and [`MIN_FIT_SHARE`] of the hits, resting on obstacles `min_span_m` apart, all close
+//! together) give the measured offset, their mean, when they score clearly better than the
+//! offset as it is ([`MIN_GAIN_SHARE`]); else the fit confirms the offset. Obstacles mapped long
+//! ago weigh most (`mapping::registration`), and the older the map a fit rests on, the more the
+//! drift since may have moved the offset: the filter trusts its own offset that much less.
+//! A Kalman filter of the 2D offset takes the fits: the offset wanders as a drift does (process
+//! noise from the drift speed expected), a fit far from the filter's offset is clipped to
+//! [`CLIP_SIGMAS`] standard deviations (one wrong fit moves it little), and the offset never
+//! exceeds `max_offset_m` (past it, a fit is wrong, not the drift).
 
 use crate::types::{Vec2, Vec3};
 use nalgebra::Matrix2;
@@ -29,8 +32,10 @@ use std::collections::VecDeque;
 pub const FIT_PERIOD_S: f64 = 0.5;
 /// The hits of this long are fitted at once (s): several faces seen, few of them mapped since.
 pub const WINDOW_S: f64 = 3.0;
-/// The grid of offsets tried (m): half a map cell of the usual 0.1 m.
-pub const FIT_STEP_M: f64 = 0.05;
+/// The grids of offsets tried (m): a map cell of the usual 0.1 m over the whole search, then a
+/// quarter of one around the best.
+pub const COARSE_STEP_M: f64 = 0.1;
+pub const FIT_STEP_M: f64 = 0.025;
 /// Innovations beyond this many standard deviations are clipped to it.
 pub const CLIP_SIGMAS: f64 = 2.5;
 /// How far a fit may be off the true offset (m, one standard deviation): the map's cells and
@@ -45,7 +50,9 @@ const MIN_FIT_SHARE: f64 = 0.3;
 /// (at least [`MIN_GAIN_HITS`]): else it confirms the offset. Small gains by chance otherwise
 /// walk the offset off, and the map drawn at a wrong offset then holds it there.
 const MIN_GAIN_SHARE: f64 = 0.2;
-const MIN_GAIN_HITS: i64 = 3;
+const MIN_GAIN_HITS: f64 = 3.0;
+/// Scores this close are as good (the weights of hits are fractions).
+const TIE: f64 = 1e-9;
 /// The process noise per second is the drift speed squared times this (s): the offset's spread
 /// grows as a random walk's of steps this long. Over the second or two between fits it allows
 /// about the drift speed times that; over a minute without fits, 0.33 m at 3 cm/s (less than a
@@ -67,12 +74,12 @@ pub struct MapCorrectionSettings {
     /// Only obstacles occupied at least this long count (s, 3..=600, not less than the 3 s
     /// of hits fitted): newer ones are where the drifting estimate put them.
     pub settle_s: f64,
-    /// Offsets are tried at most this far around the current one (m, 0.1..=2).
+    /// Offsets are tried this far around the current one (m, 0.1..=2): as far as the drift may
+    /// go between two visits of a place.
     pub search_radius_m: f64,
     /// The offset never grows beyond this (m, 0.1..=100).
     pub max_offset_m: f64,
-    /// A fit counts with a score of at least this (1..=1000): so many more hits on mapped
-    /// obstacles than in free space.
+    /// A fit counts with at least this many hits on obstacles mapped a while ago (1..=1000).
     pub min_hits: u32,
     /// A fit counts when its hits on mapped obstacles lie at least this far apart (m, 0..=20, the
     /// diagonal of their box): it rests on two obstacles at least, not on one pole, whose far
@@ -86,7 +93,7 @@ impl Default for MapCorrectionSettings {
             enabled: true,
             drift_mps: None,
             settle_s: 5.0,
-            search_radius_m: 0.4,
+            search_radius_m: 1.0,
             max_offset_m: 10.0,
             min_hits: 10,
             min_span_m: 1.0,
@@ -132,14 +139,74 @@ impl MapCorrectionSettings {
     }
 }
 
+/// How well hits fit the map at one offset.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FitQuality {
+    /// The hits on obstacles mapped a while ago (weighted), less those in free space.
+    pub score: f64,
+    /// How far apart the hits on obstacles lie (m).
+    pub span_m: f64,
+    /// How long ago the obstacles they hit were mapped (s, their mean).
+    pub age_s: f64,
+    /// How many hits fall on obstacles mapped a while ago, whatever their weight.
+    pub on_obstacles: usize,
+}
+
 /// One fit of the hits to the map.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fit {
     /// The offset of the best score (ENU m).
     pub offset_m: Vec2,
-    /// Its score, of how many hits.
-    pub score: i64,
+    pub quality: FitQuality,
+    /// Of how many hits.
     pub hits: usize,
+}
+
+/// The best quality of the offsets on a grid of `step_m` within `radius_m` of `center`, and the
+/// offsets that have it; `None` without hits.
+fn best_on_grid(
+    hits: &[Vec2],
+    score: impl Fn(&[Vec2], Vec2) -> FitQuality,
+    center: Vec2,
+    radius_m: f64,
+    step_m: f64,
+) -> Option<(FitQuality, Vec<Vec2>)> {
+    if hits.is_empty() {
+        return None;
+    }
+    let reach = (radius_m / step_m).floor() as i32;
+    let mut best: Option<FitQuality> = None;
+    let mut at: Vec<Vec2> = Vec::new();
+    for i in -reach..=reach {
+        for j in -reach..=reach {
+            let step = Vec2::new(f64::from(i), f64::from(j)) * step_m;
+            if step.norm() > radius_m + 1e-9 {
+                continue;
+            }
+            let offset = center + step;
+            let q = score(hits, offset);
+            match best {
+                Some(b) if q.score < b.score - TIE => continue,
+                Some(b) if q.score <= b.score + TIE => {
+                    // As good: the fit rests on the smaller span of the two.
+                    best = Some(FitQuality {
+                        span_m: b.span_m.min(q.span_m),
+                        ..b
+                    });
+                }
+                _ => {
+                    best = Some(q);
+                    at.clear();
+                }
+            }
+            at.push(offset);
+        }
+    }
+    best.map(|b| (b, at))
+}
+
+fn mean(points: &[Vec2]) -> Vec2 {
+    points.iter().sum::<Vec2>() / points.len().max(1) as f64
 }
 
 /// The offset from the reported position to the map's frame, and its uncertainty.
@@ -196,15 +263,15 @@ impl MapCorrection {
     }
 
     /// When one is due, fits the recent hits to the map and takes the fit. `score`: how well
-    /// the hits, moved by an offset, fit the map, and how far apart (m) the hits that fit lie.
-    pub fn fit(&mut self, now_s: f64, score: impl Fn(&[Vec2], Vec2) -> (i64, f64)) -> Option<Fit> {
+    /// the hits, moved by an offset, fit the map.
+    pub fn fit(&mut self, now_s: f64, score: impl Fn(&[Vec2], Vec2) -> FitQuality) -> Option<Fit> {
         if now_s < self.next_fit_s || self.settings.drift_mps() <= 0.0 {
             return None;
         }
         self.next_fit_s = now_s + FIT_PERIOD_S;
         let hits: Vec<Vec2> = self.hits.iter().map(|(_, h)| *h).collect();
         let fit = self.best_offset(&hits, score)?;
-        self.take(fit.offset_m);
+        self.take(fit.offset_m, fit.quality.age_s);
         Some(fit)
     }
 
@@ -213,70 +280,55 @@ impl MapCorrection {
     fn best_offset(
         &self,
         hits: &[Vec2],
-        score: impl Fn(&[Vec2], Vec2) -> (i64, f64),
+        score: impl Fn(&[Vec2], Vec2) -> FitQuality,
     ) -> Option<Fit> {
-        let radius_m = self.search_radius_m();
-        let reach = (radius_m / FIT_STEP_M).floor() as i32;
-        let mut best = i64::MIN;
-        let mut span_m = f64::INFINITY;
-        let mut at: Vec<Vec2> = Vec::new();
-        let (here, _) = score(hits, self.offset_m);
-        for i in -reach..=reach {
-            for j in -reach..=reach {
-                let step = Vec2::new(f64::from(i), f64::from(j)) * FIT_STEP_M;
-                if step.norm() > radius_m + 1e-9 {
-                    continue;
-                }
-                let offset = self.offset_m + step;
-                let (n, span) = score(hits, offset);
-                if n > best {
-                    best = n;
-                    span_m = f64::INFINITY;
-                    at.clear();
-                }
-                if n == best {
-                    span_m = span_m.min(span);
-                    at.push(offset);
-                }
-            }
-        }
-        let enough = i64::from(self.settings.min_hits)
-            .max((MIN_FIT_SHARE * hits.len() as f64).ceil() as i64);
-        if best < enough || span_m < self.settings.min_span_m {
+        let here = score(hits, self.offset_m);
+        // Coarse, a map cell a step, over the whole radius; then fine around the best.
+        let coarse = best_on_grid(
+            hits,
+            &score,
+            self.offset_m,
+            self.settings.search_radius_m,
+            COARSE_STEP_M,
+        );
+        let (_, coarse_at) = coarse?;
+        let coarse_mean = mean(&coarse_at);
+        if coarse_at
+            .iter()
+            .any(|o| (o - coarse_mean).norm() > FIT_SPREAD_M)
+        {
             return None;
         }
-        let gain = MIN_GAIN_HITS.max((MIN_GAIN_SHARE * best as f64).ceil() as i64);
-        if best - here < gain {
+        let (best, at) = best_on_grid(hits, &score, coarse_mean, COARSE_STEP_M, FIT_STEP_M)?;
+        let enough = f64::from(self.settings.min_hits).max(MIN_FIT_SHARE * hits.len() as f64);
+        if (best.on_obstacles as f64) < enough || best.span_m < self.settings.min_span_m {
+            return None;
+        }
+        let gain = MIN_GAIN_HITS.max(MIN_GAIN_SHARE * best.score);
+        if best.score - here.score < gain {
             return Some(Fit {
                 offset_m: self.offset_m,
-                score: here,
+                quality: here,
                 hits: hits.len(),
             });
         }
-        let mean = at.iter().sum::<Vec2>() / at.len() as f64;
-        if at.iter().any(|o| (o - mean).norm() > FIT_SPREAD_M) {
+        let measured = mean(&at);
+        if at.iter().any(|o| (o - measured).norm() > FIT_SPREAD_M) {
             return None;
         }
         Some(Fit {
-            offset_m: mean,
-            score: best,
+            offset_m: measured,
+            quality: best,
             hits: hits.len(),
         })
     }
 
-    /// Three standard deviations of the offset and of a fit, within two steps of the grid and
-    /// `search_radius_m`.
-    fn search_radius_m(&self) -> f64 {
-        let p = self.cov_m2;
-        let half_trace = (p[(0, 0)] + p[(1, 1)]) / 2.0;
-        let largest =
-            half_trace + (((p[(0, 0)] - p[(1, 1)]) / 2.0).powi(2) + p[(0, 1)].powi(2)).sqrt();
-        (3.0 * (largest + FIT_SIGMA_M.powi(2)).sqrt())
-            .clamp(2.0 * FIT_STEP_M, self.settings.search_radius_m)
-    }
-
-    /// The Kalman update with a measured offset, clipped and bounded.
-    fn take(&mut self, measured_m: Vec2) {
+    /// The Kalman update with a measured offset, clipped and bounded. The map the fit rests on
+    /// was drawn `age_s` ago (on average): the drift since may have moved the offset that much
+    /// more, which the filter's uncertainty is widened by first.
+    fn take(&mut self, measured_m: Vec2, age_s: f64) {
+        let since = self.settings.drift_mps() * age_s.max(0.0);
+        self.cov_m2 += Matrix2::identity() * (since.powi(2) / 2.0);
         let s = self.cov_m2 + Matrix2::identity() * FIT_SIGMA_M.powi(2);
         let Some(s_inv) = s.try_inverse() else {
             return;
@@ -329,12 +381,31 @@ mod tests {
             .collect()
     }
 
-    /// The hits on the walls, and the walls are 4 m apart.
-    fn count(hits: &[Vec2], offset: Vec2) -> (i64, f64) {
-        (
-            hits.iter().filter(|&&h| on_wall(h + offset)).count() as i64,
-            4.0,
-        )
+    /// The hits on the walls, which are 4 m apart and were mapped a minute ago.
+    fn count(hits: &[Vec2], offset: Vec2) -> FitQuality {
+        let n = hits.iter().filter(|&&h| on_wall(h + offset)).count();
+        FitQuality {
+            score: n as f64,
+            span_m: 4.0,
+            age_s: 60.0,
+            on_obstacles: n,
+        }
+    }
+
+    /// All the hits fit at `at` (within 3 cm), half of them anywhere else; the map just drawn.
+    fn peak(at: Vec2) -> impl Fn(&[Vec2], Vec2) -> FitQuality {
+        move |h: &[Vec2], o: Vec2| {
+            let all = h.len() as f64;
+            FitQuality {
+                score: if (o - at).norm() < 0.03 {
+                    all
+                } else {
+                    all / 2.0
+                },
+                span_m: 4.0,
+                age_s: 0.0,
+            }
+        }
     }
 
     #[test]
@@ -359,7 +430,7 @@ mod tests {
     }
 
     #[test]
-    fn without_drift_the_offset_stays_and_a_lone_wrong_fit_moves_it_little_or_not_at_all() {
+    fn without_drift_the_offset_stays_and_a_lone_wrong_fit_moves_it_little() {
         let mut c = MapCorrection::new(settings());
         let mut t = 0.0;
         for _ in 0..100 {
@@ -369,38 +440,11 @@ mod tests {
             c.fit(t, count);
         }
         assert!(offset(&c).norm() < 0.03, "{}", offset(&c));
-        // One fit says 0.15 m east, as far as a confident filter looks.
+        // One fit says 0.4 m east, on a map as new: clipped.
         t += 1.0;
         c.predict(0.1);
-        let far = |h: &[Vec2], o: Vec2| {
-            let all = h.len() as i64;
-            let n = if (o - Vec2::new(0.15, 0.0)).norm() < 0.03 {
-                all
-            } else {
-                all / 2
-            };
-            (n, 4.0)
-        };
-        assert!(c.fit(t, far).is_some());
-        assert!(offset(&c).norm() < 0.08, "{}", offset(&c));
-        // Far beyond: not even tried.
-        t += 1.0;
-        let farther = |h: &[Vec2], o: Vec2| {
-            let all = h.len() as i64;
-            let n = if (o - Vec2::new(0.4, 0.0)).norm() < 0.03 {
-                all
-            } else {
-                all / 2
-            };
-            (n, 4.0)
-        };
-        let before = c.offset_m();
-        assert_eq!(
-            c.fit(t, farther).map(|f| f.offset_m.x),
-            Some(before.x),
-            "confirms"
-        );
-        assert_eq!(c.offset_m(), before);
+        assert!(c.fit(t, peak(Vec2::new(0.4, 0.0))).is_some());
+        assert!(offset(&c).norm() < 0.15, "{}", offset(&c));
     }
 
     #[test]
@@ -415,13 +459,42 @@ mod tests {
         let two = |_: &[Vec2], o: Vec2| {
             let east = (o - Vec2::new(0.3, 0.0)).norm() < 1e-3;
             let west = (o + Vec2::new(0.3, 0.0)).norm() < 1e-3;
-            (i64::from(east || west) * 40, 4.0)
+            FitQuality {
+                score: if east || west { 40.0 } else { 0.0 },
+                span_m: 4.0,
+                age_s: 0.0,
+                on_obstacles: if east || west { 40 } else { 0 },
+            }
         };
         assert_eq!(c.fit(1.0, two), None);
         // Many hits, on one pole: its far face fits as well.
-        let one_pole = |h: &[Vec2], o: Vec2| (count(h, o).0, 0.6);
+        let one_pole = |h: &[Vec2], o: Vec2| FitQuality {
+            span_m: 0.6,
+            ..count(h, o)
+        };
         assert_eq!(c.fit(2.0, one_pole), None);
         assert_eq!(c.offset_m(), Vec3::zeros());
+    }
+
+    #[test]
+    fn a_fit_to_a_map_drawn_long_ago_is_taken_at_once() {
+        let mut c = MapCorrection::new(settings());
+        let mut t = 0.0;
+        for _ in 0..30 {
+            t += 0.1;
+            c.predict(0.1);
+            c.add_hits(t, hits(Vec2::zeros()));
+            c.fit(t, count);
+        }
+        // Back among walls mapped a minute ago, 0.8 m off them: a minute at 3 cm/s allows it.
+        t += 5.0;
+        c.add_hits(t, hits(Vec2::new(0.8, 0.0)));
+        assert!(c.fit(t, count).is_some());
+        assert!(
+            (offset(&c) + Vec2::new(0.8, 0.0)).norm() < 0.05,
+            "{}",
+            offset(&c)
+        );
     }
 
     #[test]

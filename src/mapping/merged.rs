@@ -337,20 +337,22 @@ mod tests {
         let hit = [Vector2::new(0.85, 0.05)];
         let east = Vector2::new(0.2, 0.0);
         assert_eq!(
-            m.reference().fit_score(&hit, east, 1.9).score,
-            0,
+            m.reference().fit_score(&hit, east, 6.9, 5.0).score,
+            0.0,
             "not settled"
         );
-        assert_eq!(m.reference().fit_score(&hit, east, 2.0).score, 1);
+        assert_eq!(m.reference().fit_score(&hit, east, 62.0, 5.0).score, 1.0);
         assert_eq!(
-            m.reference().fit_score(&hit, Vector2::zeros(), 2.0).score,
-            -1,
+            m.reference()
+                .fit_score(&hit, Vector2::zeros(), 62.0, 5.0)
+                .score,
+            -0.5,
             "seen free"
         );
         // Stamped once: a later stamp keeps when it became occupied.
         m.insert("drone_0", &scan_from(0.05, 0.05, 1.0)).unwrap();
         m.stamp(Duration::from_secs(9));
-        assert_eq!(m.reference().fit_score(&hit, east, 2.0).score, 1);
+        assert_eq!(m.reference().fit_score(&hit, east, 62.0, 5.0).score, 1.0);
     }
 
     #[test]

@@ -76,49 +76,74 @@ pub struct Reference<'a> {
     pub occupied_threshold: i8,
 }
 
+/// A hit on an obstacle mapped this long ago or longer counts fully (s); younger ones count in
+/// proportion: where a drone's own recent map and an older one disagree (its estimate drifted in
+/// between), the older one wins, and a drone drawing new ground alone does not lock on the
+/// map it has just drawn.
+pub const FULL_WEIGHT_AGE_S: f64 = 30.0;
+/// What a hit in space the map holds free counts (against).
+const FREE_HIT: f64 = -0.5;
+
 /// How well hits fit the map at one offset.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FitScore {
-    /// One for each hit on a settled obstacle, less one for each in free space.
-    pub score: i64,
+    /// For each hit on a settled obstacle, its weight by age (at most one), less a half for
+    /// each in free space.
+    pub score: f64,
     /// The diagonal of the box around the hits on settled obstacles (m): how far apart the
     /// obstacles are that the fit rests on.
     pub span_m: f64,
+    /// How long ago the settled obstacles hit became so (s, the mean of their weighted ages).
+    pub age_s: f64,
+    /// How many hits fall on settled obstacles, whatever their age.
+    pub on_obstacles: usize,
 }
 
 impl Reference<'_> {
-    /// How well `hits`, moved by `offset_m`, fit the map: one for each in a cell occupied since
-    /// `settled_before_s` or earlier, less one for each in a cell the map holds free (a hit
-    /// where a beam went through before). A hit in unseen space, or on an obstacle mapped only
-    /// lately, counts nothing.
+    /// How well `hits`, moved by `offset_m`, fit the map at `now_s`: for each in a cell
+    /// occupied for `settle_s` or longer, its age over [`FULL_WEIGHT_AGE_S`] (at most one), less
+    /// a half for each in a cell the map holds free (a hit where a beam went through before). A
+    /// hit in unseen space, or on an obstacle mapped only lately, counts nothing.
     pub fn fit_score(
         &self,
         hits: &[Vector2<f64>],
         offset_m: Vector2<f64>,
-        settled_before_s: f64,
+        now_s: f64,
+        settle_s: f64,
     ) -> FitScore {
         let spec = self.grid.spec();
-        let mut score = 0;
+        let mut score = 0.0;
+        let (mut weights, mut weighted_age_s, mut on_obstacles) = (0.0, 0.0, 0);
         let mut corners: Option<(Vector2<f64>, Vector2<f64>)> = None;
         for &h in hits {
             let p = h + offset_m;
             let Some(i) = spec.cell_at(p).and_then(|c| spec.index_of(c)) else {
                 continue;
             };
-            let settled = |i: usize| self.since.get(i).is_some_and(|s| s <= settled_before_s);
+            let age_s = self.since.get(i).map_or(0.0, |since| now_s - since);
             match self.grid.data().get(i) {
-                Some(&v) if v >= self.occupied_threshold && settled(i) => {
-                    score += 1;
+                Some(&v) if v >= self.occupied_threshold && age_s >= settle_s => {
+                    let weight = (age_s / FULL_WEIGHT_AGE_S).min(1.0);
+                    score += weight;
+                    weights += weight;
+                    weighted_age_s += weight * age_s;
+                    on_obstacles += 1;
                     corners = Some(corners.map_or((p, p), |(lo, hi)| (lo.inf(&p), hi.sup(&p))));
                 }
                 Some(&v) if v >= self.occupied_threshold => {}
-                Some(&v) if v != UNKNOWN => score -= 1,
+                Some(&v) if v != UNKNOWN => score += FREE_HIT,
                 _ => {}
             }
         }
         FitScore {
             score,
             span_m: corners.map_or(0.0, |(lo, hi)| (hi - lo).norm()),
+            age_s: if weights > 0.0 {
+                weighted_age_s / weights
+            } else {
+                0.0
+            },
+            on_obstacles,
         }
     }
 }
@@ -165,23 +190,24 @@ mod tests {
             .map(|k| Vector2::new(1.85, f64::from(k) / 10.0 + 0.05))
             .collect();
         assert_eq!(
-            r.fit_score(&hits, Vector2::zeros(), 10.0).score,
-            -10,
+            r.fit_score(&hits, Vector2::zeros(), 100.0, 5.0).score,
+            -5.0,
             "all in free space"
         );
-        let on = r.fit_score(&hits, Vector2::new(0.2, 0.0), 10.0);
-        assert_eq!(on.score, 10);
+        let on = r.fit_score(&hits, Vector2::new(0.2, 0.0), 100.0, 5.0);
+        assert_eq!(on.score, 10.0);
         assert!(
             (on.span_m - 0.9).abs() < 1e-9,
             "hits 1.55 to 2.45 m: {on:?}"
         );
         assert_eq!(
-            r.fit_score(&hits, Vector2::new(0.2, 0.32), 10.0).score,
-            7 - 3
+            r.fit_score(&hits, Vector2::new(0.2, 0.32), 100.0, 5.0)
+                .score,
+            7.0 - 1.5
         );
         assert_eq!(
-            r.fit_score(&hits, Vector2::new(0.2, 0.0), -1.0).score,
-            0,
+            r.fit_score(&hits, Vector2::new(0.2, 0.0), 4.0, 5.0).score,
+            0.0,
             "not settled"
         );
         let mut unseen = g.clone();
@@ -192,8 +218,9 @@ mod tests {
         }
         let r = reference(&unseen, &since);
         assert_eq!(
-            r.fit_score(&hits, Vector2::new(0.2, 0.32), 10.0).score,
-            7,
+            r.fit_score(&hits, Vector2::new(0.2, 0.32), 100.0, 5.0)
+                .score,
+            7.0,
             "unseen: nothing"
         );
     }
@@ -212,8 +239,17 @@ mod tests {
         assert_eq!(since.get(i), Some(7.0), "occupied since 7 s");
         let hit = [Vector2::new(2.05, 2.05)];
         let r = reference(&g, &since);
-        assert_eq!(r.fit_score(&hit, Vector2::zeros(), 6.9).score, 0, "too new");
-        assert_eq!(r.fit_score(&hit, Vector2::zeros(), 7.0).score, 1);
+        assert_eq!(
+            r.fit_score(&hit, Vector2::zeros(), 11.9, 5.0).score,
+            0.0,
+            "too new"
+        );
+        assert_eq!(
+            r.fit_score(&hit, Vector2::zeros(), 13.0, 5.0).score,
+            0.2,
+            "6 s of 30"
+        );
+        assert_eq!(r.fit_score(&hit, Vector2::zeros(), 60.0, 5.0).score, 1.0);
         g.set(cell, 10).unwrap();
         since.restamp(&g, 31, CellBox::of_cell(cell), 10.0);
         assert_eq!(since.get(i), None, "freed: no stamp");
