@@ -396,14 +396,16 @@ mod tests {
     fn peak(at: Vec2) -> impl Fn(&[Vec2], Vec2) -> FitQuality {
         move |h: &[Vec2], o: Vec2| {
             let all = h.len() as f64;
+            let score = if (o - at).norm() < 0.03 {
+                all
+            } else {
+                all / 2.0
+            };
             FitQuality {
-                score: if (o - at).norm() < 0.03 {
-                    all
-                } else {
-                    all / 2.0
-                },
+                score,
                 span_m: 4.0,
                 age_s: 0.0,
+                on_obstacles: score as usize,
             }
         }
     }
