@@ -20,7 +20,7 @@ use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
-use crate::safety::{Flight, Override, SafetyConfig, SafetyStage};
+use crate::safety::{Around, Flight, Obstacles, Override, SafetyConfig, SafetyStage};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
@@ -391,7 +391,13 @@ impl DroneCore {
             },
             setpoint,
             caps,
-            &self.fleet,
+            Around {
+                fleet: &self.fleet,
+                obstacles: self
+                    .map
+                    .as_ref()
+                    .map(|m| Obstacles::new(m.grid(), m.occupied_threshold())),
+            },
         );
         self.controller.sent(
             setpoint.as_ref(),

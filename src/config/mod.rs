@@ -242,6 +242,7 @@ impl Config {
             separation_margin_m: self.safety.separation_margin_m,
             limits: self.controller,
             braking_mps2: self.behaviors.max_acceleration_mps2,
+            obstacle_keep_m: crate::safety::OBSTACLE_KEEP_M,
         }
     }
 
