@@ -134,8 +134,14 @@ impl DroneCore {
             .velocity_overshoot
             .or(capabilities.velocity_overshoot);
         config.controller.velocity_overshoot = overshoot;
+        let yaw_overshoot = config
+            .controller
+            .yaw_rate_overshoot
+            .or(capabilities.yaw_rate_overshoot);
+        config.controller.yaw_rate_overshoot = yaw_overshoot;
         let capabilities = Capabilities {
             velocity_overshoot: overshoot,
+            yaw_rate_overshoot: yaw_overshoot,
             ..capabilities
         };
         Self {

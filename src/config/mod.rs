@@ -500,6 +500,9 @@ impl Config {
         if let Some(share) = c.velocity_overshoot {
             non_negative("controller.velocity_overshoot", share, 1.0, "")?;
         }
+        if let Some(share) = c.yaw_rate_overshoot {
+            non_negative("controller.yaw_rate_overshoot", share, 1.0, "")?;
+        }
         for (name, g) in [
             ("position", &c.position),
             ("trajectory", &c.trajectory),

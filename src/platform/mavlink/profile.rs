@@ -107,6 +107,9 @@ struct RawDrive {
     /// How much faster than a velocity it is sent the vehicle may fly (a fraction; absent: 0).
     #[serde(default)]
     velocity_overshoot: Option<f64>,
+    /// How much faster than a turn rate it is sent the vehicle may turn (a fraction; absent: 0).
+    #[serde(default)]
+    yaw_rate_overshoot: Option<f64>,
 }
 
 fn unit_gain() -> f64 {
@@ -127,6 +130,7 @@ impl Default for RawDrive {
             velocity_check_s: None,
             command_slew_mps2: None,
             velocity_overshoot: None,
+            yaw_rate_overshoot: None,
         }
     }
 }
@@ -294,6 +298,8 @@ pub struct Profile {
     /// (`[drive] velocity_overshoot`); speeds are planned and commanded within each limit
     /// divided by one plus it. `None`: the vehicle flies what it is sent.
     pub velocity_overshoot: Option<f64>,
+    /// The same for turn rates (`[drive] yaw_rate_overshoot`).
+    pub yaw_rate_overshoot: Option<f64>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -511,18 +517,26 @@ fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
         velocity_overshoot: raw
             .drive
             .velocity_overshoot
-            .map(|share| {
-                if share.is_finite() && (0.0..=1.0).contains(&share) {
-                    Ok(share)
-                } else {
-                    Err((
-                        "drive.velocity_overshoot".to_string(),
-                        format!("must be a fraction within 0..=1, got {share}"),
-                    ))
-                }
-            })
+            .map(|share| fraction("drive.velocity_overshoot", share))
+            .transpose()?,
+        yaw_rate_overshoot: raw
+            .drive
+            .yaw_rate_overshoot
+            .map(|share| fraction("drive.yaw_rate_overshoot", share))
             .transpose()?,
     })
+}
+
+/// `share` when it is a fraction within 0..=1, else the error naming `field`.
+fn fraction(field: &str, share: f64) -> Result<f64, Invalid> {
+    if share.is_finite() && (0.0..=1.0).contains(&share) {
+        Ok(share)
+    } else {
+        Err((
+            field.to_string(),
+            format!("must be a fraction within 0..=1, got {share}"),
+        ))
+    }
 }
 
 /// The profile's modes with their numbers, and the mode each role names.
@@ -637,5 +651,7 @@ mod tests {
     fn px4_says_how_much_faster_than_sent_it_flies() {
         assert_eq!(load("px4.toml").velocity_overshoot, Some(0.2));
         assert_eq!(load("ardupilot-copter.toml").velocity_overshoot, None);
+        assert_eq!(load("px4.toml").yaw_rate_overshoot, Some(0.06));
+        assert_eq!(load("ardupilot-copter.toml").yaw_rate_overshoot, None);
     }
 }
