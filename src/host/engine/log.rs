@@ -2,24 +2,44 @@
 //! the [`FlightLog`] it was handed. Off until a log is set and after it is closed: then every
 //! record is dropped and nothing is gathered for one.
 //!
-//! In: a drone's core and tick output, commands, alerts, the wall clock. Out: records written
-//! by `flightlog` (which knows nothing of the host).
+//! In: a drone's core and tick output, commands, alerts, the wall clock, the maps and the
+//! frontier allocator's view at the map rate. Out: records written by `flightlog` (which knows
+//! nothing of the host).
 
 use crate::core::{DroneCore, TickOutput};
+use crate::exploration::online::service::{ClaimView, FrontierView};
+use crate::flightlog::map_record::known_box;
 use crate::flightlog::FlightLog;
+use crate::mapping::grid::CellBox;
+use crate::mapping::merged::FleetMap;
 use crate::types::Pose;
 use serde_json::Value;
+use std::collections::BTreeMap;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 #[derive(Default)]
 pub(super) struct HostLog {
     log: Option<FlightLog>,
+    maps: MapsLogged,
+}
+
+/// What the log holds of the maps and the frontiers.
+#[derive(Default)]
+struct MapsLogged {
+    /// When `map` and `frontiers` records are next due; `None` before the first (which holds
+    /// every known cell of each map).
+    next: Option<Duration>,
+    /// The cells of each drone's own map changed since its last `map` record.
+    changed: BTreeMap<String, CellBox>,
+    frontiers: Vec<FrontierView>,
+    claims: Vec<ClaimView>,
 }
 
 impl HostLog {
     /// Writes into `log` from now on.
     pub(super) fn set(&mut self, log: FlightLog) {
         self.log = Some(log);
+        self.maps = MapsLogged::default();
     }
 
     /// Whether records are written (callers skip gathering what would be dropped).
@@ -56,6 +76,63 @@ impl HostLog {
         log.pose(t, &state, motion, out.setpoint.as_ref(), truth().as_ref());
         for e in &out.events {
             log.behavior(t, core.drone_id(), e, item);
+        }
+        if let Some(region) = core.map().and_then(|m| m.last_changed()) {
+            let slot = self
+                .maps
+                .changed
+                .entry(core.drone_id().to_string())
+                .or_insert(region);
+            *slot = slot.union(region);
+        }
+    }
+
+    /// At the map rate (`merged`'s update period, in host time): the cells of each drone's map
+    /// and of the merged map changed since their last records (all known cells the first
+    /// time), and the frontiers and the goals held when they changed. Nothing without a merged
+    /// map (mapping off).
+    pub(super) fn maps(
+        &mut self,
+        t: Duration,
+        cores: &[DroneCore],
+        merged: Option<&mut FleetMap>,
+        exploration: (&[FrontierView], &[ClaimView]),
+    ) {
+        let (Some(log), Some(merged)) = (self.log.as_mut(), merged) else {
+            return;
+        };
+        let first = match self.maps.next {
+            Some(next) if t < next => return,
+            Some(_) => false,
+            None => true,
+        };
+        self.maps.next = Some(t + merged.update_period());
+        for core in cores {
+            let Some(map) = core.map() else { continue };
+            let changed = self.maps.changed.remove(core.drone_id());
+            let region = if first {
+                known_box(map.grid())
+            } else {
+                changed
+            };
+            if let Some(region) = region {
+                log.map(t, Some(core.drone_id()), map.grid(), region);
+            }
+        }
+        let changed = merged.take_logged();
+        let region = if first {
+            known_box(merged.merged())
+        } else {
+            changed
+        };
+        if let Some(region) = region {
+            log.map(t, None, merged.merged(), region);
+        }
+        let (frontiers, claims) = exploration;
+        if frontiers != self.maps.frontiers || claims != self.maps.claims {
+            log.frontiers(t, frontiers, claims);
+            self.maps.frontiers = frontiers.to_vec();
+            self.maps.claims = claims.to_vec();
         }
     }
 
@@ -177,6 +254,60 @@ mod tests {
         assert_eq!(records[1]["truth"]["y"], 2.0);
         assert_eq!(records[2]["mission"], item);
         assert_eq!(records[4]["reason"], "too close");
+    }
+
+    /// The maps at the map rate: every known cell first, then only what changed, nothing when
+    /// nothing did; the frontiers when they changed.
+    #[test]
+    fn maps_and_frontiers_at_the_map_rate() {
+        use crate::mapping::config::MapConfig;
+        use crate::mapping::scan::{Beam, RangeScan};
+        let scan = |x: f64, range_m: f64| RangeScan {
+            origin_enu_m: nalgebra::Vector3::new(x, 0.05, 1.0),
+            yaw_rad: 0.0,
+            range_min_m: 0.05,
+            range_max_m: 4.0,
+            beams: vec![Beam {
+                angle_rad: 0.0,
+                range_m: Some(range_m),
+            }],
+        };
+        let written = Written::default();
+        let mut log = log_into(&written);
+        let mut merged = FleetMap::new(&MapConfig::open_field().unwrap()).unwrap();
+        merged.insert("drone_0", &scan(0.05, 1.0)).unwrap();
+        let frontier = FrontierView {
+            centroid_enu_m: [1.0, 2.0],
+            goal_enu_m: [0.5, 2.0],
+            size_m: 1.0,
+            orientation_rad: 0.0,
+        };
+        let cores = [core()];
+        let at = |s: f64| Duration::from_secs_f64(s);
+        let frontiers = [frontier];
+        log.maps(at(0.0), &cores, Some(&mut merged), (&frontiers, &[]));
+        merged.insert("drone_0", &scan(3.05, 0.5)).unwrap();
+        log.maps(at(0.4), &cores, Some(&mut merged), (&frontiers, &[]));
+        log.maps(at(0.5), &cores, Some(&mut merged), (&frontiers, &[]));
+        log.maps(at(1.0), &cores, Some(&mut merged), (&frontiers, &[]));
+        let records = written.records();
+        let kinds: Vec<(&str, f64)> = records
+            .iter()
+            .map(|r| (r["type"].as_str().unwrap(), r["t"].as_f64().unwrap()))
+            .collect();
+        assert_eq!(kinds, [("map", 0.0), ("frontiers", 0.0), ("map", 0.5)]);
+        let first = crate::flightlog::map_record::decode(&records[0]).unwrap();
+        assert_eq!(first.region.width_cells(), 11, "the first scan's cells");
+        let second = crate::flightlog::map_record::decode(&records[2]).unwrap();
+        assert_eq!(
+            second.region.width_cells(),
+            6,
+            "only the second scan's cells"
+        );
+        assert_eq!(
+            records[1]["frontiers"][0]["goal_enu_m"],
+            serde_json::json!([0.5, 2.0])
+        );
     }
 
     /// Once closed, records are dropped.
