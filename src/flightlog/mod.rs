@@ -215,8 +215,24 @@ impl FlightLog {
         }
     }
 
-    /// The frontier allocator's frontiers and the goals the drones hold.
+    /// The frontier allocator's frontiers and the goals the drones hold, to the millimetre
+    /// (and milliradian): dozens of frontiers at the map rate, the digits beyond are bytes only.
     pub fn frontiers(&mut self, t: Duration, frontiers: &[FrontierView], claims: &[ClaimView]) {
+        let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+        let xy = |[x, y]: [f64; 2]| [mm(x), mm(y)];
+        let frontiers: Vec<Value> = frontiers
+            .iter()
+            .map(|f| {
+                json!({
+                    "centroid_enu_m": xy(f.centroid_enu_m), "goal_enu_m": xy(f.goal_enu_m),
+                    "size_m": mm(f.size_m), "orientation_rad": mm(f.orientation_rad),
+                })
+            })
+            .collect();
+        let claims: Vec<Value> = claims
+            .iter()
+            .map(|c| json!({ "drone": c.drone, "goal_enu_m": xy(c.goal_enu_m) }))
+            .collect();
         self.write(json!({
             "t": t.as_secs_f64(), "drone": null, "type": "frontiers",
             "frontiers": frontiers, "claims": claims,

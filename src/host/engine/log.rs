@@ -277,7 +277,7 @@ mod tests {
         let mut merged = FleetMap::new(&MapConfig::open_field().unwrap()).unwrap();
         merged.insert("drone_0", &scan(0.05, 1.0)).unwrap();
         let frontier = FrontierView {
-            centroid_enu_m: [1.0, 2.0],
+            centroid_enu_m: [1.0, 2.000_000_3],
             goal_enu_m: [0.5, 2.0],
             size_m: 1.0,
             orientation_rad: 0.0,
