@@ -75,30 +75,48 @@ pub fn records(
     let rows_per_band = (MAX_BAND_CELLS / region.width_cells().max(1)).max(1);
     let mut out = Vec::new();
     let mut y = region.min.y;
-    while y <= region.max.y {
+    loop {
         let last = y.saturating_add(rows_per_band - 1).min(region.max.y);
         let mut band = region;
         band.min.y = y;
         band.max.y = last;
-        if let Some(patch) = grid.patch(band) {
-            out.push(json!({
-                "t": t.as_secs_f64(), "drone": drone, "type": "map",
-                "map": if drone.is_some() { "own" } else { "merged" },
-                "grid": grid.spec(),
-                "region": [band.min.x, band.min.y, band.width_cells(), band.height_cells()],
-                "cells": compress(&patch.data),
-            }));
-        }
+        out.extend(record(t, drone, grid, band, last < region.max.y));
         match last.checked_add(1) {
-            Some(next) => y = next,
-            None => break,
+            Some(next) if next <= region.max.y => y = next,
+            _ => break,
         }
-    }
-    let bands = out.len();
-    for record in out.iter_mut().take(bands.saturating_sub(1)) {
-        record["more"] = Value::Bool(true);
     }
     out
+}
+
+/// One `map` record: the cells of `grid` in `band` (clipped to the grid), with `"more": true`
+/// when `more` bands of the update follow; `None` when the band misses the grid or holds more
+/// than [`MAX_BAND_CELLS`] cells (a record readers would refuse).
+pub fn record(
+    t: Duration,
+    drone: Option<&str>,
+    grid: &OccupancyGrid,
+    band: CellBox,
+    more: bool,
+) -> Option<Value> {
+    let patch = grid.patch(band)?;
+    let region = patch.region;
+    if u64::from(region.width_cells()) * u64::from(region.height_cells())
+        > u64::from(MAX_BAND_CELLS)
+    {
+        return None;
+    }
+    let mut record = json!({
+        "t": t.as_secs_f64(), "drone": drone, "type": "map",
+        "map": if drone.is_some() { "own" } else { "merged" },
+        "grid": grid.spec(),
+        "region": [region.min.x, region.min.y, region.width_cells(), region.height_cells()],
+        "cells": compress(&patch.data),
+    });
+    if more {
+        record["more"] = Value::Bool(true);
+    }
+    Some(record)
 }
 
 /// The box of the known cells of `grid` (`None`: none known).

@@ -208,9 +208,18 @@ impl FlightLog {
         self.write(json!({ "t": t.as_secs_f64(), "drone": drone, "type": kind, "reason": reason }));
     }
 
-    /// The cells of `grid` in `region` (`drone`'s own map, or the merged map for `None`).
-    pub fn map(&mut self, t: Duration, drone: Option<&str>, grid: &OccupancyGrid, region: CellBox) {
-        for record in map_record::records(t, drone, grid, region) {
+    /// One `map` record: the cells of `grid` in `band` (`drone`'s own map, or the merged map
+    /// for `None`; at most [`map_record::MAX_BAND_CELLS`]), `more` when bands of the same update
+    /// follow.
+    pub fn map_band(
+        &mut self,
+        t: Duration,
+        drone: Option<&str>,
+        grid: &OccupancyGrid,
+        band: CellBox,
+        more: bool,
+    ) {
+        if let Some(record) = map_record::record(t, drone, grid, band, more) {
             self.write(record);
         }
     }
