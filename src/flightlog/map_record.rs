@@ -2,8 +2,9 @@
 //! them back.
 //!
 //! In: a grid (a drone's own map, or the fleet's merged map) and the box of its cells that
-//! changed. Out: one record per band of rows, each at most [`MAX_BAND_CELLS`] cells (so a
-//! record stays far below the readers' 1 MiB line limit):
+//! changed, or a band of rows of it. Out: one record per band, each at most [`MAX_BAND_CELLS`]
+//! cells (so a record stays far below the readers' 1 MiB line limit; the host makes smaller
+//! bands, a few a tick):
 //! `{"t", "drone", "type": "map", "map": "own" | "merged", "grid": GridSpec, "region":
 //! [x, y, width, height] (cells), "cells": base64 of the zlib-compressed cells, row-major from
 //! the region's south-west cell, -1 unknown, else 0..=100}`, and `"more": true` on every band
