@@ -159,7 +159,7 @@ impl HostLog {
 
     /// Drone `core`'s tick: its pose (with `truth`, asked only when a record is written, for a
     /// drone whose estimate drifts) and its behaviors' events, each with the mission `item` it
-    /// belongs to.
+    /// belongs to; the cells its map changed are kept for the next `map` record.
     pub(super) fn tick(
         &mut self,
         t: Duration,
