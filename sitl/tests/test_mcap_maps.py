@@ -162,7 +162,9 @@ def test_each_drones_map_and_the_merged_map_at_the_map_rate(explored):
         period_ns = 1e9 / rate_hz
         times = [t for t, _ in grids]
         gaps = [b - a for a, b in zip(times, times[1:-1])]
-        assert all(g >= period_ns - 1e6 for g in gaps), f"{topic}: gaps {min(gaps)} ns"
+        # An update's last band may come a few ticks after it was due (the host writes at most
+        # 32 Ki cells a tick, for all maps): a tenth of a period (5 ticks at 100 Hz) of slack.
+        assert all(g >= 0.9 * period_ns for g in gaps), f"{topic}: gaps {min(gaps)} ns"
         # At least half the map rate, or of what the byte budget allows the largest grid.
         largest = max(len(body["data"]) for _, body in grids)
         rate = min(rate_hz, GRID_BYTES_PER_S / largest)
