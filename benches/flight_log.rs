@@ -1,14 +1,20 @@
 //! Benchmark (BENCHMARKS.md, "MCAP flight logs"): CPU per record of the two log formats, on
 //! the writer thread (`flightlog::writer`; the control thread's part, a record made into a JSON
 //! line, is the same for both) and the bytes each format writes per record, for one minute of
-//! three drones' pose records at 10 Hz with their events.
+//! three drones' pose records at 10 Hz with their events. With `FLIGHT_LOG` set to a JSON-lines
+//! flight log (one with `map` records: an exploration), the same for that log, and the cost of
+//! its `map` records: on the writer thread (the log written as MCAP with and without them) and
+//! on the control thread (each record made again from its grid, `map_record::records`).
 //!
 //!     cargo bench --bench flight_log
+//!     FLIGHT_LOG=explore.jsonl cargo bench --bench flight_log
 
+use kestrel::flightlog::map_record;
 use kestrel::flightlog::mcap_log::McapLog;
+use kestrel::mapping::grid::{GridPatch, OccupancyGrid};
 use serde_json::json;
 use std::io::{self, BufWriter, Seek, SeekFrom, Write};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Counts what is written and throws it away (the file's cost is the disk's, not the CPU's).
 #[derive(Default)]
@@ -106,11 +112,70 @@ fn write_mcap(text: &[u8]) -> (f64, u64) {
     (started.elapsed().as_secs_f64(), out.written)
 }
 
+/// The control thread's time to make each `map` record of `text` again from its grid (s), and
+/// how many there were.
+fn encode_maps(text: &str) -> (f64, usize) {
+    let mut spent = Duration::ZERO;
+    let mut n = 0;
+    for line in text.lines().filter(|l| l.contains(r#""type":"map""#)) {
+        let record: serde_json::Value =
+            serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}"));
+        let update = map_record::decode(&record).unwrap_or_else(|e| panic!("{e}"));
+        let mut grid = OccupancyGrid::new(update.grid).unwrap_or_else(|e| panic!("{e}"));
+        let patch = GridPatch {
+            region: update.region,
+            data: update.cells,
+        };
+        grid.write_patch(&patch).unwrap_or_else(|e| panic!("{e}"));
+        let started = Instant::now();
+        let again = map_record::records(Duration::ZERO, Some("d"), &grid, update.region);
+        spent += started.elapsed();
+        assert!(!again.is_empty());
+        n += 1;
+    }
+    (spent.as_secs_f64(), n)
+}
+
+/// The log at `path`: the writer thread's CPU per record with and without its `map` records,
+/// and the control thread's per `map` record.
+fn real_log(path: &str) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let is_map = |l: &&str| l.contains(r#""type":"map""#);
+    let without: String = text
+        .lines()
+        .filter(|l| !is_map(l))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let records = text.lines().count() as f64;
+    for run in 1..=3 {
+        let (lines_s, lines_bytes) = write_lines(text.as_bytes());
+        let (all_s, all_bytes) = write_mcap(text.as_bytes());
+        let (rest_s, rest_bytes) = write_mcap(without.as_bytes());
+        let (encode_s, maps) = encode_maps(&text);
+        let maps_f = maps as f64;
+        println!(
+            "{path} run {run}: {records} records, {maps} map records; JSON lines {:.0} ns/record, \
+             {lines_bytes} bytes; MCAP {:.0} µs/record, {all_bytes} bytes ({:.2}x), of which \
+             the map records {:.0} µs each on the writer thread ({} bytes); made on the control \
+             thread in {:.0} µs each",
+            lines_s / records * 1e9,
+            all_s / records * 1e6,
+            all_bytes as f64 / lines_bytes as f64,
+            (all_s - rest_s) / maps_f * 1e6,
+            all_bytes - rest_bytes,
+            encode_s / maps_f * 1e6,
+        );
+    }
+}
+
 fn main() {
     // `cargo test --all-targets` runs bench binaries too: only `cargo bench` measures.
     if !std::env::args().any(|a| a == "--bench") {
         println!("flight_log: run it with `cargo bench --bench flight_log`");
         return;
+    }
+    if let Ok(path) = std::env::var("FLIGHT_LOG") {
+        real_log(&path);
     }
     let text = minute();
     let records = text.iter().filter(|&&b| b == b'\n').count() as f64;

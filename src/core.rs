@@ -23,7 +23,7 @@ use crate::mapping::registration::Reference;
 use crate::mapping::scan::RangeScan;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
-use crate::safety::{Flight, Override, SafetyConfig, SafetyStage};
+use crate::safety::{Around, Flight, Obstacles, Override, SafetyConfig, SafetyStage};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
@@ -143,8 +143,14 @@ impl DroneCore {
             .velocity_overshoot
             .or(capabilities.velocity_overshoot);
         config.controller.velocity_overshoot = overshoot;
+        let yaw_overshoot = config
+            .controller
+            .yaw_rate_overshoot
+            .or(capabilities.yaw_rate_overshoot);
+        config.controller.yaw_rate_overshoot = yaw_overshoot;
         let capabilities = Capabilities {
             velocity_overshoot: overshoot,
+            yaw_rate_overshoot: yaw_overshoot,
             ..capabilities
         };
         Self {
@@ -469,7 +475,13 @@ impl DroneCore {
             },
             setpoint,
             caps,
-            &self.fleet,
+            Around {
+                fleet: &self.fleet,
+                obstacles: self
+                    .map
+                    .as_ref()
+                    .map(|m| Obstacles::new(m.grid(), m.occupied_threshold())),
+            },
         );
         self.controller.sent(
             setpoint.as_ref(),

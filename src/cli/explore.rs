@@ -55,8 +55,8 @@ pub struct ExploreArgs {
     #[arg(long, requires = "log")]
     log_overwrite: bool,
     /// Flight-log format: jsonl (JSON lines) or mcap (MCAP with Foxglove's channels: poses,
-    /// frames, events, goals and paths, a world's obstacles and known area, and every
-    /// record). Default: the config's `drone.log_format` (jsonl).
+    /// frames, events, goals and paths, each drone's map and the merged map, frontiers, a
+    /// world's obstacles and known area, and every record). Default: the config's `drone.log_format` (jsonl).
     #[arg(long, value_name = "FORMAT")]
     log_format: Option<LogFormat>,
     /// Report (JSON) with every metric. Default: the log's name with `.report.json`.

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 #[derive(Subcommand)]
 pub enum LogCommand {
     /// Convert a JSON-lines flight log to MCAP (for Foxglove): every record on
-    /// /kestrel/records, plus poses, frames, events, goals and paths, and a world's obstacles
-    /// and known area, in Foxglove's schemas.
+    /// /kestrel/records, plus poses, frames, events, goals and paths, maps (from the log's
+    /// map records), frontiers, and a world's obstacles and known area, in Foxglove's schemas.
     Convert {
         /// The JSON-lines flight log.
         log: PathBuf,

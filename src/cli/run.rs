@@ -74,8 +74,8 @@ pub struct RunArgs {
     #[arg(long, requires = "log")]
     log_overwrite: bool,
     /// Flight-log format: jsonl (JSON lines) or mcap (MCAP with Foxglove's channels: poses,
-    /// frames, events, goals and paths, a world's obstacles and known area, and every
-    /// record). Default: the config's `drone.log_format` (jsonl).
+    /// frames, events, goals and paths, each drone's map and the merged map, frontiers, a
+    /// world's obstacles and known area, and every record). Default: the config's `drone.log_format` (jsonl).
     #[arg(long, value_name = "FORMAT")]
     log_format: Option<LogFormat>,
     /// With `--exit-when-done` or `--no-api`: stop after this many seconds whatever happens.

@@ -44,8 +44,8 @@ pub struct SimArgs {
     #[arg(long, requires = "log")]
     pub(crate) log_overwrite: bool,
     /// Flight-log format: jsonl (JSON lines) or mcap (MCAP with Foxglove's channels: poses,
-    /// frames, events, goals and paths, a world's obstacles and known area, and every
-    /// record). Default: the config's `drone.log_format` (jsonl).
+    /// frames, events, goals and paths, each drone's map and the merged map, frontiers, a
+    /// world's obstacles and known area, and every record). Default: the config's `drone.log_format` (jsonl).
     #[arg(long, value_name = "FORMAT")]
     pub(crate) log_format: Option<LogFormat>,
     /// Exit when the flight is over: 0 if it succeeded, non-zero with the reason if not.

@@ -244,6 +244,7 @@ impl Config {
             separation_margin_m: self.safety.separation_margin_m,
             limits: self.controller,
             braking_mps2: self.behaviors.max_acceleration_mps2,
+            obstacle_keep_m: crate::safety::OBSTACLE_KEEP_M,
         }
     }
 
@@ -504,6 +505,9 @@ impl Config {
         }
         if let Some(share) = c.velocity_overshoot {
             non_negative("controller.velocity_overshoot", share, 1.0, "")?;
+        }
+        if let Some(share) = c.yaw_rate_overshoot {
+            non_negative("controller.yaw_rate_overshoot", share, 1.0, "")?;
         }
         for (name, g) in [
             ("position", &c.position),

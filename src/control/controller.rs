@@ -33,6 +33,10 @@ pub struct ControllerConfig {
     /// speed cap is divided by one plus it, so the flown speed holds the limit. Absent: the
     /// platform profile's (`[drive] velocity_overshoot`), else 0.
     pub velocity_overshoot: Option<f64>,
+    /// How much faster than a turn rate it is sent the vehicle may turn, as a fraction: every
+    /// turn rate is sent divided by one plus it. Absent: the platform profile's
+    /// (`[drive] yaw_rate_overshoot`), else 0.
+    pub yaw_rate_overshoot: Option<f64>,
     /// Acceleration of the reference point handed to an autopilot that closes the position
     /// loop itself (m/s^2): how fast it speeds up toward a goal and brakes onto it.
     pub max_acceleration_mps2: f64,
@@ -74,6 +78,7 @@ impl Default for ControllerConfig {
             max_yaw_rate_radps: 1.5,
             velocity_lag_s: None,
             velocity_overshoot: None,
+            yaw_rate_overshoot: None,
             max_acceleration_mps2: 1.5,
         }
     }
@@ -300,9 +305,10 @@ impl Controller {
         }
     }
 
-    /// The heading as a turn rate within the limit.
+    /// The heading as a turn rate within the limit, held back for the vehicle's overshoot.
     fn yaw_rate(&mut self, yaw: YawTarget, state: &EstimatedState, dt_s: f64) -> YawTarget {
         let max_rate = self.config.max_yaw_rate_radps;
+        let share = commanded_speed_share(self.config.yaw_rate_overshoot);
         let rate = match yaw {
             YawTarget::Rate(r) => r.clamp(-max_rate, max_rate),
             YawTarget::Angle(target) => {
@@ -313,7 +319,7 @@ impl Controller {
                 saturate_proportionally(out, Vec3::new(max_rate, 0.0, 0.0)).x
             }
         };
-        YawTarget::Rate(rate)
+        YawTarget::Rate(rate * share)
     }
 }
 
@@ -512,6 +518,36 @@ mod tests {
         // Without an overshoot the whole speed is sent.
         let plain = Controller::new(ControllerConfig::default(), c.accepted);
         assert_eq!(plain.caps(0.75).horizontal_mps, 0.75);
+    }
+
+    #[test]
+    fn a_vehicle_that_overshoots_turns_is_sent_the_share_of_the_turn_rate() {
+        let accepted = AcceptedSetpoints {
+            velocity: true,
+            position: true,
+            position_loop: None,
+        };
+        let config = ControllerConfig {
+            yaw_rate_overshoot: Some(0.06),
+            ..ControllerConfig::default()
+        };
+        let mut c = Controller::new(config, accepted);
+        let here = state_at(Vec3::zeros(), 0.0);
+        let turn = |yaw| MotionReference::Position {
+            position_enu_m: Vec3::zeros(),
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw,
+            max_speed_mps: 0.75,
+        };
+        // A rate asked (explore's 0.15 rad/s), and a far heading turned to at the vehicle's limit.
+        let (_, asked) = velocity_of(c.update(&here, &turn(YawTarget::Rate(-0.15)), 0.01));
+        assert!((asked + 0.15 / 1.06).abs() < 1e-12, "{asked}");
+        let (_, far) = velocity_of(c.update(&here, &turn(YawTarget::Angle(3.0)), 0.01));
+        assert!((far - 1.5 / 1.06).abs() < 1e-12, "{far}");
+        // Without an overshoot the rate is sent as asked.
+        let mut plain = Controller::new(ControllerConfig::default(), accepted);
+        let (_, plain_rate) = velocity_of(plain.update(&here, &turn(YawTarget::Rate(0.15)), 0.01));
+        assert_eq!(plain_rate, 0.15);
     }
 
     #[test]

@@ -10,7 +10,11 @@
 //!   when the world file loads (its path as the header gives it, tried from each of
 //!   [`McapLog::world_dirs`]'s directories);
 //! - `/map/known`: with that world, the area known at the end (`grid`, one `foxglove.Grid`
-//!   written when the log is finished; a killed process leaves none).
+//!   written when the log is finished; a killed process leaves none);
+//! - `/<drone>/map` and `/map`: each drone's own map and the merged map, a `foxglove.Grid`
+//!   after each of their `map` records (`grids`: whole, at the map rate within a byte budget);
+//! - `/frontiers` and `/<drone>/frontier`: `foxglove.SceneUpdate`s of each `frontiers` record
+//!   (`scene::FrontierScenes`).
 //!
 //! Message times are the run's wall-clock start (the header's `start_time`) plus the record's
 //! `t`. The file is chunked without compression (the mcap crate is built without zstd and lz4);
@@ -20,7 +24,8 @@
 
 use super::files;
 use super::foxglove::{self, Schema};
-use super::{grid, scene};
+use super::grids::Grids;
+use super::{grid, map_record, scene};
 use crate::exploration::offline::evaluate::PoseSample;
 use crate::sim::world::World;
 use mcap::records::MessageHeader;
@@ -70,6 +75,11 @@ pub struct McapLog<W: Write + Seek> {
     /// The header's world, once loaded, and the poses flown in it (for the known map).
     world: Option<World>,
     samples: Vec<PoseSample>,
+    /// Copies of the maps of the `map` records.
+    grids: Grids,
+    frontiers: scene::FrontierScenes,
+    /// `map` records that could not be read (the first is logged).
+    bad_maps: u64,
     finished: bool,
 }
 
@@ -92,6 +102,9 @@ impl<W: Write + Seek> McapLog<W> {
             world_dirs: vec![PathBuf::new()],
             world: None,
             samples: Vec::new(),
+            grids: Grids::default(),
+            frontiers: scene::FrontierScenes::default(),
+            bad_maps: 0,
             finished: false,
         })
     }
@@ -118,15 +131,42 @@ impl<W: Write + Seek> McapLog<W> {
         for derived in foxglove::derive(&value, self.last_ns) {
             self.derived(&derived.topic, derived.schema, &derived.message)?;
         }
-        if value.get("type").and_then(Value::as_str) == Some("header") {
-            self.world = self.world_of(&value);
-            if let Some(world) = &self.world {
-                let update = scene::world(world, &self.stamp_json());
-                self.derived("/world", Schema::SceneUpdate, &update)?;
+        match value.get("type").and_then(Value::as_str) {
+            Some("header") => {
+                self.world = self.world_of(&value);
+                if let Some(world) = &self.world {
+                    let update = scene::world(world, &self.stamp_json());
+                    self.derived("/world", Schema::SceneUpdate, &update)?;
+                }
             }
+            Some("map") => self.map(&value)?,
+            Some("frontiers") => {
+                for (topic, update) in self.frontiers.update(&value, &self.stamp_json()) {
+                    self.derived(&topic, Schema::SceneUpdate, &update)?;
+                }
+            }
+            _ => {}
         }
         if self.world.is_some() {
             self.samples.extend(grid::sample(&value));
+        }
+        Ok(())
+    }
+
+    /// A `map` record into its map's copy, and the map's grid when one is due.
+    fn map(&mut self, record: &Value) -> Result<(), McapLogError> {
+        match map_record::decode(record) {
+            Ok(update) => {
+                if let Some(m) = self.grids.update(update, self.last_ns) {
+                    self.derived(&m.topic, Schema::Grid, &m.message)?;
+                }
+            }
+            Err(e) => {
+                self.bad_maps += 1;
+                if self.bad_maps == 1 {
+                    tracing::warn!("flight log: {e} (kept on {RECORDS_TOPIC}, drawn nowhere)");
+                }
+            }
         }
         Ok(())
     }
@@ -171,6 +211,9 @@ impl<W: Write + Seek> McapLog<W> {
             return Ok(());
         }
         self.end_pending()?;
+        for m in self.grids.finish(self.last_ns) {
+            self.derived(&m.topic, Schema::Grid, &m.message)?;
+        }
         if let Some(world) = self.world.take() {
             let stamp = self.stamp_json();
             if let Some(known) = grid::known(&world, &self.samples, &stamp) {

@@ -20,6 +20,13 @@
 //! - `command`: a command received from outside (`command` and its `fields`; uploads and
 //!   MissionUpdates carry the mission itself in `fields.mission`).
 //! - `collision` / `error`: what ended or disturbed the flight (`reason`).
+//! - `map`: the cells of a drone's own map (`map` = `own`) or of the merged map (`map` =
+//!   `merged`, `drone` null) that changed, at the map rate (`[map] update_rate_hz`, in the
+//!   run's time), only when some did; the first of each map holds all its known cells
+//!   ([`map_record`] has the fields).
+//! - `frontiers` (`drone` null): the frontier allocator's `frontiers` (`centroid_enu_m`,
+//!   `goal_enu_m`, `size_m`, `orientation_rad`) and `claims` (`drone`, `goal_enu_m`: the goal
+//!   each drone holds), at the map rate when they changed.
 //! - `clock` (`drone` null): `unix_s`, the wall clock (s since 1970, UTC) at this record's `t`;
 //!   written when a real-time run's control loop starts, so the logs of a fleet's nodes can be
 //!   put on one clock (`kestrel evaluate --log A --log B`).
@@ -29,17 +36,22 @@
 //!
 //! With [`LogFormat::Mcap`] the same records go into an MCAP file instead ([`mcap_log`]: the
 //! records unchanged on their own channel, plus Foxglove's channels made of them by
-//! [`foxglove`]); [`reader`] reads either format back as JSON lines.
+//! [`foxglove`], and the grids kept from the `map` records by [`grids`]); [`reader`] reads
+//! either format back as JSON lines.
 
 pub mod files;
 pub mod foxglove;
 pub mod grid;
+pub mod grids;
+pub mod map_record;
 pub mod mcap_log;
 pub mod reader;
 pub mod scene;
 pub mod writer;
 
 use crate::behavior::BehaviorEvent;
+use crate::exploration::online::service::{ClaimView, FrontierView};
+use crate::mapping::grid::{CellBox, OccupancyGrid};
 use crate::types::{Pose, Setpoint, Vec3, VehicleState};
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -204,6 +216,46 @@ impl FlightLog {
 
     pub fn event(&mut self, t: Duration, drone: &str, kind: &str, reason: &str) {
         self.write(json!({ "t": t.as_secs_f64(), "drone": drone, "type": kind, "reason": reason }));
+    }
+
+    /// One `map` record: the cells of `grid` in `band` (`drone`'s own map, or the merged map
+    /// for `None`; at most [`map_record::MAX_BAND_CELLS`]), `more` when bands of the same update
+    /// follow.
+    pub fn map_band(
+        &mut self,
+        t: Duration,
+        drone: Option<&str>,
+        grid: &OccupancyGrid,
+        band: CellBox,
+        more: bool,
+    ) {
+        if let Some(record) = map_record::record(t, drone, grid, band, more) {
+            self.write(record);
+        }
+    }
+
+    /// The frontier allocator's frontiers and the goals the drones hold, to the millimetre
+    /// (and milliradian): dozens of frontiers at the map rate, the digits beyond are bytes only.
+    pub fn frontiers(&mut self, t: Duration, frontiers: &[FrontierView], claims: &[ClaimView]) {
+        let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+        let xy = |[x, y]: [f64; 2]| [mm(x), mm(y)];
+        let frontiers: Vec<Value> = frontiers
+            .iter()
+            .map(|f| {
+                json!({
+                    "centroid_enu_m": xy(f.centroid_enu_m), "goal_enu_m": xy(f.goal_enu_m),
+                    "size_m": mm(f.size_m), "orientation_rad": mm(f.orientation_rad),
+                })
+            })
+            .collect();
+        let claims: Vec<Value> = claims
+            .iter()
+            .map(|c| json!({ "drone": c.drone, "goal_enu_m": xy(c.goal_enu_m) }))
+            .collect();
+        self.write(json!({
+            "t": t.as_secs_f64(), "drone": null, "type": "frontiers",
+            "frontiers": frontiers, "claims": claims,
+        }));
     }
 
     pub fn clock(&mut self, t: Duration, unix_s: f64) {

@@ -49,6 +49,9 @@ pub struct FleetMap {
     /// Changed regions whose stamps [`FleetMap::stamp`] has not yet brought up to date.
     unstamped: BTreeMap<String, CellBox>,
     occupied_threshold: i8,
+    /// The merged grid's region changed since the last [`FleetMap::take_logged`] (the flight
+    /// log's copy).
+    unlogged: Option<CellBox>,
 }
 
 /// A region of one drone's layer, as the fleet bus carries it.
@@ -81,6 +84,7 @@ impl FleetMap {
             since,
             unstamped: BTreeMap::new(),
             occupied_threshold: config.occupied_threshold,
+            unlogged: None,
         })
     }
 
@@ -215,6 +219,13 @@ impl FleetMap {
             let slot = regions.entry(drone.to_string()).or_insert(region);
             *slot = slot.union(region);
         }
+        self.unlogged = Some(self.unlogged.map_or(region, |r| r.union(region)));
+    }
+
+    /// The region of the merged grid changed since the last call, whoever changed it (for the
+    /// flight log); independent of the other takers.
+    pub fn take_logged(&mut self) -> Option<CellBox> {
+        self.unlogged.take()
     }
 
     /// The merged grid's regions changed since the last call, one patch per drone, for a copy
@@ -374,6 +385,21 @@ mod tests {
         let c = m.merged().spec().cell_at(Vector2::new(2.05, 5.05)).unwrap();
         assert_eq!(m.merged().get(c), Some(40));
         assert_eq!(m.layer("drone_0").unwrap().get(c), Some(-1));
+    }
+
+    /// The flight log's region covers every drone's changes and is taken apart from the patches.
+    #[test]
+    fn the_logged_region_is_the_union_of_all_changes() {
+        let config = MapConfig::open_field().unwrap();
+        let mut m = FleetMap::new(&config).unwrap();
+        m.insert("drone_0", &scan_from(0.05, 0.05, 1.0)).unwrap();
+        m.insert("drone_1", &scan_from(0.05, 5.05, 2.0)).unwrap();
+        assert_eq!(m.take_patches().len(), 2);
+        let region = m.take_logged().unwrap();
+        let cell = |x, y| m.merged().spec().cell_at(Vector2::new(x, y)).unwrap();
+        assert_eq!(region.min, cell(0.05, 0.05), "drone_0's first cell");
+        assert_eq!(region.max, cell(2.05, 5.05), "drone_1's hit");
+        assert_eq!(m.take_logged(), None, "nothing new");
     }
 
     #[test]

@@ -8,12 +8,16 @@
 //! Out: the setpoint to send and, when it changed, an [`Override`] saying why.
 
 pub mod geofence;
+mod obstacles;
+mod separation;
 
 use crate::control::{ControllerConfig, Setpoint, SpeedCaps, YawTarget};
-use crate::types::{DroneView, FleetView};
+use crate::types::FleetView;
 use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
 pub use geofence::GeofenceSection;
+pub use obstacles::{Around, Obstacles};
+use separation::Heard;
 use serde::Serialize;
 use std::time::Duration;
 
@@ -32,6 +36,9 @@ pub struct SafetyConfig {
     pub limits: ControllerConfig,
     /// Braking acceleration used to look ahead of a velocity setpoint (m/s^2).
     pub braking_mps2: f64,
+    /// Least distance (m, vehicle centre to the centre of an occupied cell of its map) a
+    /// motion the stage makes itself (a separation's slide or push) keeps from an obstacle.
+    pub obstacle_keep_m: f64,
 }
 
 impl Default for SafetyConfig {
@@ -43,6 +50,7 @@ impl Default for SafetyConfig {
             separation_margin_m: 0.2,
             limits: ControllerConfig::default(),
             braking_mps2: 2.0,
+            obstacle_keep_m: OBSTACLE_KEEP_M,
         }
     }
 }
@@ -96,45 +104,9 @@ const REPORT_EVERY: Duration = Duration::from_secs(5);
 /// Headroom over the controller's own limits before a setpoint counts as beyond them.
 const LIMIT_HEADROOM: f64 = 1.1;
 
-/// Reaction time of the separation cap beyond the controller's velocity lag (s): a tick or two
-/// of the control loop and of the fleet view's age.
-const REACTION_EXTRA_S: f64 = 0.05;
-
-/// Which drones the separation keeps apart from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Heard {
-    All,
-    /// Only drones heard now, not silent ones.
-    Now,
-}
-
-/// One other drone's cap on the closing speed along `away` (unit, from it to this drone).
-struct Closing {
-    away: Vec3,
-    allowed_mps: f64,
-    /// A silent drone: no sliding around its spot, only stopping.
-    stop_only: bool,
-}
-
-/// Whether the straight-line motion `w` from relative position `offset` comes nearer than `r`.
-fn passes_within(offset: &Vec3, w: &Vec3, r: f64) -> bool {
-    let approach = offset.dot(w);
-    let w2 = w.norm_squared();
-    if approach >= 0.0 || w2 < 1e-12 {
-        return offset.norm() < r;
-    }
-    let t = -approach / w2;
-    (offset + w * t).norm() < r
-}
-
-/// The highest closing speed that can still be braked to zero within `room_m`, reacting after
-/// `react_s` and braking at `brake_mps2`: `c * react_s + c^2 / (2 brake) = room_m`.
-fn stoppable_mps(room_m: f64, react_s: f64, brake_mps2: f64) -> f64 {
-    if room_m <= 0.0 {
-        return 0.0;
-    }
-    brake_mps2 * (-react_s + (react_s * react_s + 2.0 * room_m / brake_mps2).sqrt())
-}
+/// The default [`SafetyConfig::obstacle_keep_m`]: the simulated vehicle's 0.15 m radius, half a
+/// 0.1 m cell (a hit marks the cell the surface is in) and a margin.
+pub const OBSTACLE_KEEP_M: f64 = 0.3;
 
 impl SafetyStage {
     pub fn new(config: SafetyConfig, position_loop: Option<PositionLoop>) -> Self {
@@ -167,10 +139,11 @@ impl SafetyStage {
     }
 
     /// Checks one setpoint of drone `me` against this tick's speed `caps` (the running
-    /// behavior's speed and the vehicle's limits). Returns the setpoint to send, and an override
-    /// when one starts (or changes kind) this tick.
+    /// behavior's speed and the vehicle's limits) and what is `around` it (the fleet, and the
+    /// drone's map when it has one). Returns the setpoint to send, and an override when one
+    /// starts (or changes kind) this tick.
     #[allow(clippy::too_many_arguments)]
-    pub fn check(
+    pub fn check<'a>(
         &mut self,
         me: &str,
         state: &EstimatedState,
@@ -178,8 +151,10 @@ impl SafetyStage {
         flight: Flight,
         setpoint: Option<Setpoint>,
         caps: SpeedCaps,
-        fleet: &FleetView,
+        around: impl Into<Around<'a>>,
     ) -> (Option<Setpoint>, Option<Override>) {
+        let around = around.into();
+        let fleet = around.fleet;
         let Some(sp) = setpoint else {
             self.active = None;
             return (None, None);
@@ -204,9 +179,9 @@ impl SafetyStage {
             self.fenced(&fence, here, sp)
                 .or_else(|| {
                     let why = held_for_silence(me, fleet)?;
-                    Some(self.held(me, state, sp, fleet, flight, why))
+                    Some(self.held(me, state, sp, around, flight, why))
                 })
-                .or_else(|| self.separated(me, state, sp, fleet, Heard::All))
+                .or_else(|| self.separated(me, state, sp, around, Heard::All))
                 .or_else(|| self.limited(sp))
                 .map_or((sp, None), |(s, kind, why)| (s, Some((kind, why))))
         };
@@ -283,7 +258,7 @@ impl SafetyStage {
         me: &str,
         state: &EstimatedState,
         sp: Setpoint,
-        fleet: &FleetView,
+        around: Around,
         flight: Flight,
         why: String,
     ) -> (Setpoint, OverrideKind, String) {
@@ -301,126 +276,10 @@ impl SafetyStage {
             return (in_place, OverrideKind::Separation, why);
         }
         let why = format!("{why}; landing straight down");
-        match self.separated(me, state, in_place, fleet, Heard::Now) {
+        match self.separated(me, state, in_place, around, Heard::Now) {
             Some((kept, _, apart)) => (kept, OverrideKind::Separation, format!("{why}, {apart}")),
             None => (in_place, OverrideKind::Separation, why),
         }
-    }
-
-    /// Keeps this drone from closing in on any other flying drone faster than it can stop short
-    /// of `min_separation_m + separation_margin_m`, on the 3-D line between them, and pushes
-    /// apart inside `min_separation_m`.
-    ///
-    /// A drone is a constraint when the straight-line motion relative to it (commanded or
-    /// actual, the other drone's velocity included) would pass nearer than the kept distance,
-    /// or when it is nearer already. Then the closing speed along the 3-D line between them
-    /// (climbs and descents included) is capped to what can still be braked away within the room
-    /// left, after the reaction time and the other drone's own closing during it:
-    /// `c * t_r + c^2 / (2 a) <= d - keep - c_other * t_r`. A motion that passes the other one
-    /// far enough (a descent beside a drone a metre away) is left alone; one that would end
-    /// nearer (a climb into a drone holding half a metre to the side) is slowed and slid along
-    /// the kept sphere, away from the other drone. Every drone around counts, not only the
-    /// nearest; when the caps cannot all be met, the drone stops.
-    fn separated(
-        &self,
-        me: &str,
-        state: &EstimatedState,
-        sp: Setpoint,
-        fleet: &FleetView,
-        heard: Heard,
-    ) -> Option<(Setpoint, OverrideKind, String)> {
-        let here = state.pose.position_m;
-        let min = self.config.min_separation_m;
-        let keep = min + self.config.separation_margin_m.max(0.0);
-        let react_s = self.config.limits.velocity_lag().max(0.0) + REACTION_EXTRA_S;
-        let brake = self.config.braking_mps2.max(0.1);
-        let (asked, yaw) = intended_velocity(&sp, here, &self.position_loop);
-        let actual = state.velocity_enu_mps;
-        let mut limits: Vec<Closing> = Vec::new();
-        let mut push = Vec3::zeros();
-        let mut nearest: Option<(f64, &str)> = None;
-        let counted = |d: &&DroneView| heard == Heard::All || !d.silent;
-        for other in fleet.others(me).filter(|d| d.flying).filter(counted) {
-            let offset = here - other.position_enu_m;
-            // A remote drone may be up to its uncertainty nearer than where it was heard; a
-            // silent one's uncertainty already holds wherever it could have gone.
-            let d = offset.norm() - other.uncertainty_m;
-            let other_v = if other.silent {
-                Vec3::zeros()
-            } else {
-                other.velocity_enu_mps
-            };
-            let reach = keep + other.uncertainty_m;
-            let heading_in = passes_within(&offset, &(asked - other_v), reach)
-                || passes_within(&offset, &(actual - other_v), reach);
-            if !heading_in && d >= keep {
-                continue;
-            }
-            let away = offset
-                .try_normalize(1e-6)
-                .unwrap_or_else(|| Vec3::new(1.0, 0.0, 0.0));
-            let other_closing = other_v.dot(&away).max(0.0);
-            let room = d - keep - other_closing * react_s;
-            limits.push(Closing {
-                away,
-                allowed_mps: stoppable_mps(room, react_s, brake),
-                stop_only: other.silent,
-            });
-            // Pushed apart only from a drone heard now: from a silent one's last position,
-            // pushing could as well be toward it. Sideways where the drones are side by side.
-            if d < min && !other.silent {
-                let sideways = Vec3::new(offset.x, offset.y, 0.0);
-                let dir = if sideways.norm() > 0.5 * offset.norm() {
-                    sideways.try_normalize(1e-6).unwrap_or(away)
-                } else {
-                    away
-                };
-                push += dir * (min - d).min(min);
-            }
-            if nearest.is_none_or(|(n, _)| d < n) {
-                nearest = Some((d, &other.id));
-            }
-        }
-        let (d, id) = nearest?;
-        let mut v = asked;
-        // Sliding along one drone's sphere can close in on another: a few rounds, then a stop.
-        for _ in 0..4 {
-            let mut changed = false;
-            for l in &limits {
-                let closing = -v.dot(&l.away);
-                if closing > l.allowed_mps + 1e-9 {
-                    changed = true;
-                    if l.stop_only {
-                        // Around a silent drone's spot nothing guides a slide: stop instead.
-                        v = Vec3::zeros();
-                    } else {
-                        v += l.away * (closing - l.allowed_mps);
-                    }
-                }
-            }
-            if !changed {
-                break;
-            }
-        }
-        if limits
-            .iter()
-            .any(|l| -v.dot(&l.away) > l.allowed_mps + 1e-6)
-        {
-            v = Vec3::zeros();
-        }
-        v += push;
-        if (v - asked).norm() < 1e-9 {
-            return None;
-        }
-        let why = format!("{d:.2} m from {id}: keeping at least {min:.1} m");
-        Some((
-            Setpoint::Velocity {
-                velocity_enu_mps: v,
-                yaw,
-            },
-            OverrideKind::Separation,
-            why,
-        ))
     }
 
     /// Holds what the platform will command within `caps`: a velocity setpoint is scaled back;

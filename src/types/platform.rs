@@ -51,6 +51,9 @@ pub struct Capabilities {
     /// limit divided by one plus it, so the flown speed holds the limit. The config's
     /// `[controller] velocity_overshoot` overrides it.
     pub velocity_overshoot: Option<f64>,
+    /// The same for turn rates (0.05: up to 5 % faster); the config's
+    /// `[controller] yaw_rate_overshoot` overrides it.
+    pub yaw_rate_overshoot: Option<f64>,
 }
 
 impl Capabilities {
@@ -67,6 +70,7 @@ impl Capabilities {
             native_land: false,
             velocity_lag_s: None,
             velocity_overshoot: None,
+            yaw_rate_overshoot: None,
         }
     }
 }

@@ -49,6 +49,16 @@ describe('flight log', () => {
     expect([tl.t0, tl.t1]).toEqual([0.5, 12]);
   });
 
+  it('lists no line for map cells and frontiers', () => {
+    const maps = parseFlightLog([
+      '{"t":2.0,"drone":"drone_0","type":"map","map":"own","region":[0,0,1,1],"cells":"eJwDAAAAAAE="}',
+      '{"t":2.0,"drone":null,"type":"frontiers","frontiers":[],"claims":[]}',
+      '{"t":2.5,"drone":"drone_0","type":"safety","reason":"geofence"}',
+    ].join('\n'));
+    expect(maps.lines.map((l) => l.kind)).toEqual(['safety']);
+    expect(maps.badLines).toBe(0);
+  });
+
   it('an empty log gives an empty timeline with a usable axis', () => {
     const tl = buildTimeline([], []);
     expect(tl.segments).toEqual([]);

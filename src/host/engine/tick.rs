@@ -3,7 +3,8 @@
 //! asked, the exploration recorded, the changes handed to the store and the fleet advanced.
 //!
 //! In: the time of the tick. Out: setpoints and requests to the fleet, events and alerts for
-//! operators, flight-log records, the merged map brought up to date.
+//! operators, flight-log records (the maps and frontiers at the map rate), the merged map brought
+//! up to date.
 
 use super::Host;
 use crate::behavior::fleet::FleetInput;
@@ -39,6 +40,9 @@ impl Host {
         }
         self.exploration.ask(now, self.map.as_mut());
         self.record_exploration(now);
+        let exploration = (self.exploration.frontiers(), self.exploration.claims());
+        self.log
+            .maps(now, &self.cores, self.map.as_mut(), exploration);
         self.commit();
         self.fleet.advance(now, self.tick);
         for (i, message) in self.fleet.take_alerts() {

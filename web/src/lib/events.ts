@@ -166,6 +166,10 @@ export function parseFlightLog(text: string): ParsedLog {
         out.lines.push({ t, drone, kind: 'command', level: 'info', text: `${str(r.command) ?? ''} ${action ?? ''}`.trim() });
         break;
       }
+      case 'map':
+      case 'frontiers':
+        // Map cells and frontiers (drawn by Foxglove from an MCAP log): no line to list.
+        break;
       default:
         out.lines.push(describeEvent(t, drone, r));
     }

@@ -160,6 +160,7 @@ impl Session {
             native_land: self.profile.land != LandMethod::Setpoints,
             velocity_lag_s: Some(self.profile.velocity_lag.as_secs_f64()),
             velocity_overshoot: self.profile.velocity_overshoot,
+            yaw_rate_overshoot: self.profile.yaw_rate_overshoot,
         }
     }
 

@@ -12,6 +12,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Duration;
 
+mod validate;
+use validate::validate;
+
 /// Which autopilot family a profile is written for; checked against HEARTBEAT.autopilot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -107,6 +110,9 @@ struct RawDrive {
     /// How much faster than a velocity it is sent the vehicle may fly (a fraction; absent: 0).
     #[serde(default)]
     velocity_overshoot: Option<f64>,
+    /// How much faster than a turn rate it is sent the vehicle may turn (a fraction; absent: 0).
+    #[serde(default)]
+    yaw_rate_overshoot: Option<f64>,
 }
 
 fn unit_gain() -> f64 {
@@ -127,6 +133,7 @@ impl Default for RawDrive {
             velocity_check_s: None,
             command_slew_mps2: None,
             velocity_overshoot: None,
+            yaw_rate_overshoot: None,
         }
     }
 }
@@ -294,6 +301,8 @@ pub struct Profile {
     /// (`[drive] velocity_overshoot`); speeds are planned and commanded within each limit
     /// divided by one plus it. `None`: the vehicle flies what it is sent.
     pub velocity_overshoot: Option<f64>,
+    /// The same for turn rates (`[drive] yaw_rate_overshoot`).
+    pub yaw_rate_overshoot: Option<f64>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -326,8 +335,8 @@ impl Profile {
     /// The profiles shipped in `platforms/`, by file stem (`px4`, `ardupilot-copter`).
     pub fn builtin(name: &str) -> Option<Result<Self, ProfileError>> {
         let text = match name {
-            "px4" => include_str!("../../../platforms/px4.toml"),
-            "ardupilot-copter" => include_str!("../../../platforms/ardupilot-copter.toml"),
+            "px4" => include_str!("../../../../platforms/px4.toml"),
+            "ardupilot-copter" => include_str!("../../../../platforms/ardupilot-copter.toml"),
             _ => return None,
         };
         Some(Self::parse(text, &format!("built-in {name}")))
@@ -366,226 +375,6 @@ impl Profile {
             ),
             AutopilotKind::Ardupilot => (mode.custom_mode as f32, 0.0),
         }
-    }
-}
-
-type Invalid = (String, String);
-
-fn seconds(field: &str, v: f64, min: f64, max: f64) -> Result<Duration, Invalid> {
-    if v.is_finite() && (min..=max).contains(&v) {
-        Ok(Duration::from_secs_f64(v))
-    } else {
-        Err((
-            field.into(),
-            format!("must be within {min}..={max} s, got {v}"),
-        ))
-    }
-}
-
-fn mode_value(kind: AutopilotKind, name: &str, raw: RawMode) -> Result<u32, Invalid> {
-    let field = format!("modes.{name}");
-    match (kind, raw) {
-        (
-            AutopilotKind::Px4,
-            RawMode {
-                main: Some(main),
-                sub,
-                number: None,
-            },
-        ) => Ok((u32::from(main) << 16) | (u32::from(sub.unwrap_or(0)) << 24)),
-        (
-            AutopilotKind::Ardupilot,
-            RawMode {
-                main: None,
-                sub: None,
-                number: Some(n),
-            },
-        ) => Ok(n),
-        (AutopilotKind::Px4, _) => Err((field, "PX4 modes are `{ main = M, sub = S }`".into())),
-        (AutopilotKind::Ardupilot, _) => {
-            Err((field, "ArduPilot modes are `{ number = N }`".into()))
-        }
-    }
-}
-
-fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
-    let PlatformKey::Mavlink = raw.platform;
-    let (modes, roles) = modes_and_roles(&raw)?;
-    if !(raw.setpoint_rate_hz.is_finite() && (2.0..=200.0).contains(&raw.setpoint_rate_hz)) {
-        return Err((
-            "setpoint_rate_hz".into(),
-            format!("must be within 2..=200 Hz, got {}", raw.setpoint_rate_hz),
-        ));
-    }
-    let setpoint_period = Duration::from_secs_f64(1.0 / raw.setpoint_rate_hz);
-    let offboard_loss_timeout = seconds(
-        "offboard_loss_timeout_s",
-        raw.offboard_loss_timeout_s,
-        0.1,
-        60.0,
-    )?;
-    let setpoint_max_age = seconds("setpoint_max_age_s", raw.setpoint_max_age_s, 0.005, 5.0)?;
-    if setpoint_max_age >= offboard_loss_timeout || setpoint_period * 2 >= offboard_loss_timeout {
-        return Err((
-            "setpoint_max_age_s".into(),
-            "the setpoint period and maximum age must stay well below offboard_loss_timeout_s"
-                .into(),
-        ));
-    }
-    let message_intervals = message_intervals(&raw)?;
-    if raw.takeoff == TakeoffMethod::NavTakeoff
-        && raw.autopilot == AutopilotKind::Px4
-        && roles.takeoff.is_none()
-    {
-        return Err((
-            "roles.takeoff".into(),
-            "PX4 NAV_TAKEOFF needs the takeoff mode (AUTO.TAKEOFF)".into(),
-        ));
-    }
-    let position_loop = match raw.drive.setpoints {
-        DriveSetpoints::Velocity => None,
-        DriveSetpoints::PositionTarget => Some(PositionLoop {
-            gain_xy_per_s: gain(
-                "drive.position_gain_xy_per_s",
-                raw.drive.position_gain_xy_per_s,
-            )?,
-            gain_z_per_s: gain(
-                "drive.position_gain_z_per_s",
-                raw.drive.position_gain_z_per_s,
-            )?,
-        }),
-    };
-    Ok(Profile {
-        name: raw.name,
-        autopilot: raw.autopilot,
-        takeoff: raw.takeoff,
-        takeoff_altitude: raw.takeoff_altitude,
-        land: raw.land,
-        arm_in_offboard_mode: raw.arm_in_offboard_mode,
-        setpoint_period,
-        setpoint_max_age,
-        offboard_prestream: seconds("offboard_prestream_s", raw.offboard_prestream_s, 0.0, 10.0)?,
-        offboard_loss_timeout,
-        heartbeat_timeout: seconds("heartbeat_timeout_s", raw.heartbeat_timeout_s, 0.2, 30.0)?,
-        command_timeout: seconds("command_timeout_s", raw.command_timeout_s, 0.01, 30.0)?,
-        command_retries: raw.command_retries,
-        mode_confirm_timeout: seconds(
-            "mode_confirm_timeout_s",
-            raw.mode_confirm_timeout_s,
-            0.1,
-            60.0,
-        )?,
-        ready_timeout: seconds("ready_timeout_s", raw.ready_timeout_s, 0.0, 600.0)?,
-        message_interval_fallback: raw.message_interval_fallback,
-        gimbal: raw.gimbal,
-        camera_component: raw.camera_component,
-        readiness: Readiness {
-            ekf_flags_required: raw.readiness.ekf_flags_required,
-            ekf_flags_forbidden: raw.readiness.ekf_flags_forbidden,
-            prearm_check_bit: raw.readiness.prearm_check_bit,
-        },
-        modes,
-        roles,
-        message_intervals,
-        position_loop,
-        velocity_lag: seconds("drive.velocity_lag_s", raw.drive.velocity_lag_s, 0.0, 5.0)?,
-        velocity_check: raw
-            .drive
-            .velocity_check_s
-            .map(|s| seconds("drive.velocity_check_s", s, 0.0, 5.0))
-            .transpose()?,
-        command_slew_mps2: raw
-            .drive
-            .command_slew_mps2
-            .map(|a| {
-                if a.is_finite() && (0.1..=50.0).contains(&a) {
-                    Ok(a)
-                } else {
-                    Err((
-                        "drive.command_slew_mps2".to_string(),
-                        format!("must be within 0.1..=50 m/s^2, got {a}"),
-                    ))
-                }
-            })
-            .transpose()?,
-        velocity_overshoot: raw
-            .drive
-            .velocity_overshoot
-            .map(|share| {
-                if share.is_finite() && (0.0..=1.0).contains(&share) {
-                    Ok(share)
-                } else {
-                    Err((
-                        "drive.velocity_overshoot".to_string(),
-                        format!("must be a fraction within 0..=1, got {share}"),
-                    ))
-                }
-            })
-            .transpose()?,
-    })
-}
-
-/// The profile's modes with their numbers, and the mode each role names.
-fn modes_and_roles(raw: &RawProfile) -> Result<(Vec<Mode>, Roles), Invalid> {
-    let mut modes = Vec::with_capacity(raw.modes.len());
-    for (name, m) in &raw.modes {
-        modes.push(Mode {
-            name: name.clone(),
-            custom_mode: mode_value(raw.autopilot, name, *m)?,
-        });
-    }
-    let find = |role: &str, name: &str| -> Result<Mode, Invalid> {
-        modes
-            .iter()
-            .find(|m| m.name == name)
-            .cloned()
-            .ok_or_else(|| {
-                (
-                    format!("roles.{role}"),
-                    format!("no mode `{name}` in [modes]"),
-                )
-            })
-    };
-    let roles = Roles {
-        offboard: find("offboard", &raw.roles.offboard)?,
-        land: find("land", &raw.roles.land)?,
-        hold: find("hold", &raw.roles.hold)?,
-        rtl: raw
-            .roles
-            .rtl
-            .as_deref()
-            .map(|n| find("rtl", n))
-            .transpose()?,
-        takeoff: raw
-            .roles
-            .takeoff
-            .as_deref()
-            .map(|n| find("takeoff", n))
-            .transpose()?,
-    };
-    Ok((modes, roles))
-}
-
-/// The messages asked of the autopilot, by id, with their rates (0..=500 Hz).
-fn message_intervals(raw: &RawProfile) -> Result<Vec<(u32, f64)>, Invalid> {
-    let mut message_intervals = Vec::with_capacity(raw.message_intervals_hz.len());
-    for (name, hz) in &raw.message_intervals_hz {
-        let field = format!("message_intervals_hz.{name}");
-        let id = MavMessage::message_id_from_name(name)
-            .ok_or_else(|| (field.clone(), "no such MAVLink message".to_string()))?;
-        if !(hz.is_finite() && *hz > 0.0 && *hz <= 500.0) {
-            return Err((field, format!("must be within 0..=500 Hz, got {hz}")));
-        }
-        message_intervals.push((id, *hz));
-    }
-    Ok(message_intervals)
-}
-
-fn gain(field: &str, v: f64) -> Result<f64, Invalid> {
-    if v.is_finite() && (0.1..=5.0).contains(&v) {
-        Ok(v)
-    } else {
-        Err((field.into(), format!("must be within 0.1..=5 1/s, got {v}")))
     }
 }
 
@@ -637,5 +426,7 @@ mod tests {
     fn px4_says_how_much_faster_than_sent_it_flies() {
         assert_eq!(load("px4.toml").velocity_overshoot, Some(0.2));
         assert_eq!(load("ardupilot-copter.toml").velocity_overshoot, None);
+        assert_eq!(load("px4.toml").yaw_rate_overshoot, Some(0.06));
+        assert_eq!(load("ardupilot-copter.toml").yaw_rate_overshoot, None);
     }
 }
