@@ -32,6 +32,7 @@ fn alone() -> FleetInput<'static> {
     static VIEW: std::sync::OnceLock<Arc<FleetView>> = std::sync::OnceLock::new();
     FleetInput {
         view: VIEW.get_or_init(Arc::default),
+        map: None,
     }
 }
 

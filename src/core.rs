@@ -15,9 +15,12 @@ use crate::behavior::{
 use crate::control::{Controller, ControllerConfig, MotionReference, Setpoint};
 use crate::estimator::frames::{FrameError, FrameMotion, FrameTree};
 use crate::estimator::geodetic::GeodeticOrigin;
+use crate::estimator::map_correction::{FitQuality, MapCorrection, MapCorrectionSettings};
 use crate::estimator::{self, Estimator, EstimatorPlugin};
 use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
+use crate::mapping::registration::Reference;
+use crate::mapping::scan::RangeScan;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
 use crate::safety::{Around, Flight, Obstacles, Override, SafetyConfig, SafetyStage};
@@ -33,6 +36,8 @@ use std::time::Duration;
 pub struct CoreConfig {
     pub drone_id: String,
     pub estimator: EstimatorPlugin,
+    /// The estimate corrected against the fleet's map (`[estimator.map_correction]`).
+    pub map_correction: MapCorrectionSettings,
     pub controller: ControllerConfig,
     pub behaviors: BehaviorConfig,
     /// The exploration's weights, for the `explore` behavior (config `[exploration]`).
@@ -49,6 +54,7 @@ impl CoreConfig {
         Self {
             drone_id: drone_id.to_string(),
             estimator: EstimatorPlugin::GroundTruth,
+            map_correction: MapCorrectionSettings::default(),
             controller: ControllerConfig::default(),
             behaviors: BehaviorConfig::default(),
             exploration: ExplorationSettings::default(),
@@ -63,6 +69,7 @@ impl CoreConfig {
 /// What one tick produces for the platform and the outside world.
 #[derive(Debug, Default)]
 pub struct TickOutput {
+    /// In the map's frame: [`DroneCore::to_vehicle_frame`] gives what the vehicle is sent.
     pub setpoint: Option<Setpoint>,
     pub requests: Vec<PlatformRequest>,
     pub service_calls: Vec<ServiceCall>,
@@ -98,6 +105,8 @@ pub struct DroneCore {
     config: CoreConfig,
     capabilities: Capabilities,
     estimator: Box<dyn Estimator>,
+    /// From the reported position to the map's frame (`None`: off, or no map).
+    correction: Option<MapCorrection>,
     frames: FrameTree,
     server: BehaviorServer,
     services: ServiceDesk,
@@ -146,6 +155,11 @@ impl DroneCore {
         };
         Self {
             estimator: estimator::build(config.estimator),
+            correction: config
+                .map
+                .as_ref()
+                .filter(|_| config.map_correction.enabled)
+                .map(|_| MapCorrection::new(config.map_correction)),
             controller: Controller::new(config.controller, capabilities.setpoints),
             safety: SafetyStage::new(config.safety.clone(), capabilities.setpoints.position_loop),
             server: BehaviorServer::new(registry),
@@ -314,13 +328,14 @@ impl DroneCore {
         let was_armed = self.platform.armed;
         let previous_link = self.platform.link;
         self.platform = feedback.status.clone();
-        self.state = self.estimator.update(now, &feedback.measurements);
+        let reported = self.estimator.update(now, &feedback.measurements);
+        let scans = self.correct_against_map(reported, &feedback.scans, fleet.map, dt_s);
         if self.state.valid.position {
             self.position_at = Some(now);
         }
         self.frames.set_base_link(self.state.pose, now);
         if let Some(map) = self.map.as_mut() {
-            map.insert(now, &feedback.scans);
+            map.insert(now, &scans);
         }
         if self.platform.armed && !was_armed && self.state.valid.position {
             self.home_enu_m = Some(self.state.pose.position_m);
@@ -358,6 +373,69 @@ impl DroneCore {
             events: self.server.drain_events(),
             takeover,
         }
+    }
+
+    /// Reported position plus this is the position in the map's frame (ENU m, 0 without the
+    /// map correction).
+    pub fn map_offset_m(&self) -> Vec3 {
+        self.correction
+            .as_ref()
+            .map_or_else(Vec3::zeros, MapCorrection::offset_m)
+    }
+
+    /// Scans the vehicle reported (placed at its reported pose) moved into the map's frame.
+    pub fn to_map_frame(&self, scans: &[RangeScan]) -> Vec<RangeScan> {
+        let offset = self.map_offset_m();
+        scans.iter().map(|s| shifted(s, offset)).collect()
+    }
+
+    /// A setpoint of the map's frame (as [`TickOutput::setpoint`]) in the vehicle's, to send it:
+    /// positions less the map offset.
+    pub fn to_vehicle_frame(&self, setpoint: Setpoint) -> Setpoint {
+        match setpoint {
+            Setpoint::Position {
+                position_enu_m,
+                velocity_ff_enu_mps,
+                yaw,
+            } => Setpoint::Position {
+                position_enu_m: position_enu_m - self.map_offset_m(),
+                velocity_ff_enu_mps,
+                yaw,
+            },
+            velocity @ Setpoint::Velocity { .. } => velocity,
+        }
+    }
+
+    /// Sets the estimate: the `reported` one moved into the map's frame by the map correction,
+    /// which first learns from this tick's `scans` against the fleet's `map` while flying.
+    /// Returns the scans in the map's frame.
+    fn correct_against_map(
+        &mut self,
+        reported: EstimatedState,
+        scans: &[RangeScan],
+        map: Option<Reference<'_>>,
+        dt_s: f64,
+    ) -> Vec<RangeScan> {
+        let flying =
+            self.platform.flight.is_airborne() && self.platform.armed && reported.valid.position;
+        if let (Some(correction), Some(map), true) = (self.correction.as_mut(), map, flying) {
+            let now_s = self.now.as_secs_f64();
+            correction.predict(dt_s);
+            correction.add_hits(now_s, scans.iter().flat_map(hits_of));
+            let settle_s = correction.settings().settle_s;
+            correction.fit(now_s, |hits, offset| {
+                let fit = map.fit_score(hits, offset, now_s, settle_s);
+                FitQuality {
+                    score: fit.score,
+                    span_m: fit.span_m,
+                    age_s: fit.age_s,
+                    on_obstacles: fit.on_obstacles,
+                }
+            });
+        }
+        self.state = reported;
+        self.state.pose.position_m += self.map_offset_m();
+        self.to_map_frame(scans)
     }
 
     /// The setpoint for the behaviors' `reference` (none without a position or a link), after
@@ -410,6 +488,23 @@ impl DroneCore {
             flying && self.platform.flight == crate::types::FlightStatus::Flying,
         );
         (setpoint, safety)
+    }
+}
+
+/// Where `scan`'s beams ended on something (ENU m, horizontal).
+fn hits_of(scan: &RangeScan) -> impl Iterator<Item = crate::types::Vec2> + '_ {
+    let origin = scan.origin_enu_m.xy();
+    scan.beams.iter().filter_map(move |beam| {
+        let range_m = beam.range_m.filter(|r| r.is_finite())?;
+        Some(origin + scan.beam_direction_enu(beam) * range_m)
+    })
+}
+
+/// `scan` moved by `offset_m`.
+fn shifted(scan: &RangeScan, offset_m: Vec3) -> RangeScan {
+    RangeScan {
+        origin_enu_m: scan.origin_enu_m + offset_m,
+        ..scan.clone()
     }
 }
 

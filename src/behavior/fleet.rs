@@ -7,8 +7,10 @@
 use crate::types::FleetView;
 use std::sync::Arc;
 
-/// What a core gets from its fleet each tick: the view (shared by every core of the host).
+/// What a core gets from its fleet each tick: the view (shared by every core of the host) and
+/// the fleet's merged map to register its scans against (`None`: no map, no correction).
 #[derive(Clone, Copy)]
 pub struct FleetInput<'a> {
     pub view: &'a Arc<FleetView>,
+    pub map: Option<crate::mapping::registration::Reference<'a>>,
 }

@@ -27,6 +27,7 @@ use kestrel::config::Config;
 use kestrel::control::Setpoint;
 use kestrel::core::{CoreConfig, DroneCore};
 use kestrel::estimator::geodetic::GeodeticOrigin;
+use kestrel::estimator::map_correction::AUTOPILOT_DRIFT_MPS;
 use kestrel::estimator::EstimatorPlugin;
 use kestrel::flightlog::{FlightLog, LogFormat};
 use kestrel::host::runtime::Pace;
@@ -360,6 +361,10 @@ async fn run_async(args: RunArgs) -> Result<()> {
         ready_timeout = ready_timeout.max(ready);
         let mut core_config = CoreConfig::new(&id);
         core_config.estimator = config.estimator.plugin.unwrap_or(estimator);
+        core_config.map_correction = config
+            .estimator
+            .map_correction
+            .for_vehicle(AUTOPILOT_DRIFT_MPS);
         core_config.controller = config.controller;
         core_config.behaviors = config.behaviors;
         core_config.exploration = config.exploration;

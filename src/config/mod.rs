@@ -107,6 +107,8 @@ impl Default for DroneSection {
 #[serde(deny_unknown_fields, default)]
 pub struct EstimatorSection {
     pub plugin: Option<EstimatorPlugin>,
+    /// `[estimator.map_correction]`: the estimate corrected against the map.
+    pub map_correction: crate::estimator::map_correction::MapCorrectionSettings,
 }
 
 /// The HTTP/WebSocket ground-station API.
@@ -325,6 +327,10 @@ impl Config {
             o.validate()
                 .map_err(|e| ("drone.geodetic_origin".to_string(), e.to_string()))?;
         }
+        self.estimator
+            .map_correction
+            .check()
+            .map_err(|(field, e)| (format!("estimator.map_correction.{field}"), e))?;
         self.validate_controller()?;
         vehicles::validate(&self.vehicles, &self.mavlink)?;
         self.fleet.validate(&self.drone_ids())?;

@@ -9,6 +9,7 @@
 
 pub mod frames;
 pub mod geodetic;
+pub mod map_correction;
 
 use crate::types::{EstimatedState, Pose, Validity};
 use serde::{Deserialize, Serialize};

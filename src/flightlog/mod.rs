@@ -11,6 +11,9 @@
 //!   tracking error; null when none); at `pose_rate_hz` (default 10 Hz). The pose is what the
 //!   drone believes; where a simulated drone's estimate drifts (`[sim] position_drift_mps`) the
 //!   record also has `truth` (`x`, `y`, `z`, `yaw`: where it really was), which evaluators use.
+//!   While the map correction moves the vehicle's reported position (`[estimator.map_correction]`)
+//!   the record has `map_offset` (`x`, `y`, ENU m: what it adds to the report to give `x`, `y`);
+//!   the setpoint is in the same frame as the pose.
 //! - `behavior`: a behavior event (`event` = started / paused / resumed / modified / finished,
 //!   `id`, `behavior`, and `goal` or `result`), with `mission` (`mission_id`, `item_index`,
 //!   `item`: the mission item running when it happened) or null outside missions.
@@ -49,7 +52,7 @@ pub mod writer;
 use crate::behavior::BehaviorEvent;
 use crate::exploration::online::service::{ClaimView, FrontierView};
 use crate::mapping::grid::{CellBox, OccupancyGrid};
-use crate::types::{Pose, Setpoint, VehicleState};
+use crate::types::{Pose, Setpoint, Vec3, VehicleState};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::io::Write;
@@ -154,6 +157,7 @@ impl FlightLog {
         behavior: Option<&str>,
         setpoint: Option<&Setpoint>,
         truth: Option<&Pose>,
+        map_offset_m: Vec3,
     ) {
         if !self.pose_due(t, &state.drone) {
             return;
@@ -172,12 +176,18 @@ impl FlightLog {
             "battery_fraction": state.platform.battery.and_then(|b| b.remaining_fraction),
             "setpoint": setpoint,
         });
-        if let (Some(truth), Value::Object(map)) = (truth, &mut record) {
-            let q = truth.position_m;
-            map.insert(
-                "truth".into(),
-                json!({"x": q.x, "y": q.y, "z": q.z, "yaw": truth.yaw_rad()}),
-            );
+        if let Value::Object(map) = &mut record {
+            if let Some(truth) = truth {
+                let q = truth.position_m;
+                map.insert(
+                    "truth".into(),
+                    json!({"x": q.x, "y": q.y, "z": q.z, "yaw": truth.yaw_rad()}),
+                );
+            }
+            if map_offset_m != Vec3::zeros() {
+                let o = map_offset_m;
+                map.insert("map_offset".into(), json!({"x": o.x, "y": o.y}));
+            }
         }
         self.write(record);
     }

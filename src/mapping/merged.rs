@@ -14,6 +14,7 @@ use serde::Serialize;
 use super::config::MapConfig;
 use super::grid::{Cell, CellBox, GridPatch, GridSpec, OccupancyGrid};
 use super::layers::LayeredMap;
+use super::registration::{OccupiedSince, Reference};
 use super::scan::RangeScan;
 use super::MapError;
 
@@ -43,6 +44,11 @@ pub struct FleetMap {
     update_period: Duration,
     /// This host's drones' layer regions not yet sent on the fleet bus (`None`: no bus).
     bus_pending: Option<BTreeMap<String, CellBox>>,
+    /// Since when each merged cell is occupied, for registering scans against the map.
+    since: OccupiedSince,
+    /// Changed regions whose stamps [`FleetMap::stamp`] has not yet brought up to date.
+    unstamped: BTreeMap<String, CellBox>,
+    occupied_threshold: i8,
     /// The merged grid's region changed since the last [`FleetMap::take_logged`] (the flight
     /// log's copy).
     unlogged: Option<CellBox>,
@@ -66,12 +72,18 @@ impl FleetMap {
         if config.initial.data().iter().any(|&v| v != super::UNKNOWN) {
             layers.merge_local(KNOWN_LAYER, &config.initial)?;
         }
+        // The known map's obstacles were there before the run.
+        let since =
+            OccupiedSince::new(&layers.global, config.occupied_threshold, f64::NEG_INFINITY);
         Ok(FleetMap {
             layers,
             pending: BTreeMap::new(),
             unsynced: BTreeMap::new(),
             update_period: config.update_period,
             bus_pending: None,
+            since,
+            unstamped: BTreeMap::new(),
+            occupied_threshold: config.occupied_threshold,
             unlogged: None,
         })
     }
@@ -203,7 +215,7 @@ impl FleetMap {
     }
 
     fn changed(&mut self, drone: &str, region: CellBox) {
-        for regions in [&mut self.pending, &mut self.unsynced] {
+        for regions in [&mut self.pending, &mut self.unsynced, &mut self.unstamped] {
             let slot = regions.entry(drone.to_string()).or_insert(region);
             *slot = slot.union(region);
         }
@@ -237,6 +249,28 @@ impl FleetMap {
 
     pub fn merged(&self) -> &OccupancyGrid {
         &self.layers.global
+    }
+
+    /// Stamps the cells changed since the last call that became occupied with `now` (and
+    /// unstamps those no longer so): see [`Self::reference`].
+    pub fn stamp(&mut self, now: Duration) {
+        for region in std::mem::take(&mut self.unstamped).into_values() {
+            self.since.restamp(
+                &self.layers.global,
+                self.occupied_threshold,
+                region,
+                now.as_secs_f64(),
+            );
+        }
+    }
+
+    /// The merged grid with since when each cell is occupied, to register scans against.
+    pub fn reference(&self) -> Reference<'_> {
+        Reference {
+            grid: &self.layers.global,
+            since: &self.since,
+            occupied_threshold: self.occupied_threshold,
+        }
     }
 
     /// One layer: a drone's scans, or [`KNOWN_LAYER`].
@@ -302,6 +336,34 @@ mod tests {
                 range_m: Some(range_m),
             }],
         }
+    }
+
+    #[test]
+    fn obstacles_are_registered_against_once_they_have_settled() {
+        let config = MapConfig::open_field().unwrap();
+        let mut m = FleetMap::new(&config).unwrap();
+        // drone_0 maps an obstacle at x 1.05 at 2 s; drone_1's hit falls 0.2 m short of it.
+        m.insert("drone_0", &scan_from(0.05, 0.05, 1.0)).unwrap();
+        m.stamp(Duration::from_secs(2));
+        let hit = [Vector2::new(0.85, 0.05)];
+        let east = Vector2::new(0.2, 0.0);
+        assert_eq!(
+            m.reference().fit_score(&hit, east, 6.9, 5.0).score,
+            0.0,
+            "not settled"
+        );
+        assert_eq!(m.reference().fit_score(&hit, east, 62.0, 5.0).score, 1.0);
+        assert_eq!(
+            m.reference()
+                .fit_score(&hit, Vector2::zeros(), 62.0, 5.0)
+                .score,
+            -0.5,
+            "seen free"
+        );
+        // Stamped once: a later stamp keeps when it became occupied.
+        m.insert("drone_0", &scan_from(0.05, 0.05, 1.0)).unwrap();
+        m.stamp(Duration::from_secs(9));
+        assert_eq!(m.reference().fit_score(&hit, east, 62.0, 5.0).score, 1.0);
     }
 
     #[test]

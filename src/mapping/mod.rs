@@ -10,6 +10,8 @@
 //! * [`config`], [`server`], [`merged`]: the `[map]` config section, each drone's map server
 //!   (scans in every tick, grid and planning map out) and the fleet's merged map with the
 //!   changed regions for clients.
+//! * [`registration`]: how well range hits, moved by an offset, fit the obstacles a map has held
+//!   for a while: the evidence the estimator's map correction learns a drifting estimate from.
 //! * [`graph`]: a [`TopoGraph`] (nodes + weighted edges), built from an indoor-farm description
 //!   or loaded from JSON.
 //!
@@ -23,6 +25,7 @@ pub mod grid;
 pub mod layers;
 pub mod merged;
 pub mod raycast;
+pub mod registration;
 pub mod scan;
 pub mod server;
 

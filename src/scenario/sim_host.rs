@@ -83,6 +83,8 @@ fn simulated_parts_with(
     let origin = sim.world.geodetic_origin.or(config.drone.geodetic_origin);
     let registry = payload::registry();
     let map = sim_map_config(&sim, config);
+    // The drift its estimator is told of is the one the simulator gives it.
+    let drift_mps = sim.imperfections().position_drift_mps;
     let cores = sim
         .vehicles
         .iter()
@@ -93,6 +95,7 @@ fn simulated_parts_with(
             c.behaviors = config.behaviors;
             c.exploration = config.exploration;
             c.estimator = config.estimator.plugin.unwrap_or_default();
+            c.map_correction = config.estimator.map_correction.for_vehicle(drift_mps);
             c.map.clone_from(&map);
             c.safety = config.safety_config();
             if let Some(o) = origin {

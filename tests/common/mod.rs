@@ -107,7 +107,8 @@ impl Harness {
     ) -> Self {
         let mut settings = config.settings.clone();
         settings.drone.control_rate_hz = config.rate_hz;
-        let sim = SimWorld::new(world, config.drones, config.seed, config.environment);
+        let mut sim = SimWorld::new(world, config.drones, config.seed, config.environment);
+        sim.set_imperfections(settings.sim.imperfections());
         let mut host = simulated_host_with(sim, &settings, tweak);
         let log = SharedBuffer::default();
         host.set_log(FlightLog::new(Box::new(log.clone()), config.pose_log_hz));

@@ -173,7 +173,15 @@ impl HostLog {
         };
         let state = core.vehicle_state();
         let motion = core.server().motion().map(|(name, _)| name);
-        log.pose(t, &state, motion, out.setpoint.as_ref(), truth().as_ref());
+        let offset = core.map_offset_m();
+        log.pose(
+            t,
+            &state,
+            motion,
+            out.setpoint.as_ref(),
+            truth().as_ref(),
+            offset,
+        );
         for e in &out.events {
             log.behavior(t, core.drone_id(), e, item);
         }

@@ -35,6 +35,9 @@ impl Host {
         for i in 0..self.cores.len() {
             self.tick_drone(i, now, &view);
         }
+        if let Some(map) = self.map.as_mut() {
+            map.stamp(now);
+        }
         self.exploration.ask(now, self.map.as_mut());
         self.record_exploration(now);
         let exploration = (self.exploration.frontiers(), self.exploration.claims());
@@ -106,8 +109,10 @@ impl Host {
         view: &Arc<FleetView>,
     ) -> Option<TickOutput> {
         let core = self.cores.get_mut(i)?;
-        let mut out = core.tick(now, feedback, FleetInput { view });
-        self.fleet.command(i, now, out.setpoint, &out.requests);
+        let map = self.map.as_ref().map(FleetMap::reference);
+        let mut out = core.tick(now, feedback, FleetInput { view, map });
+        let setpoint = out.setpoint.map(|s| core.to_vehicle_frame(s));
+        self.fleet.command(i, now, setpoint, &out.requests);
         for call in std::mem::take(&mut out.service_calls) {
             if let Some(job) = call.submit(i, &mut self.planner) {
                 self.exploration.queue(i, job);
@@ -243,14 +248,12 @@ impl Host {
 /// tick, copied (the scans are ray-cast once), or its scans ray-cast again when its grid is not on
 /// the merged spec (a drone configured with a map of its own).
 fn merge_into(map: &mut FleetMap, core: &DroneCore, scans: &[RangeScan]) {
-    let Some(own) = core.map() else {
-        map.insert_all(core.drone_id(), scans);
+    let own = core.map().filter(|own| map.same_spec(own.grid().spec()));
+    let Some(own) = own else {
+        // In the map's frame, where the core's own map has them.
+        map.insert_all(core.drone_id(), &core.to_map_frame(scans));
         return;
     };
-    if !map.same_spec(own.grid().spec()) {
-        map.insert_all(core.drone_id(), scans);
-        return;
-    }
     if let Some(region) = own.last_changed() {
         if let Err(e) = map.copy_from_drone(core.drone_id(), own.grid(), region) {
             tracing::warn!("{}: merged map not updated: {e}", core.drone_id());
