@@ -20,6 +20,17 @@ _port_counter = [20000 + (os.getpid() % 400) * 100]
 PORT_OFFSETS = (0, 1, 2, 3, 11, 12, 13, 21, 31, 41)
 
 
+def wait_until(what, max_s, f, poll_s=0.2):
+    """f()'s first truthy value within max_s seconds; fails naming `what` after that."""
+    deadline = time.time() + max_s
+    while True:
+        v = f()
+        if v:
+            return v
+        assert time.time() < deadline, f"timed out waiting for {what}"
+        time.sleep(poll_s)
+
+
 def free_port_block():
     """A base port whose block (see PORT_OFFSETS) is free."""
     while True:

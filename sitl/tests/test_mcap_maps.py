@@ -31,6 +31,7 @@ import urllib.request
 import zlib
 
 import pytest
+from conftest import wait_until
 from mcap.reader import NonSeekingReader, make_reader
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -278,13 +279,7 @@ def get(port, path):
 
 
 def wait(what, max_s, f):
-    deadline = time.time() + max_s
-    while True:
-        v = f()
-        if v:
-            return v
-        assert time.time() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.2)
+    return wait_until(what, max_s, f)
 
 
 def test_a_killed_sim_leaves_its_grids_up_to_the_last_flush():

@@ -30,6 +30,7 @@ import urllib.request
 
 import pytest
 import zenoh
+from conftest import wait_until
 import zenoh.ext as zext
 from rosbags.typesys import Stores, get_typestore
 
@@ -209,13 +210,7 @@ class Ros:
             return None
 
     def wait(self, what, max_s, f):
-        deadline = time.time() + max_s
-        while True:
-            v = f()
-            if v:
-                return v
-            assert time.time() < deadline, f"timed out waiting for {what}"
-            time.sleep(0.1)
+        return wait_until(what, max_s, f, poll_s=0.1)
 
     def graph(self):
         """Kestrel's live tokens, parsed, once the node and all its endpoints are there."""
