@@ -20,6 +20,15 @@ _port_counter = [20000 + (os.getpid() % 400) * 100]
 PORT_OFFSETS = (0, 1, 2, 3, 11, 12, 13, 21, 31, 41)
 
 
+def free_port():
+    """A TCP port on 127.0.0.1 free a moment ago (another process may still take it)."""
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
 def wait_until(what, max_s, f, poll_s=0.2):
     """f()'s first truthy value within max_s seconds; fails naming `what` after that."""
     deadline = time.time() + max_s

@@ -23,7 +23,6 @@ import json
 import math
 import os
 import signal
-import socket
 import subprocess
 import tempfile
 import time
@@ -31,7 +30,7 @@ import urllib.request
 import zlib
 
 import pytest
-from conftest import wait_until
+from conftest import free_port, wait_until
 from mcap.reader import NonSeekingReader, make_reader
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -260,14 +259,6 @@ def test_frontiers_are_drawn_as_the_allocator_saw_them(explored):
             p = update["entities"][0]["spheres"][0]["pose"]["position"]
             assert math.dist([p["x"], p["y"]], goal) < 1e-9, f"{drone} held {goal}, drawn at {p}"
 
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def get(port, path):

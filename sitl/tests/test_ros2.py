@@ -20,7 +20,6 @@ real time.
 import json
 import math
 import os
-import socket
 import struct
 import subprocess
 import tempfile
@@ -30,7 +29,7 @@ import urllib.request
 
 import pytest
 import zenoh
-from conftest import wait_until
+from conftest import free_port, wait_until
 import zenoh.ext as zext
 from rosbags.typesys import Stores, get_typestore
 
@@ -55,14 +54,6 @@ PUBLISHED = {
     "/map": ("nav_msgs/msg/OccupancyGrid", TRANSIENT_LOCAL, 1),
 }
 SUBSCRIBED = {"/drone_0/goal_pose": ("geometry_msgs/msg/PoseStamped", VOLATILE, 10)}
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def open_session(config):
