@@ -24,6 +24,9 @@ use mavlink_support::{alongside, free_tcp_port, repo, Api, Fake, Kestrel};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
+/// The middles of the openings in the inner walls of `BAYS` (ENU, m).
+const DOORWAYS_ENU_M: [[f64; 2]; 2] = [[-3.0, 0.0], [3.0, 0.0]];
+
 /// How long after every drone landed the maps the Kestrels serve may still differ: map regions
 /// go out twice a second, keyframes every 10 s.
 const MAP_LAG: Duration = Duration::from_secs(3);
@@ -250,8 +253,28 @@ fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kes
     }
 
     // node_2 dies: its vehicle lands by itself (PX4's offboard-loss failsafe); the other two
-    // explore its bay as well and land.
+    // explore its bay as well and land. They keep 1.5 m (separation plus keep-out) from where
+    // its drone was last heard: killed in a doorway (3 m wide), it would seal a bay off for good,
+    // so it dies once its drone is clear of both.
+    let deadline = Instant::now() + Duration::from_secs(40);
+    let last_heard = loop {
+        let at = position(&fleet.apis[0].get("/api/status")["remote"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|d| d["id"] == "drone_2")
+            .unwrap()
+            .clone());
+        let clear = DOORWAYS_ENU_M
+            .iter()
+            .all(|d| (at.xy() - nalgebra::Vector2::from(*d)).norm() >= 2.5);
+        if clear || Instant::now() > deadline {
+            break at;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
     drop(fleet.nodes[2].take());
+    println!("node_2 killed with drone_2 last heard at {last_heard:?}");
     let views = fleet.wait_explored(&[0, 1], &fake);
     std::thread::sleep(Duration::from_secs(1));
     let samples = poller.finish();

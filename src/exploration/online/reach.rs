@@ -184,6 +184,38 @@ impl Reach {
             .collect::<Option<Vec<_>>>()
     }
 
+    /// Whether cell `index` lies inside a keep-out disc (deeper than the start is).
+    pub fn kept_out(&self, space: &Space, index: usize) -> bool {
+        !outside_keep_out(space, &self.keep_out, index)
+    }
+
+    /// The reached cell nearest to cell `index` within `within_m` of it, if any: where to look
+    /// at a goal that lies in a keep-out disc from.
+    pub fn nearest_reached(&self, space: &Space, index: usize, within_m: f64) -> Option<usize> {
+        let at = space.center_of(index)?;
+        let r = (within_m / self.resolution_m).ceil() as i64;
+        let w = self.width as i64;
+        let h = (self.cost.len() / self.width) as i64;
+        let (cx, cy) = ((index as i64) % w, (index as i64) / w);
+        let mut best: Option<(f64, usize)> = None;
+        for y in (cy - r).max(0)..=(cy + r).min(h - 1) {
+            for x in (cx - r).max(0)..=(cx + r).min(w - 1) {
+                let i = (y * w + x) as usize;
+                if self.cost[i] == UNREACHED {
+                    continue;
+                }
+                let Some(c) = space.center_of(i) else {
+                    continue;
+                };
+                let d = (c - at).norm();
+                if d <= within_m && best.is_none_or(|(b, _)| d < b) {
+                    best = Some((d, i));
+                }
+            }
+        }
+        best.map(|(_, i)| i)
+    }
+
     /// Whether every cell on the segment between two cells is navigable (or the start's own
     /// neighbourhood).
     pub fn line_clear(&self, space: &Space, a: usize, b: usize) -> bool {

@@ -46,6 +46,9 @@ pub const CLAIM_TTL: Duration = Duration::from_secs(6);
 const GIVEN_UP_RADIUS_M: f64 = 0.8;
 /// A goal given up once is offered again after this long.
 const GIVEN_UP_FOR: Duration = Duration::from_secs(120);
+/// A goal in a keep-out disc is looked at from a reachable cell at most this far from it (m):
+/// within the beams' reach with room to spare.
+const LOOK_IN_M: f64 = 2.5;
 /// Most given-up goals kept.
 const MAX_GIVEN_UP: usize = 4096;
 
@@ -254,6 +257,28 @@ impl<'s> Survey<'s> {
     }
 }
 
+/// The space's frontiers, each whose goal lies in a keep-out disc given instead the reachable
+/// cell nearest that goal within [`LOOK_IN_M`], from where the beams see across the disc: the
+/// unknown round a silent drone's last position is still explored, from outside.
+fn looked_at_from_outside(space: &Space, reach: &Reach, keep_out: &[KeepOut]) -> Vec<Frontier> {
+    space
+        .frontiers
+        .iter()
+        .map(|f| {
+            let mut f = f.clone();
+            if keep_out.is_empty() || !reach.kept_out(space, f.goal_index) {
+                return f;
+            }
+            let outside = reach.nearest_reached(space, f.goal_index, LOOK_IN_M);
+            if let Some((i, at)) = outside.and_then(|i| Some((i, space.center_of(i)?))) {
+                f.goal_index = i;
+                f.goal_enu_m = at;
+            }
+            f
+        })
+        .collect()
+}
+
 /// The allocator's memory between requests.
 #[derive(Default)]
 pub struct FrontierService {
@@ -323,7 +348,13 @@ impl FrontierService {
         let here = request.position_enu_m.xy();
         let reach =
             Reach::keeping_out(space, here, &request.keep_out).ok_or(ExploreError::OutsideMap)?;
-        let survey = Survey::new(self.open_frontiers(now, space), space, &reach, request);
+        let frontiers = looked_at_from_outside(space, &reach, &request.keep_out);
+        let survey = Survey::new(
+            self.open_frontiers(now, &frontiers),
+            space,
+            &reach,
+            request,
+        );
         let mut candidates = self.candidates(space, &reach, &survey, request);
         let others = self.others(&request.drone);
         self.leave_to_nearer_holders(&mut candidates, &request.drone);
@@ -359,9 +390,8 @@ impl FrontierService {
     /// The frontiers not given up: a goal given up twice is left for good; once, for
     /// [`GIVEN_UP_FOR`] (the drone may have given up for a reason that passes: another drone in
     /// the way, a path that failed).
-    fn open_frontiers<'s>(&self, now: Duration, space: &'s Space) -> Vec<&'s Frontier> {
-        space
-            .frontiers
+    fn open_frontiers<'s>(&self, now: Duration, frontiers: &'s [Frontier]) -> Vec<&'s Frontier> {
+        frontiers
             .iter()
             .filter(|f| {
                 let near: Vec<&GivenUp> = self
@@ -657,6 +687,42 @@ mod tests {
         let freed = goal_of(&s.answer(later, &grid, &ask("a", 2.0, 2.0)).unwrap());
         assert!((freed - alone).norm() < 1e-9, "{freed:?} {alone:?}");
         assert_eq!(s.claims().len(), 1);
+    }
+
+    #[test]
+    fn a_frontier_whose_goal_lies_in_a_keep_out_disc_is_looked_at_from_outside_it() {
+        let grid = half_known();
+        let t = Duration::from_secs(1);
+        let free = goal_of(
+            &FrontierService::new()
+                .answer(t, &grid, &ask("a", 2.0, 5.0))
+                .unwrap(),
+        );
+        // A silent drone's last position on that goal: its disc covers the goal, not the
+        // whole frontier.
+        let disc = KeepOut {
+            centre_enu_m: free.xy(),
+            radius_m: 1.5,
+        };
+        let mut request = ask("a", 2.0, 5.0);
+        request.keep_out = vec![disc];
+        let answer = FrontierService::new().answer(t, &grid, &request).unwrap();
+        let Allocation::Goal {
+            goal_enu_m,
+            path_enu_m,
+            ..
+        } = &answer
+        else {
+            panic!("the frontier is still there to look at: {answer:?}");
+        };
+        let from_centre = (goal_enu_m.xy() - disc.centre_enu_m).norm();
+        assert!(
+            (disc.radius_m..=LOOK_IN_M + 0.1).contains(&from_centre),
+            "{goal_enu_m:?} {from_centre}"
+        );
+        assert!(path_enu_m
+            .iter()
+            .all(|p| (p.xy() - disc.centre_enu_m).norm() >= disc.radius_m - 0.1));
     }
 
     /// 20 x 10 m known free but for a square unknown pocket of `side` cells from (15, 4.8).
