@@ -69,16 +69,29 @@ impl Reach {
         let start_margin = space.clearance_level(start);
         let near_start_ok =
             |i: usize| space.is_clear(i) && space.clearance_level(i) >= start_margin;
-        let passable = |i: usize| {
-            if !outside(i) {
-                return false;
+        // Which cells a path may enter, worked out once (each is asked up to 16 times below):
+        // the navigable ones, and near the start those no closer to trouble than the start;
+        // none inside a keep-out disc.
+        let mut pass = space.navigable_cells().to_vec();
+        for y in (sy - s).max(0)..=(sy + s).min(h as i64 - 1) {
+            for x in (sx - s).max(0)..=(sx + s).min(w as i64 - 1) {
+                let i = y as usize * w + x as usize;
+                pass[i] = pass[i] || near_start_ok(i);
             }
-            if space.is_navigable(i) {
-                return true;
+        }
+        for (k, _) in &keep_out {
+            // The disc's cells, its centre possibly off the grid.
+            let r = (k.radius_m / spec.resolution_m).ceil() as i64 + 1;
+            let from_origin = (k.centre_enu_m - spec.origin_enu_m) / spec.resolution_m;
+            let (cx, cy) = (from_origin.x.floor() as i64, from_origin.y.floor() as i64);
+            for y in (cy - r).max(0)..=(cy + r).min(h as i64 - 1) {
+                for x in (cx - r).max(0)..=(cx + r).min(w as i64 - 1) {
+                    let i = y as usize * w + x as usize;
+                    pass[i] = pass[i] && outside(i);
+                }
             }
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            (x - sx).abs() <= s && (y - sy).abs() <= s && near_start_ok(i)
-        };
+        }
+        let passable = |i: usize| pass[i];
         let mut cost = vec![UNREACHED; w * h];
         let mut parent = vec![u32::MAX; w * h];
         let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); (DIAGONAL + 1) as usize];
@@ -261,6 +274,9 @@ impl Reach {
 
 /// Whether cell `i` lies outside every disc, or inside one no deeper than the start was.
 fn outside_keep_out(space: &Space, keep_out: &[(KeepOut, f64)], i: usize) -> bool {
+    if keep_out.is_empty() {
+        return true;
+    }
     let Some(at) = space.center_of(i) else {
         return false;
     };

@@ -19,7 +19,7 @@
 
 mod masks;
 
-use masks::{close3, components, dilate_disc};
+use masks::{close3, components, squared_distance};
 use nalgebra::Vector2;
 
 use crate::mapping::grid::{GridSpec, OccupancyGrid, UNKNOWN};
@@ -115,6 +115,10 @@ pub struct Space {
 }
 
 /// A rectangle of cells, `x0..x1` by `y0..y1`.
+/// Side of the tiles a map update is read in (cells): changed tiles that touch are read
+/// together.
+const TILE: usize = 32;
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Rect {
     x0: usize,
@@ -156,39 +160,45 @@ impl Space {
             *self = Space::new(grid, params);
             return true;
         }
-        let w = self.spec.width_cells as usize;
+        let (w, h) = (
+            self.spec.width_cells as usize,
+            self.spec.height_cells as usize,
+        );
         let new = grid.data();
-        let mut dirty: Option<Rect> = None;
+        // The changed tiles: several drones change the map in places far apart, and one box
+        // round them all would be most of the map.
+        let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
+        let mut dirty = vec![false; tw * th];
         for (y, (old_row, new_row)) in self.data.chunks(w).zip(new.chunks(w)).enumerate() {
             if old_row == new_row {
                 continue;
             }
-            let first = old_row.iter().zip(new_row).position(|(a, b)| a != b);
-            let last = old_row.iter().zip(new_row).rposition(|(a, b)| a != b);
-            if let (Some(a), Some(b)) = (first, last) {
-                let r = dirty.get_or_insert(Rect {
-                    x0: a,
-                    y0: y,
-                    x1: b + 1,
-                    y1: y + 1,
-                });
-                r.x0 = r.x0.min(a);
-                r.x1 = r.x1.max(b + 1);
-                r.y1 = y + 1;
+            for (t, (a, b)) in old_row.chunks(TILE).zip(new_row.chunks(TILE)).enumerate() {
+                if a != b {
+                    dirty[(y / TILE) * tw + t] = true;
+                }
             }
         }
-        let Some(d) = dirty else {
+        let groups = components(&dirty, tw, th);
+        if groups.is_empty() {
             return false;
-        };
+        }
         self.data.copy_from_slice(new);
-        let h = self.spec.height_cells as usize;
         let m = self.safety_cells + 3;
-        self.derive(Rect {
-            x0: d.x0.saturating_sub(m),
-            y0: d.y0.saturating_sub(m),
-            x1: (d.x1 + m).min(w),
-            y1: (d.y1 + m).min(h),
-        });
+        for tiles in groups {
+            let (tx0, tx1) = tiles.iter().fold((usize::MAX, 0), |(a, b), &t| {
+                (a.min(t % tw), b.max(t % tw))
+            });
+            let (ty0, ty1) = tiles.iter().fold((usize::MAX, 0), |(a, b), &t| {
+                (a.min(t / tw), b.max(t / tw))
+            });
+            self.derive(Rect {
+                x0: (tx0 * TILE).saturating_sub(m),
+                y0: (ty0 * TILE).saturating_sub(m),
+                x1: ((tx1 + 1) * TILE + m).min(w),
+                y1: ((ty1 + 1) * TILE + m).min(h),
+            });
+        }
         self.find_frontiers();
         true
     }
@@ -220,28 +230,31 @@ impl Space {
             .zip(&closed_free)
             .map(|(i, &cf)| self.data[i] == UNKNOWN && !cf)
             .collect();
-        let occ_s = dilate_disc(&occupied, cw, ch, s);
-        let occ_s1 = dilate_disc(&occupied, cw, ch, s + 1);
-        let occ_half = dilate_disc(&occupied, cw, ch, s.div_ceil(2));
-        let unk_half = dilate_disc(&unknown, cw, ch, s.div_ceil(2));
-        let unk_s = dilate_disc(&unknown, cw, ch, s);
-        let unk_s1 = dilate_disc(&unknown, cw, ch, s + 1);
+        // Each mask grown by a disc of each radius: within it, by the squared distance.
+        let (occ_d2, unk_d2) = (
+            squared_distance(&occupied, cw, ch),
+            squared_distance(&unknown, cw, ch),
+        );
+        let within = |d2: &[u32], j: usize, r: usize| u64::from(d2[j]) <= (r * r) as u64;
+        let half = s.div_ceil(2);
         // The map's edge counts as an obstacle.
         let edge_within = |x: usize, y: usize, r: usize| x < r || y < r || x + r >= w || y + r >= h;
         for y in rect.y0..rect.y1 {
             for x in rect.x0..rect.x1 {
                 let j = (y - c.y0) * cw + (x - c.x0);
-                let navigable = closed_free[j] && !occ_s[j] && !unk_s[j] && !edge_within(x, y, s);
+                let (occ_s, unk_s) = (within(&occ_d2, j, s), within(&unk_d2, j, s));
+                let navigable = closed_free[j] && !occ_s && !unk_s && !edge_within(x, y, s);
                 self.navigable[y * w + x] = navigable;
-                self.margin[y * w + x] = if occ_half[j] || unk_half[j] {
+                self.margin[y * w + x] = if within(&occ_d2, j, half) || within(&unk_d2, j, half) {
                     0
-                } else if occ_s[j] || unk_s[j] {
+                } else if occ_s || unk_s {
                     1
                 } else {
                     2
                 };
                 // The edge is no obstacle to see past: unknown cells along it make frontiers.
-                self.frontier[y * w + x] = navigable && unk_s1[j] && !occ_s1[j];
+                self.frontier[y * w + x] =
+                    navigable && within(&unk_d2, j, s + 1) && !within(&occ_d2, j, s + 1);
             }
         }
     }
@@ -383,6 +396,11 @@ impl Space {
 
     pub fn is_navigable(&self, index: usize) -> bool {
         self.navigable.get(index).copied().unwrap_or(false)
+    }
+
+    /// Every cell's [`Self::is_navigable`], row-major.
+    pub fn navigable_cells(&self) -> &[bool] {
+        &self.navigable
     }
 
     /// Not an obstacle (free or unknown).
