@@ -332,7 +332,7 @@ impl Space {
                 && (y as usize) < h
                 && self.data[y as usize * w + x as usize] == UNKNOWN
         };
-        let mut seen = std::collections::HashSet::new();
+        let mut seen = rustc_hash::FxHashSet::default();
         let mut stack = Vec::new();
         for &i in cells {
             let (x, y) = ((i % w) as i64, (i / w) as i64);
