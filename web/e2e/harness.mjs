@@ -30,27 +30,50 @@ const CHROMIUM_ARGS = [
 
 const LOCAL_HOSTS = new Set(['127.0.0.1', 'localhost', '[::1]', '::1']);
 
-export function freePort() {
-  return new Promise((resolve, reject) => {
+// Ports are drawn below the kernel's ephemeral range (32768-60999 on Linux), so that no
+// outgoing connection (Chromium's, a Kestrel's bus link) can take one between the check here and
+// the Kestrel binding it: a port from `listen(0)` is an ephemeral one, and once it raced that way.
+const PORT_LOW = 20000;
+const PORT_HIGH = 32767;
+
+function randomPort() {
+  return PORT_LOW + Math.floor(Math.random() * (PORT_HIGH - PORT_LOW + 1));
+}
+
+function tryTcp(port) {
+  return new Promise((resolve) => {
     const srv = net.createServer();
     srv.unref();
-    srv.on('error', reject);
-    srv.listen(0, '127.0.0.1', () => {
-      const { port } = srv.address();
-      srv.close(() => resolve(port));
-    });
+    srv.once('error', () => resolve(false));
+    srv.listen(port, '127.0.0.1', () => srv.close(() => resolve(true)));
   });
 }
 
-export function freeUdpPort() {
-  return new Promise((resolve, reject) => {
+function tryUdp(port) {
+  return new Promise((resolve) => {
     const sock = dgram.createSocket('udp4');
-    sock.on('error', reject);
-    sock.bind(0, '127.0.0.1', () => {
-      const { port } = sock.address();
-      sock.close(() => resolve(port));
+    sock.once('error', () => {
+      sock.close();
+      resolve(false);
     });
+    sock.bind(port, '127.0.0.1', () => sock.close(() => resolve(true)));
   });
+}
+
+async function freeOf(tryPort) {
+  for (let attempt = 0; attempt < 200; attempt++) {
+    const port = randomPort();
+    if (await tryPort(port)) return port;
+  }
+  throw new Error(`no free port in ${PORT_LOW}-${PORT_HIGH} after 200 tries`);
+}
+
+export function freePort() {
+  return freeOf(tryTcp);
+}
+
+export function freeUdpPort() {
+  return freeOf(tryUdp);
 }
 
 /**
