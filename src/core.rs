@@ -364,7 +364,7 @@ impl DroneCore {
             self.held_at_enu_m = out.reference.as_ref().and_then(MotionReference::held_at);
         }
         let landing = out.requests.contains(&PlatformRequest::LandOnSetpoints);
-        let (setpoint, safety) = self.setpoint_for(out.reference, landing, dt_s);
+        let (setpoint, safety) = self.setpoint_for(out.reference, landing, dt_s, fleet.map);
         TickOutput {
             setpoint,
             safety,
@@ -440,12 +440,14 @@ impl DroneCore {
 
     /// The setpoint for the behaviors' `reference` (none without a position or a link), after
     /// the safety stage, and the stage's override if it changed it. `landing`: the behaviors
-    /// fly the vehicle down to touchdown on these setpoints.
+    /// fly the vehicle down to touchdown on these setpoints. The stage keeps off the obstacles of
+    /// the drone's own map and of the fleet's `merged` one.
     fn setpoint_for(
         &mut self,
         reference: Option<MotionReference>,
         landing: bool,
         dt_s: f64,
+        merged: Option<Reference<'_>>,
     ) -> (Option<Setpoint>, Option<Override>) {
         let usable = self.state.valid.position && self.platform.link != LinkHealth::Lost;
         let caps = self.controller.caps(
@@ -477,10 +479,19 @@ impl DroneCore {
             caps,
             Around {
                 fleet: &self.fleet,
-                obstacles: self
-                    .map
-                    .as_ref()
-                    .map(|m| Obstacles::new(m.grid(), m.occupied_threshold())),
+                obstacles: match (self.map.as_ref(), merged) {
+                    (Some(own), Some(fleet)) => Some(
+                        Obstacles::new(own.grid(), own.occupied_threshold())
+                            .and(fleet.grid, fleet.occupied_threshold),
+                    ),
+                    (Some(own), None) => {
+                        Some(Obstacles::new(own.grid(), own.occupied_threshold()))
+                    }
+                    (None, Some(fleet)) => {
+                        Some(Obstacles::new(fleet.grid, fleet.occupied_threshold))
+                    }
+                    (None, None) => None,
+                },
             },
         );
         self.controller.sent(

@@ -3,19 +3,20 @@
 //! something the drone has mapped (an exploration once slid a climbing drone sideways into a
 //! pole while it gave way).
 //!
-//! In: the drone's own occupancy grid and its occupied threshold, the vehicle's position.
-//! Out: the occupied cells within reach, each as the horizontal direction from the cell to the
-//! vehicle and its distance; the separation caps the closing speed along each.
+//! In: the drone's own occupancy grid and, when the drone is one of a fleet, the fleet's merged
+//! map (what the other drones mapped too), each with its occupied threshold; the vehicle's
+//! position. Out: the occupied cells within reach, each as the horizontal direction from the
+//! cell to the vehicle and its distance; the separation caps the closing speed along each.
 
 use crate::mapping::grid::OccupancyGrid;
 use crate::types::{FleetView, Vec3};
 use nalgebra::Vector2;
 
-/// The drone's own map as the stage reads it: cells at or above `occupied` are obstacles.
+/// The maps as the stage reads them: in each, cells at or above its `occupied` threshold are
+/// obstacles. The drone's own map first, then the fleet's merged one if there is one.
 #[derive(Debug, Clone, Copy)]
 pub struct Obstacles<'a> {
-    grid: &'a OccupancyGrid,
-    occupied: i8,
+    grids: [Option<(&'a OccupancyGrid, i8)>; 2],
 }
 
 /// What the stage sees around the vehicle: the fleet, and the drone's map when it has one.
@@ -46,47 +47,64 @@ pub(super) struct Near {
 
 impl<'a> Obstacles<'a> {
     pub fn new(grid: &'a OccupancyGrid, occupied: i8) -> Self {
-        Self { grid, occupied }
+        Self {
+            grids: [Some((grid, occupied)), None],
+        }
+    }
+
+    /// These and the obstacles of `grid` too (the fleet's merged map: a pole another drone
+    /// mapped, which this one has not seen).
+    pub fn and(self, grid: &'a OccupancyGrid, occupied: i8) -> Self {
+        Self {
+            grids: [self.grids[0], Some((grid, occupied))],
+        }
     }
 
     /// The occupied cells whose centres lie within `reach_m` of `here`, horizontally (the map
     /// is a plane at flight height; an obstacle in it stands at every height).
     pub(super) fn within(&self, here: Vec3, reach_m: f64) -> Vec<Near> {
-        let spec = self.grid.spec();
         let mut near = Vec::new();
         if !(reach_m > 0.0 && here.x.is_finite() && here.y.is_finite()) {
             return near;
         }
-        let at = Vector2::new(here.x, here.y);
-        let span = (reach_m / spec.resolution_m).ceil() as i64;
-        let centre = ((at - spec.origin_enu_m) / spec.resolution_m).map(|c| c.floor() as i64);
-        let (w, h) = (i64::from(spec.width_cells), i64::from(spec.height_cells));
-        for y in (centre.y - span).max(0)..=(centre.y + span).min(h - 1) {
-            for x in (centre.x - span).max(0)..=(centre.x + span).min(w - 1) {
-                let cell = crate::mapping::grid::Cell {
-                    x: x as u32,
-                    y: y as u32,
-                };
-                if self.grid.get(cell).is_none_or(|v| v < self.occupied) {
-                    continue;
-                }
-                let offset = at - spec.cell_center_enu_m(cell);
-                let distance_m = offset.norm();
-                if distance_m > reach_m {
-                    continue;
-                }
-                let away = if distance_m > 1e-6 {
-                    offset / distance_m
-                } else {
-                    Vector2::new(1.0, 0.0)
-                };
-                near.push(Near {
-                    away: Vec3::new(away.x, away.y, 0.0),
-                    distance_m,
-                });
-            }
+        for (grid, occupied) in self.grids.iter().flatten() {
+            near_in(grid, *occupied, here, reach_m, &mut near);
         }
         near
+    }
+}
+
+/// The occupied cells of `grid` within `reach_m` of `here`, horizontally, onto `near`.
+fn near_in(grid: &OccupancyGrid, occupied: i8, here: Vec3, reach_m: f64, near: &mut Vec<Near>) {
+    let spec = grid.spec();
+    let at = Vector2::new(here.x, here.y);
+    let span = (reach_m / spec.resolution_m).ceil() as i64;
+    let centre = ((at - spec.origin_enu_m) / spec.resolution_m).map(|c| c.floor() as i64);
+    let (w, h) = (i64::from(spec.width_cells), i64::from(spec.height_cells));
+    for y in (centre.y - span).max(0)..=(centre.y + span).min(h - 1) {
+        for x in (centre.x - span).max(0)..=(centre.x + span).min(w - 1) {
+            let cell = crate::mapping::grid::Cell {
+                x: x as u32,
+                y: y as u32,
+            };
+            if grid.get(cell).is_none_or(|v| v < occupied) {
+                continue;
+            }
+            let offset = at - spec.cell_center_enu_m(cell);
+            let distance_m = offset.norm();
+            if distance_m > reach_m {
+                continue;
+            }
+            let away = if distance_m > 1e-6 {
+                offset / distance_m
+            } else {
+                Vector2::new(1.0, 0.0)
+            };
+            near.push(Near {
+                away: Vec3::new(away.x, away.y, 0.0),
+                distance_m,
+            });
+        }
     }
 }
 
@@ -118,6 +136,18 @@ mod tests {
         assert_eq!(near.len(), 1);
         assert!((near[0].distance_m - 0.55).abs() < 1e-9);
         assert!((near[0].away - Vec3::new(-1.0, 0.0, 0.0)).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_cell_only_the_fleet_mapped_counts_as_well_as_the_drones_own() {
+        let own = grid_with(&[(25, 20)]);
+        let fleet = grid_with(&[(15, 20)]);
+        let here = Vec3::new(0.0, 0.05, 1.0);
+        assert_eq!(Obstacles::new(&own, 31).within(here, 1.0).len(), 1);
+        let both = Obstacles::new(&own, 31).and(&fleet, 31).within(here, 1.0);
+        let mut directions: Vec<f64> = both.iter().map(|n| n.away.x).collect();
+        directions.sort_by(f64::total_cmp);
+        assert_eq!(directions, vec![-1.0, 1.0], "{both:?}");
     }
 
     #[test]

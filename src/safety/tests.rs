@@ -382,21 +382,32 @@ fn a_velocity_beyond_the_limits_is_scaled_back() {
 /// following the stage's velocity with a first-order lag (the controller's 0.25 s), next to
 /// `others` holding still; returns the least 3-D distance to any of them.
 fn fly_next_to(start: Vec3, goal: Vec3, others: &[DroneView], seconds: f64) -> (f64, Vec3) {
-    let (least, _, end) = fly_next_to_mapped(start, goal, others, None, false, seconds);
+    let (least, _, end) = fly_next_to_mapped(start, goal, others, None, Sees::Nothing, seconds);
     (least, end)
 }
 
+/// How the stage is given the obstacles of the map in [`fly_next_to_mapped`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Sees {
+    Nothing,
+    /// As the drone's own map.
+    OwnMap,
+    /// As the fleet's merged map, the drone's own map empty (another drone mapped them).
+    FleetMap,
+}
+
 /// [`fly_next_to`] among the obstacles of `map` (cells at or above 31), which the stage is
-/// given as the drone's own map when `stage_sees_map`; returns the least distance to the
-/// others, the least horizontal distance to an obstacle cell's centre, and where it ended.
+/// given as `sees` says; returns the least distance to the others, the least horizontal
+/// distance to an obstacle cell's centre, and where it ended.
 fn fly_next_to_mapped(
     start: Vec3,
     goal: Vec3,
     others: &[DroneView],
     map: Option<&OccupancyGrid>,
-    stage_sees_map: bool,
+    sees: Sees,
     seconds: f64,
 ) -> (f64, f64, Vec3) {
+    let empty = map.map(|m| OccupancyGrid::new(*m.spec()).unwrap());
     let config = SafetyConfig {
         min_separation_m: 0.5,
         ..SafetyConfig::default()
@@ -425,9 +436,13 @@ fn fly_next_to_mapped(
             NO_CAPS,
             Around {
                 fleet: &fleet,
-                obstacles: map
-                    .filter(|_| stage_sees_map)
-                    .map(|m| Obstacles::new(m, 31)),
+                obstacles: match (sees, map, empty.as_ref()) {
+                    (Sees::OwnMap, Some(m), _) => Some(Obstacles::new(m, 31)),
+                    (Sees::FleetMap, Some(m), Some(own)) => {
+                        Some(Obstacles::new(own, 31).and(m, 31))
+                    }
+                    _ => None,
+                },
             },
         );
         let Some(Setpoint::Velocity {
@@ -483,8 +498,8 @@ fn a_slide_round_a_drone_keeps_off_the_mapped_obstacles() {
     let goal = Vec3::new(0.0, 0.0, 2.1);
     let others = [above];
     let fly = |sees| fly_next_to_mapped(start, goal, &others, Some(&pole), sees, 20.0);
-    let (_, blind_to_pole, _) = fly(false);
-    let (least, to_pole, end) = fly(true);
+    let (_, blind_to_pole, _) = fly(Sees::Nothing);
+    let (least, to_pole, end) = fly(Sees::OwnMap);
     // Without the map the slide goes on into the pole (the defect this reproduces): within the
     // vehicle's 0.15 m radius and half a cell of a pole cell's centre is a contact.
     assert!(
@@ -498,6 +513,27 @@ fn a_slide_round_a_drone_keeps_off_the_mapped_obstacles() {
     assert!(least >= 0.5, "came within {least:.3} m of the other drone");
     // Boxed in between the drone and the pole, it stops rather than give up either distance.
     assert!(end.z < 2.0, "{end}");
+}
+
+#[test]
+fn a_slide_round_a_drone_keeps_off_a_pole_only_the_fleet_has_mapped() {
+    // The same, the pole mapped by another drone: this one's own map has nothing there.
+    let above = drone_at("above", 0.29, -0.05, 2.05);
+    let pole = map_with_pole((-0.6, -0.1), 0.25);
+    let others = [above];
+    let (least, to_pole, _) = fly_next_to_mapped(
+        Vec3::new(0.0, 0.0, 1.1),
+        Vec3::new(0.0, 0.0, 2.1),
+        &others,
+        Some(&pole),
+        Sees::FleetMap,
+        20.0,
+    );
+    assert!(
+        to_pole >= OBSTACLE_KEEP_M - 0.02,
+        "came within {to_pole:.3} m of a pole cell"
+    );
+    assert!(least >= 0.5, "came within {least:.3} m of the other drone");
 }
 
 fn drone_at(id: &str, x: f64, y: f64, z: f64) -> DroneView {
