@@ -484,9 +484,7 @@ impl DroneCore {
                         Obstacles::new(own.grid(), own.occupied_threshold())
                             .and(fleet.grid, fleet.occupied_threshold),
                     ),
-                    (Some(own), None) => {
-                        Some(Obstacles::new(own.grid(), own.occupied_threshold()))
-                    }
+                    (Some(own), None) => Some(Obstacles::new(own.grid(), own.occupied_threshold())),
                     (None, Some(fleet)) => {
                         Some(Obstacles::new(fleet.grid, fleet.occupied_threshold))
                     }

@@ -258,13 +258,15 @@ fn the_fleet_keeps_apart_through_a_bus_cut_and_finishes_the_part_of_a_killed_kes
     // so it dies once its drone is clear of both.
     let deadline = Instant::now() + Duration::from_secs(40);
     let last_heard = loop {
-        let at = position(&fleet.apis[0].get("/api/status")["remote"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|d| d["id"] == "drone_2")
-            .unwrap()
-            .clone());
+        let at = position(
+            &fleet.apis[0].get("/api/status")["remote"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|d| d["id"] == "drone_2")
+                .unwrap()
+                .clone(),
+        );
         let clear = DOORWAYS_ENU_M
             .iter()
             .all(|d| (at.xy() - nalgebra::Vector2::from(*d)).norm() >= 2.5);

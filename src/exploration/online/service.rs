@@ -349,12 +349,7 @@ impl FrontierService {
         let reach =
             Reach::keeping_out(space, here, &request.keep_out).ok_or(ExploreError::OutsideMap)?;
         let frontiers = looked_at_from_outside(space, &reach, &request.keep_out);
-        let survey = Survey::new(
-            self.open_frontiers(now, &frontiers),
-            space,
-            &reach,
-            request,
-        );
+        let survey = Survey::new(self.open_frontiers(now, &frontiers), space, &reach, request);
         let mut candidates = self.candidates(space, &reach, &survey, request);
         let others = self.others(&request.drone);
         self.leave_to_nearer_holders(&mut candidates, &request.drone);

@@ -214,10 +214,14 @@ mod tests {
 
     /// A seeded mask with about one cell in `one_in` set.
     fn mask(w: usize, h: usize, one_in: u64, seed: u64) -> Vec<bool> {
-        let mut x = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let mut x = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (0..w * h)
             .map(|_| {
-                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 (x >> 33).is_multiple_of(one_in)
             })
             .collect()

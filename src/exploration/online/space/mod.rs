@@ -186,12 +186,12 @@ impl Space {
         self.data.copy_from_slice(new);
         let m = self.safety_cells + 3;
         for tiles in groups {
-            let (tx0, tx1) = tiles.iter().fold((usize::MAX, 0), |(a, b), &t| {
-                (a.min(t % tw), b.max(t % tw))
-            });
-            let (ty0, ty1) = tiles.iter().fold((usize::MAX, 0), |(a, b), &t| {
-                (a.min(t / tw), b.max(t / tw))
-            });
+            let (tx0, tx1) = tiles
+                .iter()
+                .fold((usize::MAX, 0), |(a, b), &t| (a.min(t % tw), b.max(t % tw)));
+            let (ty0, ty1) = tiles
+                .iter()
+                .fold((usize::MAX, 0), |(a, b), &t| (a.min(t / tw), b.max(t / tw)));
             self.derive(Rect {
                 x0: (tx0 * TILE).saturating_sub(m),
                 y0: (ty0 * TILE).saturating_sub(m),
