@@ -168,9 +168,14 @@ struct DroneOutlets {
     pose: Outlet,
     odom: Outlet,
     path: Outlet,
-    /// The last path sent, so an unchanged one is not sent again at every period.
-    last_path: Option<Vec<[f64; 3]>>,
+    /// The last path sent and when (unix ns), so an unchanged one is sent again only every
+    /// [`PATH_REPEAT_NS`]: a subscriber that joined late, or a sample dropped on a congested
+    /// link, gets it within that time.
+    last_path: Option<(Vec<[f64; 3]>, i64)>,
 }
+
+/// An unchanged planned path is sent again this often (ns).
+const PATH_REPEAT_NS: i64 = 1_000_000_000;
 
 /// The latest `/map` and its attachment, for late joiners.
 type Latest = Arc<Mutex<Option<(Vec<u8>, Vec<u8>)>>>;
@@ -448,10 +453,13 @@ impl Publishing {
                 self.node.put(&mut out.odom, odom, ts);
             }
             let points = outbox::planned_path(d);
-            if out.last_path.as_ref() != Some(&points) {
+            let due = out.last_path.as_ref().is_none_or(|(last, at)| {
+                *last != points || ts.saturating_sub(*at) >= PATH_REPEAT_NS
+            });
+            if due {
                 self.node
                     .put(&mut out.path, outbox::path(&points, stamp), ts);
-                out.last_path = Some(points);
+                out.last_path = Some((points, ts));
             }
         }
         if let Some(tf) = outbox::transforms(&snapshot.drones, stamp) {
