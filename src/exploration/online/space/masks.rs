@@ -1,4 +1,5 @@
-//! Cell masks of one grid (`w` x `h` cells, row-major): growing them by a square or a disc,
+//! Cell masks of one grid (`w` x `h` cells, row-major): growing them by a square, the squared
+//! distance from every cell to the nearest set cell (growing by a disc of any radius at once),
 //! closing one-cell gaps, and their 8-connected components. The space's reading of a grid is
 //! built from these.
 

@@ -152,8 +152,9 @@ impl Space {
         space
     }
 
-    /// Brings the space up to date with `grid`, re-reading only around the cells that changed
-    /// (everything read here depends on cells at most `safety + 3` away); a grid of another
+    /// Brings the space up to date with `grid`, re-reading only around the cells that changed,
+    /// group by group of changed [`TILE`]s (everything read here depends on cells at most
+    /// `safety + 3` away); a grid of another
     /// shape or other parameters are read whole. Returns whether anything changed.
     pub fn update(&mut self, grid: &OccupancyGrid, params: &SpaceParams) -> bool {
         if *grid.spec() != self.spec || *params != self.params {
