@@ -179,7 +179,9 @@ class Ros:
     def start_kestrel(self, tmp):
         config = os.path.join(tmp, "kestrel.toml")
         with open(config, "w") as f:
-            f.write(f'[ros2]\nenabled = true\nconnect = ["{self.endpoint}"]\n')
+            # State at 1 Hz: at --speedup 20 one period is 20 s of flight, longer than the goal
+            # test's whole hop, whose planned path must still be sent.
+            f.write(f'[ros2]\nenabled = true\nrate_hz = 1.0\nconnect = ["{self.endpoint}"]\n')
         binary = os.environ.get("KESTREL_BIN") or os.path.join(REPO, "target", "debug", "kestrel")
         assert os.access(binary, os.X_OK), f"no kestrel binary at {binary} (cargo build, or set KESTREL_BIN)"
         env = dict(os.environ)

@@ -1,7 +1,7 @@
 //! Kestrel as a ROS 2 node over rmw_zenoh: a Zenoh session of its own (apart from the fleet
 //! bus) that declares the node's and each endpoint's liveliness token, publishes the drones'
-//! state at `[ros2] rate_hz`, `/map` when it changed (at most `map_rate_hz`, and to late joiners
-//! on request), and takes each drone's `goal_pose`.
+//! state at `[ros2] rate_hz`, each planned path when it changes, `/map` when it changed (at most
+//! `map_rate_hz`, and to late joiners on request), and takes each drone's `goal_pose`.
 //!
 //! In: the `[ros2]` section and the host's handle (its snapshots, its map, its mission
 //! commands). Out: Zenoh puts, replies and tokens; goals as missions the host validates (a
@@ -435,7 +435,12 @@ impl Publishing {
             tokio::select! {
                 _ = every.tick() => self.state(&handle),
                 _ = map_every.tick() => self.map(&handle).await,
-                changed = state.changed() => if changed.is_err() { break },
+                changed = state.changed() => {
+                    if changed.is_err() {
+                        break;
+                    }
+                    self.paths(&handle);
+                }
             }
         }
     }
@@ -452,18 +457,32 @@ impl Publishing {
                 self.node.put(&mut out.pose, pose, ts);
                 self.node.put(&mut out.odom, odom, ts);
             }
+        }
+        if let Some(tf) = outbox::transforms(&snapshot.drones, stamp) {
+            self.node.put(&mut self.tf, tf, ts);
+        }
+    }
+
+    /// Each drone's planned path, on every snapshot the host publishes (on every mission change
+    /// and at least every 20 ms): a plan that lives shorter than one `rate_hz` period (a short
+    /// hop, a simulator run faster than real time) is still sent. Unchanged, it is sent again
+    /// every [`PATH_REPEAT_NS`].
+    fn paths(&mut self, handle: &HostHandle) {
+        let snapshot = handle.snapshot();
+        let ts = unix_ns();
+        for out in &mut self.drones {
+            let Some(d) = snapshot.drones.iter().find(|d| d.drone == out.drone) else {
+                continue;
+            };
             let points = outbox::planned_path(d);
             let due = out.last_path.as_ref().is_none_or(|(last, at)| {
                 *last != points || ts.saturating_sub(*at) >= PATH_REPEAT_NS
             });
             if due {
-                self.node
-                    .put(&mut out.path, outbox::path(&points, stamp), ts);
+                let path = outbox::path(&points, Stamp::from_unix_ns(ts));
+                self.node.put(&mut out.path, path, ts);
                 out.last_path = Some((points, ts));
             }
-        }
-        if let Some(tf) = outbox::transforms(&snapshot.drones, stamp) {
-            self.node.put(&mut self.tf, tf, ts);
         }
     }
 
