@@ -148,6 +148,9 @@ impl DroneCore {
             .yaw_rate_overshoot
             .or(capabilities.yaw_rate_overshoot);
         config.controller.yaw_rate_overshoot = yaw_overshoot;
+        // The vehicle flies its estimate: it moves up to the estimate's drift faster than
+        // commanded, which the controller's caps allow for.
+        config.controller.estimate_drift_mps = config.map_correction.drift_mps();
         let capabilities = Capabilities {
             velocity_overshoot: overshoot,
             yaw_rate_overshoot: yaw_overshoot,
@@ -295,6 +298,7 @@ impl DroneCore {
             request_results: &[],
             services: &self.services,
             fleet: &self.fleet,
+            estimate_drift_mps: self.config.controller.estimate_drift_mps,
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -357,6 +361,7 @@ impl DroneCore {
             request_results: &feedback.request_results,
             services: &self.services,
             fleet: &self.fleet,
+            estimate_drift_mps: self.config.controller.estimate_drift_mps,
         };
         let takeover = end_what_cannot_go_on(&mut self.server, &ctx, feedback, previous_link);
         let out = self.server.tick(&ctx);

@@ -117,6 +117,9 @@ pub struct BehaviorContext<'a> {
     pub services: &'a services::ServiceDesk,
     /// Every drone's latest state (this one included), as the host saw it before this tick.
     pub fleet: &'a crate::types::FleetView,
+    /// How fast the position estimate may drift (m/s; the map correction's `drift_mps`, 0
+    /// where nothing drifts): the vehicle flies up to this much faster than it is sent.
+    pub estimate_drift_mps: f64,
 }
 
 impl BehaviorContext<'_> {
@@ -126,11 +129,15 @@ impl BehaviorContext<'_> {
     pub fn yaw(&self) -> f64 {
         self.state.pose.yaw_rad()
     }
-    /// The speed to plan a path with for a goal's `speed_mps`: the share of it the vehicle can
-    /// be sent without flying faster than the goal says (its profile's overshoot; the controller
-    /// caps every command the same way).
+    /// The speed to plan a path with for a goal's `speed_mps`: what the vehicle can be sent
+    /// without flying faster than the goal says (its profile's overshoot, its estimate's drift;
+    /// the controller caps every command the same way).
     pub fn planned_speed_mps(&self, speed_mps: f64) -> f64 {
-        speed_mps * crate::control::commanded_speed_share(self.capabilities.velocity_overshoot)
+        crate::control::commanded_horizontal_speed(
+            speed_mps,
+            crate::control::commanded_speed_share(self.capabilities.velocity_overshoot),
+            self.estimate_drift_mps,
+        )
     }
     /// A reference that holds the current position and heading.
     pub fn hold_here(&self) -> MotionReference {

@@ -27,6 +27,8 @@ pub(crate) struct Scene {
     pub request_results: Vec<RequestResult>,
     pub services: ServiceDesk,
     pub fleet: FleetView,
+    /// How fast the estimate drifts in the next contexts (m/s).
+    pub estimate_drift_mps: f64,
 }
 
 impl Scene {
@@ -55,6 +57,7 @@ impl Scene {
             request_results: Vec::new(),
             services: ServiceDesk::default(),
             fleet: FleetView::default(),
+            estimate_drift_mps: 0.0,
         }
     }
 
@@ -85,6 +88,7 @@ impl Scene {
             request_results: &self.request_results,
             services: &self.services,
             fleet: &self.fleet,
+            estimate_drift_mps: self.estimate_drift_mps,
         }
     }
 }

@@ -40,6 +40,12 @@ pub struct ControllerConfig {
     /// Acceleration of the reference point handed to an autopilot that closes the position
     /// loop itself (m/s^2): how fast it speeds up toward a goal and brakes onto it.
     pub max_acceleration_mps2: f64,
+    /// How fast the vehicle's position estimate may drift (m/s; the map correction's
+    /// `drift_mps`, set by the core, not read from the config): the vehicle flies its estimate,
+    /// so it truly moves up to this much faster than the estimate says, and every horizontal
+    /// cap is this much lower.
+    #[serde(skip)]
+    pub estimate_drift_mps: f64,
 }
 
 impl ControllerConfig {
@@ -53,6 +59,14 @@ impl ControllerConfig {
     pub fn commanded_speed_share(&self) -> f64 {
         commanded_speed_share(self.velocity_overshoot)
     }
+}
+
+/// The horizontal speed to plan and command for a limit (m/s): within the vehicle's
+/// overshoot (`share`, [`commanded_speed_share`]) and less the drift of its estimate, but never
+/// below half of what the overshoot alone leaves (a limit slower than the drift still moves).
+pub fn commanded_horizontal_speed(limit_mps: f64, share: f64, estimate_drift_mps: f64) -> f64 {
+    let sent = limit_mps * share;
+    (sent - estimate_drift_mps.max(0.0)).max(sent / 2.0)
 }
 
 /// The share of a speed limit to plan and command with, for a vehicle that flies up to
@@ -78,6 +92,7 @@ impl Default for ControllerConfig {
             max_yaw_rate_radps: 1.5,
             velocity_lag_s: None,
             velocity_overshoot: None,
+            estimate_drift_mps: 0.0,
             yaw_rate_overshoot: None,
             max_acceleration_mps2: 1.5,
         }
@@ -254,7 +269,11 @@ impl Controller {
         let c = &self.config;
         let share = c.commanded_speed_share();
         SpeedCaps {
-            horizontal_mps: max_speed_mps.min(c.max_horizontal_speed_mps) * share,
+            horizontal_mps: commanded_horizontal_speed(
+                max_speed_mps.min(c.max_horizontal_speed_mps),
+                share,
+                c.estimate_drift_mps,
+            ),
             up_mps: max_speed_mps.min(c.max_up_speed_mps) * share,
             down_mps: max_speed_mps.min(c.max_down_speed_mps) * share,
         }
@@ -518,6 +537,41 @@ mod tests {
         // Without an overshoot the whole speed is sent.
         let plain = Controller::new(ControllerConfig::default(), c.accepted);
         assert_eq!(plain.caps(0.75).horizontal_mps, 0.75);
+    }
+
+    #[test]
+    fn a_drifting_estimate_takes_its_drift_off_every_horizontal_cap() {
+        let accepted = AcceptedSetpoints {
+            velocity: true,
+            position: true,
+            position_loop: None,
+        };
+        let mut c = Controller::new(
+            ControllerConfig {
+                estimate_drift_mps: 0.03,
+                ..ControllerConfig::default()
+            },
+            accepted,
+        );
+        let far = MotionReference::Position {
+            position_enu_m: Vec3::new(20.0, 0.0, 0.0),
+            velocity_ff_enu_mps: Vec3::zeros(),
+            yaw: YawTarget::Rate(0.0),
+            max_speed_mps: 0.75,
+        };
+        let mut fastest: f64 = 0.0;
+        for _ in 0..500 {
+            let (v, _) = velocity_of(c.update(&state_at(Vec3::zeros(), 0.0), &far, 0.01));
+            fastest = fastest.max(v.norm());
+        }
+        // Sent 0.72 m/s: with the estimate drifting at 0.03 m/s it flies 0.75 at most.
+        assert!((fastest - 0.72).abs() < 1e-9, "{fastest}");
+        assert!((c.caps(0.75).horizontal_mps - 0.72).abs() < 1e-12);
+        // Vertical speeds do not drift.
+        assert_eq!(c.caps(0.75).up_mps, 0.75);
+        // With an overshoot too, and a limit slower than the drift still moves.
+        assert!((commanded_horizontal_speed(0.75, 1.0 / 1.2, 0.03) - (0.625 - 0.03)).abs() < 1e-12);
+        assert_eq!(commanded_horizontal_speed(0.04, 1.0, 0.05), 0.02);
     }
 
     #[test]

@@ -10,6 +10,8 @@ pub mod reference;
 pub mod shaper;
 pub mod trajectory;
 
-pub use controller::{commanded_speed_share, Controller, ControllerConfig};
+pub use controller::{
+    commanded_horizontal_speed, commanded_speed_share, Controller, ControllerConfig,
+};
 pub use reference::{AcceptedSetpoints, MotionReference, Setpoint, YawTarget};
 pub use shaper::SpeedCaps;

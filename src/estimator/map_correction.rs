@@ -119,7 +119,7 @@ impl MapCorrectionSettings {
     }
 
     /// The drift speed the filter expects (m/s).
-    fn drift_mps(&self) -> f64 {
+    pub fn drift_mps(&self) -> f64 {
         self.drift_mps.unwrap_or(AUTOPILOT_DRIFT_MPS)
     }
 

@@ -38,6 +38,7 @@ impl Explore {
                 }),
             ..SpaceParams::default()
         };
+        let safety_distance_m = space.safety_distance_m;
         self.pending = Some(ctx.services.explore(ExploreRequest {
             drone: ctx.drone_id.into(),
             position_enu_m: ctx.position(),
@@ -52,7 +53,7 @@ impl Explore {
         }));
         self.asked_at = Some(ctx.now);
         self.asked_from = ctx.position();
-        trace(ctx, "ask", String::new);
+        trace(ctx, "ask", || format!("safety={safety_distance_m:.2}"));
     }
 
     /// Takes the allocator's answer; `Ok(true)` when the exploration is over for this drone.

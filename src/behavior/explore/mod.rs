@@ -461,6 +461,10 @@ impl Behavior for Explore {
                 Ok(Some(reference)) => Some(self.heading(ctx, reference)),
             },
         };
+        // The goal's speed holds for the holds borrowed from the context too (their
+        // `hold_speed_mps` is faster): a hold that a map correction's step moved a metre off
+        // flew back at 1 m/s.
+        let reference = reference.map(|r| r.at_most(self.goal.speed));
         if ctx.is_flying() {
             self.watch_tracking(ctx, reference.as_ref());
         }
