@@ -3,8 +3,10 @@
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
 use serde_json::Value;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 /// A child process, killed and reaped when dropped.
@@ -47,6 +49,41 @@ pub async fn wait_healthy(base: &str) {
     panic!("kestrel at {base} did not come up");
 }
 
+/// Spawns `command` (a Kestrel that serves its API) with `--listen 127.0.0.1:0` added, and
+/// answers the process and the port the system gave it, read from Kestrel's own `API on` line.
+/// A port picked free beforehand can be taken by a parallel test before Kestrel binds it; then
+/// this test would talk to the other test's Kestrel.
+pub fn spawn_api(mut command: Command) -> (Process, u16) {
+    let mut child = command
+        .args(["--listen", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let process = Process(child);
+    let (tx, rx) = std::sync::mpsc::sync_channel(1);
+    // Reads every line to the end, so Kestrel never blocks on a full pipe.
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if let Some(port) = api_port(&line) {
+                let _ = tx.try_send(port);
+            }
+        }
+    });
+    let port = rx
+        .recv_timeout(Duration::from_secs(30))
+        .expect("kestrel did not say where its API is");
+    (process, port)
+}
+
+/// The port of Kestrel's `API on http://127.0.0.1:PORT (...)` line.
+fn api_port(line: &str) -> Option<u16> {
+    let rest = line.strip_prefix("API on http://")?;
+    let address = rest.split_whitespace().next()?;
+    address.rsplit_once(':')?.1.parse().ok()
+}
+
 /// A running `kestrel sim --no-demo --speedup 20` with its API on a free loopback port.
 pub struct Kestrel {
     pub process: Process,
@@ -56,30 +93,26 @@ pub struct Kestrel {
 }
 
 impl Kestrel {
-    /// Starts it with `token` (empty: none), its flight log in `dir` (one file per port), its state in
-    /// `dir/state`, and `extra` arguments.
+    /// Starts it with `token` (empty: none), its flight log in `dir` (one file per process),
+    /// its state in `dir/state`, and `extra` arguments.
     pub async fn sim(dir: &Path, token: &str, extra: &[&str]) -> Self {
-        let port = free_tcp_port();
+        static STARTED: AtomicUsize = AtomicUsize::new(0);
+        let n = STARTED.fetch_add(1, Ordering::Relaxed);
         let mut command = Command::new(env!("CARGO_BIN_EXE_kestrel"));
         if token.is_empty() {
             command.env_remove("KESTREL_API_TOKEN");
         } else {
             command.env("KESTREL_API_TOKEN", token);
         }
-        let child = command
-            .args(["sim", "--no-demo", "--speedup", "20", "--listen"])
-            .arg(format!("127.0.0.1:{port}"))
-            .arg("--state-dir")
+        command
+            .args(["sim", "--no-demo", "--speedup", "20", "--state-dir"])
             .arg(dir.join("state"))
             .arg("--log")
-            .arg(dir.join(format!("flight-{port}.jsonl")))
-            .args(extra)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
+            .arg(dir.join(format!("flight-{}-{n}.jsonl", std::process::id())))
+            .args(extra);
+        let (process, port) = spawn_api(command);
         let k = Kestrel {
-            process: Process(child),
+            process,
             base: format!("http://127.0.0.1:{port}"),
             port,
             token: token.to_string(),
