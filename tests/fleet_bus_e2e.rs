@@ -20,7 +20,7 @@ use mavlink_support::bus::{config, credentials, Fleet, Identities, BAYS};
 use mavlink_support::room::{
     assert_no_collision, judge_map, judge_tracks, position, MIN_SEPARATION_M,
 };
-use mavlink_support::{alongside, free_tcp_port, repo, Api, Fake, Kestrel};
+use mavlink_support::{alongside, free_tcp_port, repo, Fake, Kestrel, LISTEN_ANY};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
@@ -421,13 +421,11 @@ fn a_node_without_the_fleets_credentials_is_not_heard() {
             serde_json::to_string(&connect).unwrap(),
             ids.section_end(id)
         );
-        let api_port = free_tcp_port();
-        let listen = format!("127.0.0.1:{api_port}");
         nodes.push(Kestrel::run_config(
             &config(&BAYS, id, &connection, Some(&fleet)),
-            &["--listen", &listen],
+            &["--listen", LISTEN_ANY],
         ));
-        apis.push(Api::connect(api_port));
+        apis.push(nodes.last().unwrap().api());
     }
     let heard = |i: usize| -> Vec<String> {
         apis[i].get("/api/status")["remote"]

@@ -10,7 +10,7 @@ mod mavlink_support;
 mod support;
 
 use mavlink_support::bus::{credentials, Identities};
-use mavlink_support::{alongside, free_tcp_port, Api, Kestrel};
+use mavlink_support::{alongside, free_tcp_port, Api, Kestrel, LISTEN_ANY};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
@@ -28,10 +28,9 @@ fn sim_node(id: usize, fleet: &str, bus: &[u16], creds: &str, ids: &Identities) 
         serde_json::to_string(&connect).unwrap(),
         ids.section_end(id)
     );
-    let port = free_tcp_port();
-    let listen = format!("127.0.0.1:{port}");
-    let node = Kestrel::run_config(&config, &["--platform", "sim", "--listen", &listen]);
-    (node, Api::connect(port))
+    let node = Kestrel::run_config(&config, &["--platform", "sim", "--listen", LISTEN_ANY]);
+    let api = node.api();
+    (node, api)
 }
 
 fn drone(api: &Api) -> Value {

@@ -7,8 +7,8 @@ mod mavlink_support;
 mod support;
 
 use mavlink_support::{
-    alongside, closest_approaches, demo_mission, demo_targets, free_tcp_port, serial, Api, Fake,
-    Kestrel, Personality, DEMO,
+    alongside, closest_approaches, demo_mission, demo_targets, serial, Api, Fake, Kestrel,
+    Personality, DEMO, LISTEN_ANY,
 };
 use serde_json::{json, Value};
 use std::time::Duration;
@@ -169,10 +169,9 @@ fn link_lost_detected_quickly(kestrel: &Kestrel, dropped_at: std::time::Instant)
 
 /// `kestrel run` serving the API on a free port, with `config`.
 fn kestrel_with_api(p: Personality, fake: &Fake, config: &str) -> (Kestrel, Api) {
-    let port = free_tcp_port();
-    let listen = format!("127.0.0.1:{port}");
-    let kestrel = Kestrel::run(p, &fake.connection, config, &["--listen", &listen]);
-    (kestrel, Api::connect(port))
+    let kestrel = Kestrel::run(p, &fake.connection, config, &["--listen", LISTEN_ANY]);
+    let api = kestrel.api();
+    (kestrel, api)
 }
 
 /// On the API path: the demo uploaded and started over REST, the link cut for 3 s during its

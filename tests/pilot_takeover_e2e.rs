@@ -9,9 +9,7 @@
 mod mavlink_support;
 mod support;
 
-use mavlink_support::{
-    alongside, closest_approaches, free_tcp_port, Api, Fake, Kestrel, Personality,
-};
+use mavlink_support::{alongside, closest_approaches, Api, Fake, Kestrel, Personality, LISTEN_ANY};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
@@ -61,10 +59,8 @@ fn mission_of(api: &Api) -> Value {
 /// checks the mission is paused for it within 1 s.
 fn taken_mid_go_to(p: Personality) -> Taken {
     let fake = Fake::start(p, &[]);
-    let port = free_tcp_port();
-    let listen = format!("127.0.0.1:{port}");
-    let kestrel = Kestrel::run(p, &fake.connection, "", &["--listen", &listen]);
-    let api = Api::connect(port);
+    let kestrel = Kestrel::run(p, &fake.connection, "", &["--listen", LISTEN_ANY]);
+    let api = kestrel.api();
     api.fly(&mission());
     kestrel.wait_line("go_to #2 started", Duration::from_secs(90));
     let deadline = Instant::now() + Duration::from_secs(30);

@@ -17,7 +17,7 @@ use kestrel::exploration::offline::evaluate::{self, EvalParams};
 use kestrel::sim::world::World;
 use kestrel::types::Vec3;
 use mavlink_support::room::{assert_no_collision, clearance_m, judge_map, wait_explored};
-use mavlink_support::{free_tcp_port, repo, serial, Api, Fake, Kestrel, Personality};
+use mavlink_support::{repo, serial, Api, Fake, Kestrel, Personality, LISTEN_ANY};
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -53,15 +53,13 @@ fn px4_explores_a_walled_room_with_its_range_beams_and_lands() {
         &["--world", world_path.to_str().unwrap(), "--rangers", "cf4"],
     );
     let poller = fake.poll_states();
-    let port = free_tcp_port();
-    let listen = format!("127.0.0.1:{port}");
     let kestrel = Kestrel::run(
         Personality::Px4,
         &fake.connection,
         CONFIG,
-        &["--listen", &listen],
+        &["--listen", LISTEN_ANY],
     );
-    let api = Api::connect(port);
+    let api = kestrel.api();
     wait_ready(&api);
     let started_at = Instant::now();
     // A faster turn than the thesis's 0.15 rad/s (the fake's beams come at 10 Hz, so a sweep

@@ -19,9 +19,7 @@ use kestrel::sim::world::World;
 use mavlink_support::room::{
     assert_no_collision, judge_map, judge_tracks, wait_explored, MIN_SEPARATION_M,
 };
-use mavlink_support::{
-    free_tcp_port, repo, serial, vehicle_section, wait_fleet_ready, Api, Fake, Kestrel,
-};
+use mavlink_support::{repo, serial, vehicle_section, wait_fleet_ready, Fake, Kestrel, LISTEN_ANY};
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -62,10 +60,8 @@ fn three_px4_explore_a_room_together_from_one_kestrel_run() {
         );
     }
     let poller = fake.poll_fleet_states(DRONES.len());
-    let port = free_tcp_port();
-    let listen = format!("127.0.0.1:{port}");
-    let kestrel = Kestrel::run_config(&config(&connections), &["--listen", &listen]);
-    let api = Api::connect(port);
+    let kestrel = Kestrel::run_config(&config(&connections), &["--listen", LISTEN_ANY]);
+    let api = kestrel.api();
 
     // The API shows the whole fleet, each drone where its autopilot stands in the room.
     let status = wait_fleet_ready(&api, &kestrel, DRONES.len());

@@ -12,9 +12,7 @@ mod mavlink_support;
 mod support;
 
 use mavlink_support::router::UdpRouter;
-use mavlink_support::{
-    free_tcp_port, serial, vehicle_section, wait_fleet_ready, Api, Fake, Kestrel,
-};
+use mavlink_support::{serial, vehicle_section, wait_fleet_ready, Api, Fake, Kestrel, LISTEN_ANY};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 use support::free_udp_port;
@@ -60,13 +58,11 @@ fn two_px4_behind_one_connection_each_fly_their_own_mission() {
     let (fake, vehicle_connections) = Fake::start_px4_fleet(DRONES.len() as u16, &[]);
     let kestrel_port = free_udp_port();
     let router = UdpRouter::start(&vehicle_connections, kestrel_port);
-    let api_port = free_tcp_port();
-    let listen = format!("127.0.0.1:{api_port}");
     let kestrel = Kestrel::run_config(
         &config(&format!("udpin:127.0.0.1:{kestrel_port}")),
-        &["--listen", &listen],
+        &["--listen", LISTEN_ANY],
     );
-    let api = Api::connect(api_port);
+    let api = kestrel.api();
     // Each drone shows its own autopilot: where that one stands.
     let status = wait_fleet_ready(&api, &kestrel, DRONES.len());
     for (drone, start) in DRONES.iter().zip(STARTS_ENU_M) {

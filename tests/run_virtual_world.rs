@@ -19,9 +19,7 @@ mod support;
 
 use kestrel::sim::world::World;
 use mavlink_support::room::{assert_no_collision, judge_map, wait_explored};
-use mavlink_support::{
-    free_tcp_port, repo, serial, vehicle_section, wait_fleet_ready, Api, Fake, Kestrel,
-};
+use mavlink_support::{repo, serial, vehicle_section, wait_fleet_ready, Fake, Kestrel, LISTEN_ANY};
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -52,13 +50,11 @@ fn three_px4_without_range_sensors_explore_a_virtual_room() {
         DRONES.len() as u16,
         &["--world", world_path.to_str().unwrap(), "--rangers", "none"],
     );
-    let port = free_tcp_port();
-    let listen = format!("127.0.0.1:{port}");
     let kestrel = Kestrel::run_config(
         &config(&connections),
-        &["--listen", &listen, "--virtual-world", WORLD],
+        &["--listen", LISTEN_ANY, "--virtual-world", WORLD],
     );
-    let api = Api::connect(port);
+    let api = kestrel.api();
     wait_fleet_ready(&api, &kestrel, DRONES.len());
     assert!(
         kestrel.line_at("virtual world").is_some(),

@@ -3,7 +3,7 @@
 //! that a test can cut like a Wi-Fi drop, and waiting for the fleet to join and to finish an
 //! exploration.
 
-use super::{free_tcp_port, Api, Fake, Kestrel};
+use super::{free_tcp_port, Api, Fake, Kestrel, LISTEN_ANY};
 use serde_json::{json, Value};
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
@@ -242,12 +242,10 @@ impl Fleet {
                 serde_json::to_string(&connect).unwrap(),
                 ids.section_end(id)
             );
-            let api_port = free_tcp_port();
-            let listen = format!("127.0.0.1:{api_port}");
             let text = config(arena, id, &connections[id], Some(&fleet))
                 .replace("platforms/px4.toml", platform);
-            nodes.push(Some(Kestrel::run_config(&text, &["--listen", &listen])));
-            apis.push(Api::connect(api_port));
+            nodes.push(Some(Kestrel::run_config(&text, &["--listen", LISTEN_ANY])));
+            apis.push(nodes.last().unwrap().as_ref().unwrap().api());
         }
         Fleet {
             arena: *arena,
@@ -262,13 +260,15 @@ impl Fleet {
     /// One Kestrel alone in the arena with vehicle 0 (the fake's first), no bus: what three nodes
     /// are measured against.
     pub fn start_alone(arena: &Arena, connection: &str) -> Self {
-        let api_port = free_tcp_port();
-        let listen = format!("127.0.0.1:{api_port}");
-        let node = Kestrel::run_config(&config(arena, 0, connection, None), &["--listen", &listen]);
+        let node = Kestrel::run_config(
+            &config(arena, 0, connection, None),
+            &["--listen", LISTEN_ANY],
+        );
+        let api = node.api();
         Fleet {
             arena: *arena,
             nodes: vec![Some(node)],
-            apis: vec![Api::connect(api_port)],
+            apis: vec![api],
             proxies: Vec::new(),
             _creds: tempfile::tempdir().unwrap(),
             _ids: None,
@@ -404,7 +404,7 @@ pub fn bus_only_node(
 
 /// `kestrel run` of that config, its API on a free port.
 pub fn start_bus_only(config: &str) -> (Kestrel, Api) {
-    let port = free_tcp_port();
-    let node = Kestrel::run_config(config, &["--listen", &format!("127.0.0.1:{port}")]);
-    (node, Api::connect(port))
+    let node = Kestrel::run_config(config, &["--listen", LISTEN_ANY]);
+    let api = node.api();
+    (node, api)
 }

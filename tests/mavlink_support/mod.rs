@@ -297,6 +297,10 @@ impl Poller {
 }
 
 /// The `kestrel run` process, its stdout and stderr lines stamped on arrival.
+/// `--listen` value for a test Kestrel: a port the system picks ([`Kestrel::api`] finds it). A
+/// port picked free beforehand can be taken by a parallel test first.
+pub const LISTEN_ANY: &str = "127.0.0.1:0";
+
 pub struct Kestrel {
     child: Child,
     pub lines: Arc<Mutex<Vec<(Instant, String)>>>,
@@ -426,6 +430,24 @@ impl Kestrel {
             std::thread::sleep(Duration::from_millis(20));
         }
         panic!("no `{needle}` within {timeout:?}:\n{}", self.output());
+    }
+
+    /// The API of a Kestrel started with `--listen 127.0.0.1:0` ([`LISTEN_ANY`]): the port the
+    /// system gave it, read from its `API on http://...` line (waits up to 60 s), then health.
+    pub fn api(&self) -> Api {
+        self.wait_line("API on http://", Duration::from_secs(60));
+        let port = {
+            let lines = self.lines.lock().unwrap();
+            lines
+                .iter()
+                .find_map(|(_, l)| {
+                    let rest = l.strip_prefix("API on http://")?;
+                    let address = rest.split_whitespace().next()?;
+                    address.rsplit_once(':')?.1.parse::<u16>().ok()
+                })
+                .expect("the API line names a port")
+        };
+        Api::connect(port)
     }
 
     pub fn flight_log(&self) -> Vec<Value> {
