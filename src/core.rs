@@ -23,7 +23,7 @@ use crate::mapping::registration::Reference;
 use crate::mapping::scan::RangeScan;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
-use crate::safety::{Around, Flight, Obstacles, Override, SafetyConfig, SafetyStage};
+use crate::safety::{Around, Flight, LowestHeight, Obstacles, Override, SafetyConfig, SafetyStage};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
@@ -154,6 +154,7 @@ impl DroneCore {
         let capabilities = Capabilities {
             velocity_overshoot: overshoot,
             yaw_rate_overshoot: yaw_overshoot,
+            height_error_m: config.safety.height_error_m.or(capabilities.height_error_m),
             ..capabilities
         };
         Self {
@@ -254,6 +255,19 @@ impl DroneCore {
 
     pub fn home_enu_m(&self) -> Option<Vec3> {
         self.home_enu_m
+    }
+
+    /// The lowest height above home a mission may fly this vehicle at (m): its height
+    /// estimate's error plus [`crate::safety::GROUND_CLEARANCE_M`]; `None` where the height is
+    /// taken as exact (the simulator, a profile or config that says 0).
+    pub fn lowest_flight_height_m(&self) -> Option<LowestHeight> {
+        self.capabilities
+            .height_error_m
+            .filter(|e| *e > 0.0)
+            .map(|error_m| LowestHeight {
+                height_m: error_m + crate::safety::GROUND_CLEARANCE_M,
+                error_m,
+            })
     }
 
     pub fn set_frame(

@@ -327,8 +327,8 @@ fn a_lost_peer_of_two_pauses_the_other_with_fleet_peer_lost_until_an_operator_la
     for (i, [x, y]) in [(0, [-4.5, 1.0]), (1, [1.5, 2.0])] {
         let drone = format!("drone_{i}");
         let plan = json!([
-            {"behavior": "takeoff", "args": {"height": 1.0, "speed": 0.5}},
-            {"behavior": "go_to", "args": {"x": x, "y": y, "z": 1.0, "speed": 0.1}}
+            {"behavior": "takeoff", "args": {"height": 2.0, "speed": 0.5}},
+            {"behavior": "go_to", "args": {"x": x, "y": y, "z": 2.0, "speed": 0.1}}
         ]);
         let update = json!({"drone_id": drone, "action": 0,
             "mission": {"target": drone, "plan": plan}});

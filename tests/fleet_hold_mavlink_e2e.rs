@@ -20,8 +20,8 @@ fn lands_through_the_hold(fake: &Fake, mut fleet: Fleet) {
     for (i, [x, y]) in [(0, [-4.5, 1.0]), (1, [1.5, 2.0])] {
         let drone = format!("drone_{i}");
         let plan = json!([
-            {"behavior": "takeoff", "args": {"height": 1.5, "speed": 0.5}},
-            {"behavior": "go_to", "args": {"x": x, "y": y, "z": 1.5, "speed": 0.1}}
+            {"behavior": "takeoff", "args": {"height": 2.0, "speed": 0.5}},
+            {"behavior": "go_to", "args": {"x": x, "y": y, "z": 2.0, "speed": 0.1}}
         ]);
         let update = json!({"drone_id": drone, "action": 0,
             "mission": {"target": drone, "plan": plan}});

@@ -43,6 +43,7 @@ fn context() -> ContextSnapshot {
         now: Duration::ZERO,
         home_enu_m: Vec3::zeros(),
         geo_origin: GeodeticOrigin::default(),
+        lowest_height: None,
     }
 }
 

@@ -358,6 +358,7 @@ fn context_check(text: &str) -> Result<(), Vec<ValidationError>> {
         now: std::time::Duration::ZERO,
         home_enu_m: kestrel::types::Vec3::zeros(),
         geo_origin: core.geo_origin(),
+        lowest_height: None,
     };
     validate_text(text, &ctx).map(|_| ())
 }
@@ -430,6 +431,62 @@ fn a_polygon_geofence_rejects_points_outside_it() {
     };
     assert_eq!(errors[0].pointer, "/plan/1/args/x");
     assert!(errors[0].message.contains("polygon"));
+}
+
+/// A vehicle whose height estimate may be off by 1.5 m (a barometer's, as PX4's and
+/// ArduPilot's profiles say) is never sent below 2.0 m: not by a height given, a default, or a
+/// point; landing is still allowed. Where the height is exact (the simulator) nothing changes.
+#[test]
+fn nothing_flies_below_the_height_the_vehicles_height_error_leaves() {
+    let mut config = Config::default();
+    config.safety.height_error_m = Some(1.5);
+    let mut rig = Rig::with_config(config, 1);
+    let low = plan(vec![
+        json!({"behavior": "takeoff", "args": {"speed": 1.0}}),
+        json!({"behavior": "explore", "args": {"height": 1.5}}),
+        go_to(3.0, 0.0, 1.0),
+        json!({"behavior": "land", "args": {}}),
+    ]);
+    let Err(HostError::Invalid(errors)) = rig.host.load_mission(&low, LoadOptions::default())
+    else {
+        panic!("accepted");
+    };
+    let found = |pointer: &str, words: &str| {
+        errors
+            .iter()
+            .any(|e| e.pointer == pointer && e.message.contains(words))
+    };
+    assert_eq!(errors.len(), 3, "{errors:?}");
+    assert!(
+        found("/plan/0/args", "height 1 m (the default)"),
+        "{errors:?}"
+    );
+    assert!(found("/plan/1/args/height", "height = 1.5 m"), "{errors:?}");
+    assert!(found("/plan/2/args/z", "1.0 m above home"), "{errors:?}");
+    for e in &errors {
+        assert!(
+            e.message.contains("lowest flight height of 2.0 m")
+                && e.message.contains("off by 1.5 m")
+                && e.message.contains("height_error_m"),
+            "{e:?}"
+        );
+    }
+    assert!(rig.host.executors()[0].missions().is_empty());
+    let high = plan(vec![
+        json!({"behavior": "takeoff", "args": {"height": 2.0}}),
+        json!({"behavior": "explore", "args": {"height": 2.5}}),
+        go_to(3.0, 0.0, 2.0),
+        json!({"behavior": "rtl", "args": {"height": 3.0, "speed": 1.0}}),
+    ]);
+    rig.host
+        .load_mission(&high, LoadOptions::default())
+        .expect("at and above the lowest flight height");
+
+    let mut exact = Rig::new();
+    exact
+        .host
+        .load_mission(&low, LoadOptions::default())
+        .expect("the simulator's height is exact");
 }
 
 #[test]

@@ -67,7 +67,7 @@ fn px4_explores_a_walled_room_with_its_range_beams_and_lands() {
     // room for PX4's slower velocity response (at 0.4 the true clearance went down to 0.15 m).
     let (status, started) = api.post(
         "/api/exploration/start",
-        &json!({"drones": ["drone_0"], "args": {"spin_rate": 0.4, "safety_distance": 0.5}}),
+        &json!({"drones": ["drone_0"], "args": {"height": 2.0, "spin_rate": 0.4, "safety_distance": 0.5}}),
     );
     assert_eq!(status, 200, "{started}");
     let view = wait_explored(&api, &kestrel, &fake);

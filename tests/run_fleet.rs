@@ -84,7 +84,7 @@ fn three_px4_explore_a_room_together_from_one_kestrel_run() {
     let started_at = Instant::now();
     let (code, started) = api.post(
         "/api/exploration/start",
-        &json!({"drones": DRONES, "args": {"spin_rate": 0.4, "safety_distance": 0.5}}),
+        &json!({"drones": DRONES, "args": {"height": 2.0, "spin_rate": 0.4, "safety_distance": 0.5}}),
     );
     assert_eq!(code, 200, "{started}");
     let view = wait_explored(&api, &kestrel, &fake);

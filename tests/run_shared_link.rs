@@ -21,7 +21,7 @@ const DRONES: [&str; 2] = ["drone_0", "drone_1"];
 /// Where the fake starts its vehicles without a world: a row 3 m apart (ENU, m).
 const STARTS_ENU_M: [[f64; 3]; 2] = [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
 /// Each vehicle's go_to target in the shared frame (m): they cross the x axis apart.
-const TARGETS_ENU_M: [[f64; 3]; 2] = [[-1.0, 4.0, 1.5], [5.0, -3.0, 2.0]];
+const TARGETS_ENU_M: [[f64; 3]; 2] = [[-1.0, 4.0, 2.0], [5.0, -3.0, 2.5]];
 
 fn config(connection: &str) -> String {
     let mut text = "[mavlink]\nplatform = \"platforms/px4.toml\"\n".to_string();

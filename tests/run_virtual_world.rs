@@ -65,7 +65,7 @@ fn three_px4_without_range_sensors_explore_a_virtual_room() {
     let started_at = Instant::now();
     let (code, started) = api.post(
         "/api/exploration/start",
-        &json!({"drones": DRONES, "args": {"spin_rate": 0.4, "safety_distance": 0.5}}),
+        &json!({"drones": DRONES, "args": {"height": 2.0, "spin_rate": 0.4, "safety_distance": 0.5}}),
     );
     assert_eq!(code, 200, "{started}");
     let view = wait_explored(&api, &kestrel, &fake);

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Field check on the real PX4 SITL (SIH quadcopter, built by ../shared/anchors/build-px4.sh):
 # three PX4 SIH instances explore WORLD from one `kestrel run --virtual-world WORLD`, started
-# with `POST /api/exploration/start` (every `explore` argument at its default unless ARGS says
-# otherwise). Each instance is put at the world's start for three drones (`origin_enu_m`).
+# with `POST /api/exploration/start` (every `explore` argument at its default but a 2.0 m
+# height, unless ARGS says otherwise). Each instance is put at the world's start for three drones (`origin_enu_m`).
 # Prints how each drone's exploration ended, the least clearance to the world's obstacles it
 # flew (from the flight log, `kestrel evaluate`), the area seen, the tracking margin each
 # explorer added to its safety distance, and each drone's true horizontal speed (SIH's ground
@@ -20,7 +20,8 @@ anchors=../shared/anchors
 bin=${KESTREL:-target/debug/kestrel}
 out=${OUT:-target/px4-sih-explore}
 limit=${LIMIT_S:-900}
-args=${ARGS:-"{}"}
+# PX4's profile refuses flight below 2.0 m (its barometric height may be 1.5 m off).
+args=${ARGS:-'{"height": 2.0}'}
 port=18091
 mkdir -p "$out"
 python3 - "$world" > "$out/$name.toml" <<'PY'

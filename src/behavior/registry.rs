@@ -32,6 +32,11 @@ pub trait Goal: DeserializeOwned + JsonSchema + Clone + Send + Sync + 'static {
     fn speeds_mps(&self) -> Vec<f64> {
         Vec::new()
     }
+    /// Heights above the takeoff point the goal flies at (m), for the vehicle's lowest flight
+    /// height (its `height` argument, given or the default).
+    fn heights_m(&self) -> Vec<f64> {
+        Vec::new()
+    }
 }
 
 /// What validation learns from a goal without starting it.
@@ -39,6 +44,7 @@ pub trait Goal: DeserializeOwned + JsonSchema + Clone + Send + Sync + 'static {
 pub struct GoalSummary {
     pub targets: Vec<FramedPoint>,
     pub speeds_mps: Vec<f64>,
+    pub heights_m: Vec<f64>,
 }
 
 /// A goal parsed and checked once (by mission validation, or when the API starts a behavior),
@@ -128,6 +134,7 @@ impl BehaviorSpec {
                     summary: GoalSummary {
                         targets: goal.targets(),
                         speeds_mps: goal.speeds_mps(),
+                        heights_m: goal.heights_m(),
                     },
                     typed: Arc::new(goal),
                 })

@@ -109,6 +109,9 @@ impl Goal for RtlGoal {
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed, self.land_speed]
     }
+    fn heights_m(&self) -> Vec<f64> {
+        vec![self.height]
+    }
 }
 
 pub fn rtl_spec() -> BehaviorSpec {

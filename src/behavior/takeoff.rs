@@ -39,6 +39,9 @@ impl Goal for TakeoffGoal {
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]
     }
+    fn heights_m(&self) -> Vec<f64> {
+        vec![self.height]
+    }
 }
 
 pub fn spec() -> BehaviorSpec {

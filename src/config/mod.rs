@@ -58,6 +58,11 @@ pub struct SafetySection {
     pub separation_margin_m: f64,
     /// A target beyond the geofence is held this far inside it (m).
     pub geofence_margin_m: f64,
+    /// How far the vehicle's height estimate may be off (m, 0..=20); absent: its platform
+    /// profile's (PX4 and ArduPilot: a barometer's 1.5 m; the simulator's: none). Missions are
+    /// refused below this plus [`crate::safety::GROUND_CLEARANCE_M`] above home. Set it low
+    /// for a vehicle that holds its height on a downward rangefinder.
+    pub height_error_m: Option<f64>,
 }
 
 impl Default for SafetySection {
@@ -66,6 +71,7 @@ impl Default for SafetySection {
             min_separation_m: 1.0,
             separation_margin_m: 0.2,
             geofence_margin_m: 0.5,
+            height_error_m: None,
         }
     }
 }
@@ -245,6 +251,7 @@ impl Config {
             limits: self.controller,
             braking_mps2: self.behaviors.max_acceleration_mps2,
             obstacle_keep_m: crate::safety::OBSTACLE_KEEP_M,
+            height_error_m: self.safety.height_error_m,
         }
     }
 
@@ -470,6 +477,9 @@ impl Config {
             100.0,
             "m",
         )?;
+        if let Some(e) = self.safety.height_error_m {
+            non_negative("safety.height_error_m", e, 20.0, "m")?;
+        }
         Ok(())
     }
 

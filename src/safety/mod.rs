@@ -39,6 +39,21 @@ pub struct SafetyConfig {
     /// Least distance (m, vehicle centre to the centre of an occupied cell of its map) a
     /// motion the stage makes itself (a separation's slide or push) keeps from an obstacle.
     pub obstacle_keep_m: f64,
+    /// How far the vehicle's height estimate may be off (m); `None`: the platform's.
+    pub height_error_m: Option<f64>,
+}
+
+/// Height kept between the ground and the lowest the vehicle may truly be, given its height
+/// estimate's error (m): the lowest flight height a mission may ask is the error plus this.
+pub const GROUND_CLEARANCE_M: f64 = 0.5;
+
+/// The lowest height above home a mission may fly a vehicle at, and why.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LowestHeight {
+    /// The vehicle's height estimate error plus [`GROUND_CLEARANCE_M`] (m).
+    pub height_m: f64,
+    /// How far its height estimate may be off (m).
+    pub error_m: f64,
 }
 
 impl Default for SafetyConfig {
@@ -51,6 +66,7 @@ impl Default for SafetyConfig {
             limits: ControllerConfig::default(),
             braking_mps2: 2.0,
             obstacle_keep_m: OBSTACLE_KEEP_M,
+            height_error_m: None,
         }
     }
 }

@@ -54,6 +54,9 @@ pub struct Capabilities {
     /// The same for turn rates (0.05: up to 5 % faster); the config's
     /// `[controller] yaw_rate_overshoot` overrides it.
     pub yaw_rate_overshoot: Option<f64>,
+    /// How far the vehicle's height estimate may be off (m), when the profile knows it (a
+    /// barometer's on an autopilot); the config's `[safety] height_error_m` overrides it.
+    pub height_error_m: Option<f64>,
 }
 
 impl Capabilities {
@@ -71,6 +74,7 @@ impl Capabilities {
             velocity_lag_s: None,
             velocity_overshoot: None,
             yaw_rate_overshoot: None,
+            height_error_m: None,
         }
     }
 }

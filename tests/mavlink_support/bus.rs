@@ -42,7 +42,7 @@ pub const BAYS30: Arena = Arena {
     exploration_timeout: Duration::from_secs(900),
 };
 /// The explorer's arguments, as tests/run_fleet.rs.
-pub const ARGS: &str = r#"{"spin_rate": 0.4, "safety_distance": 0.5}"#;
+pub const ARGS: &str = r#"{"height": 2.0, "spin_rate": 0.4, "safety_distance": 0.5}"#;
 
 /// A TCP proxy in front of one Kestrel's bus port, which the test can cut.
 pub struct BusProxy {

@@ -119,4 +119,7 @@ impl Goal for ExploreGoal {
     fn speeds_mps(&self) -> Vec<f64> {
         vec![self.speed]
     }
+    fn heights_m(&self) -> Vec<f64> {
+        vec![self.height]
+    }
 }

@@ -128,6 +128,7 @@ impl Host {
             now: self.now,
             home_enu_m: home,
             geo_origin: core.geo_origin(),
+            lowest_height: core.lowest_flight_height_m(),
         })
     }
 

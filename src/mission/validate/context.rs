@@ -8,7 +8,7 @@
 use crate::behavior::Registry;
 use crate::estimator::frames::FrameTree;
 use crate::estimator::geodetic::GeodeticOrigin;
-use crate::safety::GeofenceSection;
+use crate::safety::{GeofenceSection, LowestHeight};
 use crate::types::Vec3;
 use std::time::Duration;
 
@@ -33,6 +33,8 @@ pub struct ValidationContext<'a> {
     /// Centre of the geofence and zero of its altitudes (`earth`, m).
     pub home_enu_m: Vec3,
     pub geo_origin: &'a GeodeticOrigin,
+    /// The lowest height above home this drone may be sent to; `None`: the ground.
+    pub lowest_height: Option<LowestHeight>,
 }
 
 /// How far home may move between a snapshot and the upload's arrival on the loop (m).
@@ -49,6 +51,7 @@ pub struct ContextSnapshot {
     pub now: Duration,
     pub home_enu_m: Vec3,
     pub geo_origin: GeodeticOrigin,
+    pub lowest_height: Option<LowestHeight>,
 }
 
 impl std::fmt::Debug for ContextSnapshot {
@@ -71,6 +74,7 @@ impl ContextSnapshot {
             now: ctx.now,
             home_enu_m: ctx.home_enu_m,
             geo_origin: *ctx.geo_origin,
+            lowest_height: ctx.lowest_height,
         }
     }
 
@@ -83,6 +87,7 @@ impl ContextSnapshot {
             now: self.now,
             home_enu_m: self.home_enu_m,
             geo_origin: &self.geo_origin,
+            lowest_height: self.lowest_height,
         }
     }
 
@@ -94,6 +99,7 @@ impl ContextSnapshot {
         self.drone_id == now_ctx.drone_id
             && &self.limits == now_ctx.limits
             && &self.geo_origin == now_ctx.geo_origin
+            && self.lowest_height == now_ctx.lowest_height
             && (self.home_enu_m - now_ctx.home_enu_m).norm() <= HOME_TOLERANCE_M
             && self.frames.same_frames_as(now_ctx.frames)
     }
@@ -114,6 +120,7 @@ mod tests {
             now: Duration::from_secs(3),
             home_enu_m: Vec3::new(1.0, 2.0, 0.0),
             geo_origin: GeodeticOrigin::default(),
+            lowest_height: None,
         }
     }
 

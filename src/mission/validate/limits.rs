@@ -8,6 +8,7 @@ use super::{at, join, ValidationContext, ValidationError};
 use crate::behavior::GoalSummary;
 use crate::estimator::geodetic::GeoPoint;
 use crate::mission::methods::Canonical;
+use crate::safety::LowestHeight;
 use crate::types::Vec3;
 use serde_json::Value;
 
@@ -72,6 +73,19 @@ pub(super) fn check_limits(
             ));
         }
     }
+    if let Some(lowest) = ctx.lowest_height {
+        let given = goal.get("height").and_then(Value::as_f64);
+        for h in summary.heights_m.iter().filter(|h| **h < lowest.height_m) {
+            let (pointer, what) = match given {
+                Some(_) => (pointer_of("height"), format!("height = {h} m")),
+                None => (
+                    args_pointer.to_string(),
+                    format!("height {h} m (the default)"),
+                ),
+            };
+            errors.push(at(&pointer, too_low(&what, &lowest)));
+        }
+    }
     let path_len = goal.get("path").and_then(Value::as_array).map(Vec::len);
     if let Some(n) = path_len.filter(|n| *n > limits.max_waypoints) {
         errors.push(at(
@@ -132,6 +146,17 @@ pub(super) fn check_limits(
     }
 }
 
+/// Why `what` (a height, a point) is refused below the vehicle's lowest flight height.
+fn too_low(what: &str, lowest: &LowestHeight) -> String {
+    format!(
+        "{what} is below this vehicle's lowest flight height of {:.1} m above home: its height \
+         estimate may be off by {:.1} m (`height_error_m` of its platform profile, or `[safety] \
+         height_error_m`; set it lower for a vehicle that holds its height on a downward \
+         rangefinder)",
+        lowest.height_m, lowest.error_m
+    )
+}
+
 fn unknown_frame(pointer: &str, frame: &str, ctx: &ValidationContext) -> ValidationError {
     let known: Vec<&str> = ctx.frames.names().collect();
     at(
@@ -161,6 +186,12 @@ fn geofence_errors(
                 "{where_} is {altitude:.1} m above home, over the {} m ceiling",
                 fence.max_altitude_m
             ),
+        ));
+    }
+    if let Some(lowest) = ctx.lowest_height.filter(|l| altitude < l.height_m) {
+        out.push(at(
+            vertical,
+            too_low(&format!("{where_}, {altitude:.1} m above home,"), &lowest),
         ));
     }
     if altitude < fence.min_altitude_m {

@@ -214,6 +214,9 @@ struct RawProfile {
     message_intervals_hz: BTreeMap<String, f64>,
     #[serde(default)]
     drive: RawDrive,
+    /// How far the autopilot's height estimate may be off (m); absent: taken as exact.
+    #[serde(default)]
+    height_error_m: Option<f64>,
 }
 
 /// A named autopilot mode with its HEARTBEAT `custom_mode` value.
@@ -303,6 +306,9 @@ pub struct Profile {
     pub velocity_overshoot: Option<f64>,
     /// The same for turn rates (`[drive] yaw_rate_overshoot`).
     pub yaw_rate_overshoot: Option<f64>,
+    /// How far the autopilot's height estimate may be off (`height_error_m`, m); missions are
+    /// refused below it plus a ground clearance. `None`: taken as exact.
+    pub height_error_m: Option<f64>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -420,6 +426,15 @@ mod tests {
         let bad = text.replace("velocity_overshoot = 0.2", "velocity_overshoot = -0.1");
         let e = Profile::parse(&bad, "t").unwrap_err();
         assert!(e.to_string().contains("drive.velocity_overshoot"), "{e}");
+        let bad = text.replace("height_error_m = 1.5", "height_error_m = -1");
+        let e = Profile::parse(&bad, "t").unwrap_err();
+        assert!(e.to_string().contains("height_error_m"), "{e}");
+    }
+
+    #[test]
+    fn autopilots_on_a_barometer_say_their_height_may_be_off() {
+        assert_eq!(load("px4.toml").height_error_m, Some(1.5));
+        assert_eq!(load("ardupilot-copter.toml").height_error_m, Some(1.5));
     }
 
     #[test]

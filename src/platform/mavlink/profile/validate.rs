@@ -153,6 +153,19 @@ pub(super) fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
             .yaw_rate_overshoot
             .map(|share| fraction("drive.yaw_rate_overshoot", share))
             .transpose()?,
+        height_error_m: raw
+            .height_error_m
+            .map(|e| {
+                if e.is_finite() && (0.0..=20.0).contains(&e) {
+                    Ok(e)
+                } else {
+                    Err((
+                        "height_error_m".to_string(),
+                        format!("must be within 0..=20 m, got {e}"),
+                    ))
+                }
+            })
+            .transpose()?,
     })
 }
 

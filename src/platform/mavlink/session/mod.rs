@@ -161,6 +161,7 @@ impl Session {
             velocity_lag_s: Some(self.profile.velocity_lag.as_secs_f64()),
             velocity_overshoot: self.profile.velocity_overshoot,
             yaw_rate_overshoot: self.profile.yaw_rate_overshoot,
+            height_error_m: self.profile.height_error_m,
         }
     }
 
