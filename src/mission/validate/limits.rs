@@ -62,30 +62,7 @@ pub(super) fn check_limits(
             ));
         }
     }
-    if let Some(h) = goal.get("height").and_then(Value::as_f64) {
-        if h > limits.geofence.max_altitude_m {
-            errors.push(at(
-                &pointer_of("height"),
-                format!(
-                    "height = {h} m is above the {} m ceiling",
-                    limits.geofence.max_altitude_m
-                ),
-            ));
-        }
-    }
-    if let Some(lowest) = ctx.lowest_height {
-        let given = goal.get("height").and_then(Value::as_f64);
-        for h in summary.heights_m.iter().filter(|h| **h < lowest.height_m) {
-            let (pointer, what) = match given {
-                Some(_) => (pointer_of("height"), format!("height = {h} m")),
-                None => (
-                    args_pointer.to_string(),
-                    format!("height {h} m (the default)"),
-                ),
-            };
-            errors.push(at(&pointer, too_low(&what, &lowest)));
-        }
-    }
+    errors.extend(height_errors(goal, summary, &pointer_of, args_pointer, ctx));
     let path_len = goal.get("path").and_then(Value::as_array).map(Vec::len);
     if let Some(n) = path_len.filter(|n| *n > limits.max_waypoints) {
         errors.push(at(
@@ -144,6 +121,39 @@ pub(super) fn check_limits(
     } else {
         Err(errors)
     }
+}
+
+/// A goal's `height` against the ceiling, and its heights (given or default) against the
+/// vehicle's lowest flight height.
+fn height_errors(
+    goal: &Value,
+    summary: &GoalSummary,
+    pointer_of: &dyn Fn(&str) -> String,
+    args_pointer: &str,
+    ctx: &ValidationContext,
+) -> Vec<ValidationError> {
+    let mut errors = Vec::new();
+    let given = goal.get("height").and_then(Value::as_f64);
+    let ceiling = ctx.limits.geofence.max_altitude_m;
+    if let Some(h) = given.filter(|h| *h > ceiling) {
+        errors.push(at(
+            &pointer_of("height"),
+            format!("height = {h} m is above the {ceiling} m ceiling"),
+        ));
+    }
+    if let Some(lowest) = ctx.lowest_height {
+        for h in summary.heights_m.iter().filter(|h| **h < lowest.height_m) {
+            let (pointer, what) = match given {
+                Some(_) => (pointer_of("height"), format!("height = {h} m")),
+                None => (
+                    args_pointer.to_string(),
+                    format!("height {h} m (the default)"),
+                ),
+            };
+            errors.push(at(&pointer, too_low(&what, &lowest)));
+        }
+    }
+    errors
 }
 
 /// Why `what` (a height, a point) is refused below the vehicle's lowest flight height.

@@ -132,16 +132,7 @@ pub(super) fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
         command_slew_mps2: raw
             .drive
             .command_slew_mps2
-            .map(|a| {
-                if a.is_finite() && (0.1..=50.0).contains(&a) {
-                    Ok(a)
-                } else {
-                    Err((
-                        "drive.command_slew_mps2".to_string(),
-                        format!("must be within 0.1..=50 m/s^2, got {a}"),
-                    ))
-                }
-            })
+            .map(|a| bounded("drive.command_slew_mps2", a, (0.1, 50.0), "m/s^2"))
             .transpose()?,
         velocity_overshoot: raw
             .drive
@@ -155,18 +146,21 @@ pub(super) fn validate(raw: RawProfile) -> Result<Profile, Invalid> {
             .transpose()?,
         height_error_m: raw
             .height_error_m
-            .map(|e| {
-                if e.is_finite() && (0.0..=20.0).contains(&e) {
-                    Ok(e)
-                } else {
-                    Err((
-                        "height_error_m".to_string(),
-                        format!("must be within 0..=20 m, got {e}"),
-                    ))
-                }
-            })
+            .map(|e| bounded("height_error_m", e, (0.0, 20.0), "m"))
             .transpose()?,
     })
+}
+
+/// `v` when it is within `lo..=hi` (in `unit`), else the error naming `field`.
+fn bounded(field: &str, v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<f64, Invalid> {
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err((
+            field.to_string(),
+            format!("must be within {lo}..={hi} {unit}, got {v}"),
+        ))
+    }
 }
 
 /// `share` when it is a fraction within 0..=1, else the error naming `field`.
