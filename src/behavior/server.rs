@@ -125,6 +125,16 @@ impl ServerError {
 const OFFBOARD_CLAIM_PERIOD: Duration = Duration::from_secs(1);
 
 /// Asks for offboard for a behavior started outside it, until the autopilot is in it.
+/// The fastest speed a goal asks for (m/s), if it asks any.
+fn speed_cap(goal: &ParsedGoal) -> Option<f64> {
+    goal.summary()
+        .speeds_mps
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .reduce(f64::max)
+}
+
 fn claim_offboard(a: &mut Active, ctx: &BehaviorContext, requests: &mut Vec<PlatformRequest>) {
     let Some(last) = a.claims_offboard else {
         return;
@@ -156,6 +166,9 @@ struct Active {
     behavior: Box<dyn Behavior>,
     /// Where to hold while paused.
     hold: Option<MotionReference>,
+    /// The fastest its goal asks for (m/s; `None`: it asks none): no reference it gives is
+    /// flown faster, the holds it borrows (at `hold_speed_mps`) included.
+    speed_cap_mps: Option<f64>,
     /// Started while airborne outside offboard (after a link loss, or a pilot's mode change
     /// followed by a new order): it asks the autopilot for offboard until it has it. A behavior
     /// that loses offboard while running never asks again: whoever took control keeps it.
@@ -294,6 +307,7 @@ impl BehaviorServer {
             resource,
             behavior,
             hold: None,
+            speed_cap_mps: speed_cap(goal),
             claims_offboard: (resource == Resource::Motion
                 && ctx.is_flying()
                 && !ctx.platform.offboard)
@@ -349,6 +363,7 @@ impl BehaviorServer {
                 reason,
             })?;
         a.info.goal = goal.clone();
+        a.speed_cap_mps = speed_cap(&parsed);
         self.events.push(BehaviorEvent::Modified {
             id,
             behavior: name,
@@ -420,7 +435,8 @@ impl BehaviorServer {
         }
     }
 
-    /// Runs every active behavior once and picks the motion reference.
+    /// Runs every active behavior once and picks the motion reference (capped at the speed
+    /// its goal asks for).
     pub fn tick(&mut self, ctx: &BehaviorContext) -> ServerOutput {
         let mut out = ServerOutput::default();
         let mut finished = Vec::new();
@@ -443,7 +459,10 @@ impl BehaviorServer {
                 } => {
                     a.info.feedback = feedback;
                     if a.resource == Resource::Motion {
-                        motion_reference = reference;
+                        motion_reference = match (reference, a.speed_cap_mps) {
+                            (Some(r), Some(cap)) => Some(r.at_most(cap)),
+                            (r, _) => r,
+                        };
                         if reference.is_some() {
                             claim_offboard(a, ctx, &mut out.requests);
                         }
@@ -492,10 +511,16 @@ mod tests {
     #[derive(Clone, serde::Deserialize, schemars::JsonSchema)]
     struct CountGoal {
         ticks: u32,
+        /// The speed the goal asks for, if any (its reference is a hold at 1 m/s).
+        #[serde(default)]
+        speed: Option<f64>,
     }
     impl Goal for CountGoal {
         fn check(&self) -> Result<(), crate::behavior::GoalError> {
             Ok(())
+        }
+        fn speeds_mps(&self) -> Vec<f64> {
+            self.speed.into_iter().collect()
         }
     }
     struct Count {
@@ -575,6 +600,30 @@ mod tests {
         s.start("count", &json!({ "ticks": 1000 }), &w.ctx(0))
             .unwrap();
         assert_eq!(offboard_requests(&mut s, &w, 10), 0);
+    }
+
+    fn max_speed(out: &ServerOutput) -> f64 {
+        match out.reference {
+            Some(MotionReference::Position { max_speed_mps, .. }) => max_speed_mps,
+            ref other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn no_reference_is_flown_faster_than_its_goal_asks() {
+        let w = World::flying();
+        let mut s = server();
+        s.start("count", &json!({ "ticks": 1000, "speed": 0.3 }), &w.ctx(0))
+            .unwrap();
+        assert_eq!(
+            max_speed(&s.tick(&w.ctx(1))),
+            0.3,
+            "the hold at 1 m/s, capped"
+        );
+        let mut s = server();
+        s.start("count", &json!({ "ticks": 1000 }), &w.ctx(0))
+            .unwrap();
+        assert_eq!(max_speed(&s.tick(&w.ctx(1))), 1.0, "a goal without a speed");
     }
 
     #[test]
