@@ -7,7 +7,7 @@ use super::{seconds, trace, Explore};
 use crate::behavior::progress::lost_peer;
 use crate::behavior::{BehaviorContext, Failure, FailureCode};
 use crate::exploration::online::reach::KeepOut;
-use crate::exploration::online::service::{Allocation, ExploreRequest};
+use crate::exploration::online::service::{Allocation, ExploreError, ExploreRequest};
 use crate::exploration::online::space::SpaceParams;
 
 /// An allocation is flown only if the drone is still this close to where it asked (m).
@@ -20,11 +20,16 @@ impl Explore {
     /// Asks the allocator for a goal from where the drone is, with this drone's settings
     /// (the config's, with the goal's own over them) and what it gives up.
     pub(super) fn ask(&mut self, ctx: &BehaviorContext) {
+        self.ask_keeping(ctx, self.tracking.extra_m());
+    }
+
+    /// [`Self::ask`] with `extra_m` of room beyond the goal's safety distance.
+    fn ask_keeping(&mut self, ctx: &BehaviorContext, extra_m: f64) {
         let settings = ctx.exploration.with(&self.goal.settings);
         let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
         let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
         let space = SpaceParams {
-            safety_distance_m: self.goal.safety_distance + self.tracking.extra_m(),
+            safety_distance_m: self.goal.safety_distance + extra_m,
             min_cells: cells(self.goal.min_frontier_length),
             min_final_cells: cells(self.goal.end_frontier_length),
             min_gain_cells: (settings.pocket_area_m2 / (resolution_m * resolution_m)).round()
@@ -65,6 +70,9 @@ impl Explore {
             return Ok(false);
         };
         self.pending = None;
+        if let Some(kept_m) = self.probing.take() {
+            return self.read_probe(ctx, answer, kept_m);
+        }
         match answer {
             Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
             Ok(Allocation::Done {
@@ -97,7 +105,15 @@ impl Explore {
                     held,
                     unreached,
                 };
-                Ok(end::over(left, &facts))
+                let over = end::over(left, &facts);
+                let kept_m = self.tracking.extra_m();
+                if over && frontiers > 0 && kept_m > 0.0 {
+                    // Before it ends: is anything left within the room kept for straying?
+                    self.probing = Some(kept_m);
+                    self.ask_keeping(ctx, 0.0);
+                    return Ok(false);
+                }
+                Ok(over)
             }
             Ok(Allocation::Goal {
                 goal_enu_m,
@@ -134,6 +150,36 @@ impl Explore {
                     self.fly(ctx, goal_enu_m, &path_enu_m)?;
                 }
                 Ok(false)
+            }
+        }
+    }
+}
+
+impl Explore {
+    /// The answer to the last question before the end, asked with no room for straying: a goal
+    /// there means frontiers were left only within the room kept. The exploration ends either
+    /// way (the room is kept: with it, nothing is reachable), but then says it ended short.
+    fn read_probe(
+        &mut self,
+        ctx: &BehaviorContext,
+        answer: Result<Allocation, ExploreError>,
+        kept_m: f64,
+    ) -> Result<bool, Failure> {
+        match answer {
+            Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
+            Ok(Allocation::Done { .. }) => Ok(true),
+            Ok(Allocation::Goal { frontiers, .. }) => {
+                let why = format!(
+                    "ended with {frontiers} frontier(s) left that it could reach only within the \
+                     {kept_m:.1} m it kept beyond safety_distance {:.2} m for straying up to \
+                     {:.2} m from its path (a drifting or wandering position estimate)",
+                    self.goal.safety_distance,
+                    self.tracking.peak_m()
+                );
+                tracing::warn!("{}: {why}", ctx.drone_id);
+                trace(ctx, "short", || format!("kept={kept_m:.1}"));
+                self.cut_short = Some(why);
+                Ok(true)
             }
         }
     }

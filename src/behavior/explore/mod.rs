@@ -131,6 +131,12 @@ pub struct Explore {
     hover_at: Option<Vec3>,
     /// The path flown, dropped when the map shows an obstacle on it.
     watch: blocked::PathWatch,
+    /// Asked, at its end, whether anything is left within the room kept for straying (the
+    /// extra room it kept, m).
+    probing: Option<f64>,
+    /// Why the exploration ends short: frontiers were left within that room. It lands, then
+    /// fails with [`FailureCode::ExplorationIncomplete`].
+    cut_short: Option<String>,
 }
 
 impl Explore {
@@ -156,6 +162,8 @@ impl Explore {
             tracking: TrackingMargin::default(),
             hover_at: None,
             watch: blocked::PathWatch::default(),
+            probing: None,
+            cut_short: None,
         }
     }
 
@@ -225,6 +233,15 @@ impl Explore {
                 after,
                 self.goal.safety_distance
             );
+        }
+    }
+
+    /// How the exploration ends once the drone is down (or would stay up): short of what it
+    /// could have reached with less room, or done.
+    fn ended(&self) -> Step {
+        match &self.cut_short {
+            Some(why) => Step::Failed(Failure::new(FailureCode::ExplorationIncomplete, why)),
+            None => Step::Succeeded,
         }
     }
 
@@ -444,7 +461,7 @@ impl Behavior for Explore {
             },
             Phase::Landing(land) => match land.run(ctx, requests) {
                 Step::Running { reference, .. } => reference,
-                Step::Succeeded => return Step::Succeeded,
+                Step::Succeeded => return self.ended(),
                 Step::Failed(reason) => return Step::Failed(reason.within("land")),
             },
             Phase::GivingWay {
@@ -457,7 +474,7 @@ impl Behavior for Explore {
             }
             Phase::Exploring => match self.explore_tick(ctx, requests) {
                 Err(reason) => return Step::Failed(reason),
-                Ok(None) => return Step::Succeeded,
+                Ok(None) => return self.ended(),
                 Ok(Some(reference)) => Some(self.heading(ctx, reference)),
             },
         };

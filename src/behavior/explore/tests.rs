@@ -352,3 +352,71 @@ fn an_obstacle_mapped_on_the_path_ahead_drops_the_path_and_asks_again() {
         assert_eq!(asked, blocked, "asked again: a hit {y} m off the path");
     }
 }
+
+#[test]
+fn an_end_short_of_frontiers_reachable_without_the_straying_room_is_said_and_fails() {
+    // A drone that strayed 0.5 m (0.3 m kept beyond its safety distance), boxed in with that
+    // room: before it ends, it asks once more without the room.
+    let run = |probe_finds_a_goal: bool| {
+        let scene = Scene::flying();
+        let mut explore = Explore::new(ExploreGoal::default());
+        explore.start_exploring(&scene.ctx(0));
+        for _ in 0..100 {
+            explore.tracking.observe(
+                Vec3::new(0.5, 0.0, 1.0),
+                Vec3::zeros(),
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::zeros(),
+                0.01,
+            );
+        }
+        assert!((explore.tracking.extra_m() - 0.3).abs() < 1e-9);
+        explore.allocations = 1;
+        explore.crumbs = vec![Vec3::zeros(), Vec3::new(1.5, 0.0, 0.0)];
+        explore.anchor.1 = Duration::ZERO;
+        let mut requests = Vec::new();
+        explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
+        answer_done(&scene, 3, 0, 2);
+        explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
+        assert!(matches!(explore.phase, Phase::Exploring), "not ended yet");
+        let calls = scene.services.drain_calls();
+        let Some(ServiceCall::Explore(job)) = calls.into_iter().next() else {
+            panic!("no second question");
+        };
+        assert_eq!(job.request.space.safety_distance_m, 0.4, "without the room");
+        let answer = if probe_finds_a_goal {
+            let from = job.request.position_enu_m;
+            Allocation::Goal {
+                goal_enu_m: from + Vec3::new(2.0, 0.0, 0.0),
+                path_enu_m: vec![from, from + Vec3::new(2.0, 0.0, 0.0)],
+                frontiers: 3,
+                clockwise: None,
+            }
+        } else {
+            Allocation::Done {
+                frontiers: 3,
+                held: 0,
+                unreached: 3,
+            }
+        };
+        scene
+            .services
+            .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
+        explore.explore_tick(&scene.ctx(13), &mut requests).unwrap();
+        assert!(
+            matches!(explore.phase, Phase::Landing(_) | Phase::Relocating(_)),
+            "it ends (and lands) either way: the goal is not flown"
+        );
+        assert!(explore.target.is_none());
+        explore.ended()
+    };
+    let Step::Failed(why) = run(true) else {
+        panic!("an end short of reachable frontiers is no success");
+    };
+    assert_eq!(why.code, FailureCode::ExplorationIncomplete);
+    assert!(
+        why.message.contains("3 frontier(s)") && why.message.contains("0.3 m"),
+        "{why}"
+    );
+    assert!(matches!(run(false), Step::Succeeded));
+}
