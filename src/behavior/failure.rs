@@ -62,15 +62,12 @@ pub enum FailureCode {
     /// Someone else took the vehicle: the autopilot left the mode Kestrel flies it in without
     /// Kestrel asking (a pilot's mode switch, a ground station, a disarm in flight).
     PilotTakeover,
-    /// An exploration ended (landed) with frontiers left that it could reach only closer to
-    /// obstacles than the room it kept for its own straying (a drifting or wandering estimate).
-    ExplorationIncomplete,
     /// Anything else (a bug if seen).
     Internal,
 }
 
 impl FailureCode {
-    pub const ALL: [FailureCode; 26] = [
+    pub const ALL: [FailureCode; 25] = [
         FailureCode::InvalidGoal,
         FailureCode::NotFlying,
         FailureCode::NotReady,
@@ -95,7 +92,6 @@ impl FailureCode {
         FailureCode::Preempted,
         FailureCode::Stopped,
         FailureCode::PilotTakeover,
-        FailureCode::ExplorationIncomplete,
         FailureCode::Internal,
     ];
 
@@ -126,7 +122,6 @@ impl FailureCode {
             FailureCode::Preempted => "preempted",
             FailureCode::Stopped => "stopped",
             FailureCode::PilotTakeover => "pilot_takeover",
-            FailureCode::ExplorationIncomplete => "exploration_incomplete",
             FailureCode::Internal => "internal",
         }
     }

@@ -20,11 +20,12 @@ impl Explore {
     /// Asks the allocator for a goal from where the drone is, with this drone's settings
     /// (the config's, with the goal's own over them) and what it gives up.
     pub(super) fn ask(&mut self, ctx: &BehaviorContext) {
-        self.ask_keeping(ctx, self.tracking.extra_m());
+        self.ask_keeping(ctx, self.tracking.extra_m(), true);
     }
 
-    /// [`Self::ask`] with `extra_m` of room beyond the goal's safety distance.
-    fn ask_keeping(&mut self, ctx: &BehaviorContext, extra_m: f64) {
+    /// [`Self::ask`] with `extra_m` of room beyond the goal's safety distance; `claim`: the goal
+    /// given is to be flown (others leave it).
+    fn ask_keeping(&mut self, ctx: &BehaviorContext, extra_m: f64, claim: bool) {
         let settings = ctx.exploration.with(&self.goal.settings);
         let resolution_m = ctx.map.map_or(0.1, |m| m.grid().spec().resolution_m);
         let cells = |length_m: f64| ((length_m / resolution_m).round() as usize).max(1);
@@ -55,6 +56,7 @@ impl Explore {
             give_up: self.give_up.take(),
             sweep_along: self.goal.sweep_along,
             keep_out: silent_keep_out(ctx),
+            claim,
         }));
         self.asked_at = Some(ctx.now);
         self.asked_from = ctx.position();
@@ -110,7 +112,7 @@ impl Explore {
                 if over && frontiers > 0 && kept_m > 0.0 {
                     // Before it ends: is anything left within the room kept for straying?
                     self.probing = Some(kept_m);
-                    self.ask_keeping(ctx, 0.0);
+                    self.ask_keeping(ctx, 0.0, false);
                     return Ok(false);
                 }
                 Ok(over)
@@ -158,7 +160,8 @@ impl Explore {
 impl Explore {
     /// The answer to the last question before the end, asked with no room for straying: a goal
     /// there means frontiers were left only within the room kept. The exploration ends either
-    /// way (the room is kept: with it, nothing is reachable), but then says it ended short.
+    /// way (the room is kept: with it, nothing is reachable), but then says so (a warning, and
+    /// `frontiers_left_within_room` in its feedback while it lands).
     fn read_probe(
         &mut self,
         ctx: &BehaviorContext,
@@ -170,7 +173,7 @@ impl Explore {
             Ok(Allocation::Done { .. }) => Ok(true),
             Ok(Allocation::Goal { frontiers, .. }) => {
                 let why = format!(
-                    "ended with {frontiers} frontier(s) left that it could reach only within the \
+                    "exploration ends with {frontiers} frontier(s) left that it could reach only within the \
                      {kept_m:.1} m it kept beyond safety_distance {:.2} m for straying up to \
                      {:.2} m from its path (a drifting or wandering position estimate)",
                     self.goal.safety_distance,
@@ -178,7 +181,7 @@ impl Explore {
                 );
                 tracing::warn!("{}: {why}", ctx.drone_id);
                 trace(ctx, "short", || format!("kept={kept_m:.1}"));
-                self.cut_short = Some(why);
+                self.left_within_room = Some(frontiers);
                 Ok(true)
             }
         }

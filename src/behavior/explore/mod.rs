@@ -134,9 +134,9 @@ pub struct Explore {
     /// Asked, at its end, whether anything is left within the room kept for straying (the
     /// extra room it kept, m).
     probing: Option<f64>,
-    /// Why the exploration ends short: frontiers were left within that room. It lands, then
-    /// fails with [`FailureCode::ExplorationIncomplete`].
-    cut_short: Option<String>,
+    /// Frontiers it ended with that it could have reached only within that room (it ends
+    /// anyway, and says so).
+    left_within_room: Option<usize>,
 }
 
 impl Explore {
@@ -163,7 +163,7 @@ impl Explore {
             hover_at: None,
             watch: blocked::PathWatch::default(),
             probing: None,
-            cut_short: None,
+            left_within_room: None,
         }
     }
 
@@ -233,15 +233,6 @@ impl Explore {
                 after,
                 self.goal.safety_distance
             );
-        }
-    }
-
-    /// How the exploration ends once the drone is down (or would stay up): short of what it
-    /// could have reached with less room, or done.
-    fn ended(&self) -> Step {
-        match &self.cut_short {
-            Some(why) => Step::Failed(Failure::new(FailureCode::ExplorationIncomplete, why)),
-            None => Step::Succeeded,
         }
     }
 
@@ -402,6 +393,7 @@ impl Explore {
             "allocations": self.allocations,
             "given_up": self.given_up,
             "tracking_margin_m": self.tracking.extra_m(),
+            "frontiers_left_within_room": self.left_within_room,
         })
     }
 }
@@ -461,7 +453,7 @@ impl Behavior for Explore {
             },
             Phase::Landing(land) => match land.run(ctx, requests) {
                 Step::Running { reference, .. } => reference,
-                Step::Succeeded => return self.ended(),
+                Step::Succeeded => return Step::Succeeded,
                 Step::Failed(reason) => return Step::Failed(reason.within("land")),
             },
             Phase::GivingWay {
@@ -474,7 +466,7 @@ impl Behavior for Explore {
             }
             Phase::Exploring => match self.explore_tick(ctx, requests) {
                 Err(reason) => return Step::Failed(reason),
-                Ok(None) => return self.ended(),
+                Ok(None) => return Step::Succeeded,
                 Ok(Some(reference)) => Some(self.heading(ctx, reference)),
             },
         };

@@ -73,6 +73,9 @@ pub struct ExploreRequest {
     /// Discs no path may enter and no goal may lie in: around drones other Kestrels flew that
     /// fell silent, which the safety stage keeps every drone away from.
     pub keep_out: Vec<KeepOut>,
+    /// The goal given becomes the drone's claim (other drones leave it). `false`: a question
+    /// asked only to learn what is left, whose answer is not flown.
+    pub claim: bool,
 }
 /// What a drone is told.
 #[derive(Debug, Clone, PartialEq)]
@@ -528,14 +531,16 @@ impl FrontierService {
             to_middle()
         };
         let path: Vec<Vec3> = path.into_iter().map(|p| Vec3::new(p.x, p.y, z)).collect();
-        self.claims.insert(
-            request.drone.clone(),
-            Claim {
-                goal: frontier.goal_enu_m,
-                stamp: now,
-                from: Some(request.position_enu_m.xy()),
-            },
-        );
+        if request.claim {
+            self.claims.insert(
+                request.drone.clone(),
+                Claim {
+                    goal: frontier.goal_enu_m,
+                    stamp: now,
+                    from: Some(request.position_enu_m.xy()),
+                },
+            );
+        }
         let goal = Vec3::new(goal_xy.x, goal_xy.y, z);
         Allocation::Goal {
             goal_enu_m: goal,
@@ -612,6 +617,7 @@ mod tests {
             give_up: None,
             sweep_along: false,
             keep_out: Vec::new(),
+            claim: true,
         }
     }
 
@@ -620,6 +626,21 @@ mod tests {
             Allocation::Goal { goal_enu_m, .. } => *goal_enu_m,
             Allocation::Done { .. } => panic!("done: {a:?}"),
         }
+    }
+
+    #[test]
+    fn a_question_that_claims_nothing_leaves_the_goal_to_the_others() {
+        let grid = half_known();
+        let mut s = FrontierService::new();
+        let t = Duration::from_secs(1);
+        let probe = ExploreRequest {
+            claim: false,
+            ..ask("a", 2.0, 2.0)
+        };
+        let a = s.answer(t, &grid, &probe).unwrap();
+        assert!(s.claims().is_empty(), "nothing held");
+        let b = s.answer(t, &grid, &ask("b", 2.0, 2.0)).unwrap();
+        assert_eq!(goal_of(&b), goal_of(&a), "the same frontier is still open");
     }
 
     #[test]

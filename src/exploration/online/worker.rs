@@ -373,6 +373,7 @@ mod tests {
                 give_up: None,
                 sweep_along: false,
                 keep_out: Vec::new(),
+                claim: true,
             },
             cancel: Arc::new(AtomicBool::new(false)),
         }
