@@ -440,11 +440,7 @@ impl Kestrel {
             let lines = self.lines.lock().unwrap();
             lines
                 .iter()
-                .find_map(|(_, l)| {
-                    let rest = l.strip_prefix("API on http://")?;
-                    let address = rest.split_whitespace().next()?;
-                    address.rsplit_once(':')?.1.parse::<u16>().ok()
-                })
+                .find_map(|(_, l)| crate::support::api_port(l))
                 .expect("the API line names a port")
         };
         Api::connect(port)

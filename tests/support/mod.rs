@@ -78,7 +78,7 @@ pub fn spawn_api(mut command: Command) -> (Process, u16) {
 }
 
 /// The port of Kestrel's `API on http://127.0.0.1:PORT (...)` line.
-fn api_port(line: &str) -> Option<u16> {
+pub fn api_port(line: &str) -> Option<u16> {
     let rest = line.strip_prefix("API on http://")?;
     let address = rest.split_whitespace().next()?;
     address.rsplit_once(':')?.1.parse().ok()
