@@ -1,7 +1,8 @@
 //! The explorer's questions to the fleet's frontier allocator and what it does with the
 //! answers: a goal is flown (unless the drone has moved on since it asked), `Done` goes to the
-//! end rule ([`super::end`]).
-
+//! end rule ([`super::end`]). Before an end with frontiers left while the drone keeps extra
+//! room for straying, one more question without that room (claiming nothing) tells whether
+//! frontiers were left only within it, which the drone then says as it ends.
 use super::end::{self, EndFacts, Left};
 use super::{seconds, trace, Explore};
 use crate::behavior::progress::lost_peer;
@@ -155,9 +156,7 @@ impl Explore {
             }
         }
     }
-}
 
-impl Explore {
     /// The answer to the last question before the end, asked with no room for straying: a goal
     /// there means frontiers were left only within the room kept. The exploration ends either
     /// way (the room is kept: with it, nothing is reachable), but then says so (a warning, and
@@ -173,9 +172,10 @@ impl Explore {
             Ok(Allocation::Done { .. }) => Ok(true),
             Ok(Allocation::Goal { frontiers, .. }) => {
                 let why = format!(
-                    "exploration ends with {frontiers} frontier(s) left that it could reach only within the \
-                     {kept_m:.1} m it kept beyond safety_distance {:.2} m for straying up to \
-                     {:.2} m from its path (a drifting or wandering position estimate)",
+                    "exploration ends with {frontiers} frontier(s) left that it could reach \
+                     only within the {kept_m:.1} m it kept beyond safety_distance {:.2} m for \
+                     straying up to {:.2} m from its path (a drifting or wandering position \
+                     estimate)",
                     self.goal.safety_distance,
                     self.tracking.peak_m()
                 );
