@@ -27,6 +27,7 @@ use kestrel::estimator::geodetic::GeodeticOrigin;
 use kestrel::mission::validate::{validate_text, ValidationContext};
 use kestrel::mission::Limits;
 use kestrel::platform::mavlink::{tlog, Profile, Session, SessionConfig};
+use kestrel::safety::LowestHeight;
 use kestrel::types::{PlatformRequest, Setpoint, Vec3, YawTarget};
 use std::hint::black_box;
 use std::sync::OnceLock;
@@ -122,7 +123,8 @@ fn mission_rig() -> &'static MissionRig {
 }
 
 /// Mission text validated for `drone_0` at home (0, 0, 0) with the default config's limits and
-/// geofence, the behaviors missions can use and the fixed frames.
+/// geofence, the behaviors missions can use, the fixed frames and a lowest flight height (an
+/// autopilot's on a barometer).
 pub fn mission(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
@@ -136,6 +138,10 @@ pub fn mission(data: &[u8]) {
         now: Duration::ZERO,
         home_enu_m: Vec3::zeros(),
         geo_origin: &rig.geo_origin,
+        lowest_height: Some(LowestHeight {
+            height_m: 2.0,
+            error_m: 1.5,
+        }),
     };
     match validate_text(text, &ctx) {
         Ok(valid) => {
