@@ -61,6 +61,20 @@ fn px4_explores_a_walled_room_with_its_range_beams_and_lands() {
     );
     let api = kestrel.api();
     wait_ready(&api);
+    // At the thesis's default 1.0 m, PX4's barometric height (1.5 m off at worst, its profile
+    // says) could put it on the ground: refused before anything flies, saying why.
+    let (status, refused) = api.post(
+        "/api/exploration/start",
+        &json!({"drones": ["drone_0"], "args": {}}),
+    );
+    assert!((400..500).contains(&status), "{status} {refused}");
+    assert!(
+        refused
+            .to_string()
+            .contains("lowest flight height of 2.0 m"),
+        "{refused}"
+    );
+    assert_eq!(api.get("/api/status")["drones"][0]["armed"], false);
     let started_at = Instant::now();
     // A faster turn than the thesis's 0.15 rad/s (the fake's beams come at 10 Hz, so a sweep
     // is still dense) keeps the run near a minute; 0.5 m from obstacles instead of 0.4 leaves
