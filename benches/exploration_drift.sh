@@ -6,7 +6,9 @@
 #
 #   bash benches/exploration_drift.sh [OUT_DIR]
 #   (WORLDS="gen20-61 gen20-62" DRONES="1 3" DRIFTS="0 0.01 0.02 0.03 0.05" JOBS=1 to change;
-#    a world named genS-W is `kestrel world generate --size-m S --density 0.1 --seed W`, any
+#    a world named genS-W is `kestrel world generate --size-m S --density 0.1 --seed W`,
+#    low50-W, medium50-W and high50-W are 50 x 50 m worlds of the thesis's three densities (0.06,
+#    0.126 and 0.2548 poles per m^2) of seed W, to tune on in place of the thesis's own; any
 #    other name is sitl/worlds/NAME.json; WAIT_WHILE=FILE holds each run while FILE exists, for
 #    a machine shared with real-time flights)
 #
@@ -28,6 +30,11 @@ world_file() { # name
     case "$1" in
         gen*-*) local size=${1#gen}; size=${size%-*}; local seed=${1##*-}
             [ -s "$out/$1.json" ] || "$bin" world generate --size-m "$size" --density 0.1 \
+                --seed "$seed" --out "$out/$1.json" > /dev/null
+            echo "$out/$1.json" ;;
+        low50-*|medium50-*|high50-*) local seed=${1##*-} density
+            case "$1" in low*) density=0.06 ;; medium*) density=0.126 ;; *) density=0.2548 ;; esac
+            [ -s "$out/$1.json" ] || "$bin" world generate --size-m 50 --density "$density" \
                 --seed "$seed" --out "$out/$1.json" > /dev/null
             echo "$out/$1.json" ;;
         *) echo "sitl/worlds/$1.json" ;;
