@@ -19,6 +19,7 @@ use crate::estimator::map_correction::{FitQuality, MapCorrection, MapCorrectionS
 use crate::estimator::{self, Estimator, EstimatorPlugin};
 use crate::exploration::online::settings::ExplorationSettings;
 use crate::mapping::config::MapConfig;
+use crate::mapping::history::ScanHistory;
 use crate::mapping::registration::Reference;
 use crate::mapping::scan::RangeScan;
 use crate::mapping::server::MapServer;
@@ -26,7 +27,7 @@ use crate::planning::worker::PlanAnswer;
 use crate::safety::{Around, Flight, LowestHeight, Obstacles, Override, SafetyConfig, SafetyStage};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{DroneView, FleetView};
-use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
+use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec2, Vec3, VehicleState};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
@@ -107,6 +108,11 @@ pub struct DroneCore {
     estimator: Box<dyn Estimator>,
     /// From the reported position to the map's frame (`None`: off, or no map).
     correction: Option<MapCorrection>,
+    /// The scans the map is drawn from, to draw it again when the correction finds the offsets
+    /// of the past were others (`None`: no correction, or an estimate that does not drift).
+    history: Option<ScanHistory>,
+    /// Whether a fit ran this tick (the history is checked against the smoothed track then).
+    fitted: bool,
     frames: FrameTree,
     server: BehaviorServer,
     services: ServiceDesk,
@@ -164,6 +170,15 @@ impl DroneCore {
                 .as_ref()
                 .filter(|_| config.map_correction.enabled)
                 .map(|_| MapCorrection::new(config.map_correction)),
+            history: config
+                .map
+                .as_ref()
+                .filter(|_| {
+                    let c = &config.map_correction;
+                    c.enabled && c.redraw && c.drift_mps() > 0.0
+                })
+                .map(|m| ScanHistory::new((*m.initial).clone(), MAX_KEPT_SCANS)),
+            fitted: false,
             controller: Controller::new(config.controller, capabilities.setpoints),
             safety: SafetyStage::new(config.safety.clone(), capabilities.setpoints.position_loop),
             server: BehaviorServer::new(registry),
@@ -355,6 +370,7 @@ impl DroneCore {
         if let Some(map) = self.map.as_mut() {
             map.insert(now, &scans);
         }
+        self.redraw_if_moved(&feedback.scans);
         if self.platform.armed && !was_armed && self.state.valid.position {
             self.home_enu_m = Some(self.state.pose.position_m);
         }
@@ -442,6 +458,7 @@ impl DroneCore {
             correction.predict(dt_s);
             correction.add_hits(now_s, scans.iter().flat_map(hits_of));
             let settle_s = correction.settings().settle_s;
+            self.fitted = now_s >= correction.next_fit_s();
             correction.fit(now_s, |hits, offset| {
                 let fit = map.fit_score(hits, offset, now_s, settle_s);
                 FitQuality {
@@ -455,6 +472,36 @@ impl DroneCore {
         self.state = reported;
         self.state.pose.position_m += self.map_offset_m();
         self.to_map_frame(scans)
+    }
+
+    /// Keeps this tick's `reported` scans (vehicle frame) with the offset they were drawn at, and
+    /// after a fit draws the map again when the correction's smoothed past moves any kept scan
+    /// more than [`REDRAW_AT_M`] from where it is drawn.
+    fn redraw_if_moved(&mut self, reported: &[RangeScan]) {
+        let (Some(history), Some(map), Some(correction)) = (
+            self.history.as_mut(),
+            self.map.as_mut(),
+            self.correction.as_ref(),
+        ) else {
+            return;
+        };
+        let offset = correction.offset_m();
+        let now_s = self.now.as_secs_f64();
+        history.push(now_s, reported, Vec2::new(offset.x, offset.y), map.params());
+        if !std::mem::take(&mut self.fitted) {
+            return;
+        }
+        let track = correction.smoothed_track();
+        let moved_m = history.deviation_m(&track);
+        if moved_m > REDRAW_AT_M {
+            let grid = history.redraw(&track, map.params());
+            let changed = map.redrawn(self.now, grid);
+            tracing::debug!(
+                "{}: map drawn again from {} scans at {now_s:.1} s: the map correction moved them up to {moved_m:.2} m ({changed:?})",
+                self.config.drone_id,
+                history.len()
+            );
+        }
     }
 
     /// The setpoint for the behaviors' `reference` (none without a position or a link), after
@@ -527,6 +574,13 @@ fn hits_of(scan: &RangeScan) -> impl Iterator<Item = crate::types::Vec2> + '_ {
         Some(origin + scan.beam_direction_enu(beam) * range_m)
     })
 }
+
+/// Most scans a drone's map can be drawn again from: an hour of a 20 Hz ranger (older ones stay
+/// as drawn).
+const MAX_KEPT_SCANS: usize = 72_000;
+/// The map is drawn again when the map correction moves a past scan farther than this (m): a
+/// cell and a half.
+const REDRAW_AT_M: f64 = 0.15;
 
 /// `scan` moved by `offset_m`.
 fn shifted(scan: &RangeScan, offset_m: Vec3) -> RangeScan {

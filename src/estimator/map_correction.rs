@@ -22,6 +22,13 @@
 //! noise from the drift speed expected), a fit far from the filter's offset is clipped to
 //! [`CLIP_SIGMAS`] standard deviations (one wrong fit moves it little), and the offset never
 //! exceeds `max_offset_m` (past it, a fit is wrong, not the drift).
+//!
+//! The filter's past is kept too, one step a fit: [`MapCorrection::smoothed_track`] is the offset
+//! at each past step as every fit since makes it out (a Rauch-Tung-Striebel smoother). When a
+//! drone comes back to ground it mapped long ago and a fit moves its offset, the offsets of the
+//! flight since the last fit it could trust move with it, most near the return and least near
+//! that fit, as a random walk tied at both ends does: what the map was drawn with while the
+//! drone flew uncorrected (`mapping::history` redraws it so).
 
 use crate::types::{Vec2, Vec3};
 use nalgebra::Matrix2;
@@ -60,6 +67,12 @@ const TIE: f64 = 1e-9;
 const RANDOM_WALK_S: f64 = 2.0;
 /// Most hits kept (a 3 s window of a 20 Hz lidar of 16 beams).
 const MAX_HITS: usize = 1000;
+/// A fit against obstacles mapped this long ago (s, on average) closes a loop: the drone is back
+/// where it mapped before it drifted. A fit against younger ones, most of them the drone's own
+/// of the last seconds, drawn where its drifting estimate put them, says nothing of its past.
+pub const LOOP_AGE_S: f64 = 30.0;
+/// Most steps of the filter's past kept: two hours of flight at a fit every [`FIT_PERIOD_S`].
+pub const MAX_TRACK_STEPS: usize = 14_400;
 
 /// `[estimator.map_correction]`: correcting the position estimate against the map.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -79,6 +92,9 @@ pub struct MapCorrectionSettings {
     pub search_radius_m: f64,
     /// The offset never grows beyond this (m, 0.1..=100).
     pub max_offset_m: f64,
+    /// Draw the drone's map again from its kept scans when later fits show the offsets it was
+    /// drawn at were others (`mapping::history`).
+    pub redraw: bool,
     /// A fit counts with at least this many hits on obstacles mapped a while ago (1..=1000).
     pub min_hits: u32,
     /// A fit counts when its hits on mapped obstacles lie at least this far apart (m, 0..=20, the
@@ -95,6 +111,7 @@ impl Default for MapCorrectionSettings {
             settle_s: 5.0,
             search_radius_m: 1.0,
             max_offset_m: 10.0,
+            redraw: true,
             min_hits: 10,
             min_span_m: 1.0,
         }
@@ -213,6 +230,20 @@ fn mean(points: &[Vec2]) -> Vec2 {
     points.iter().sum::<Vec2>() / points.len().max(1) as f64
 }
 
+/// One step of the filter's past, at a fit's time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TrackStep {
+    t_s: f64,
+    /// The offset and its covariance after the fit.
+    offset_m: Vec2,
+    cov_m2: Matrix2<f64>,
+    /// The drift's process noise added since the step before (m², on each axis).
+    walk_m2: f64,
+    /// The fit moved the offset against obstacles mapped at least [`LOOP_AGE_S`] ago: it says
+    /// how far the flight since drifted, and the smoother carries it back.
+    closes_loop: bool,
+}
+
 /// The offset from the reported position to the map's frame, and its uncertainty.
 #[derive(Debug, Clone)]
 pub struct MapCorrection {
@@ -222,6 +253,10 @@ pub struct MapCorrection {
     /// Recent hits (time s, reported frame ENU m), oldest first.
     hits: VecDeque<(f64, Vec2)>,
     next_fit_s: f64,
+    /// The filter's past, oldest first, at most [`MAX_TRACK_STEPS`].
+    track: VecDeque<TrackStep>,
+    /// Process noise added since the last step of `track` (m², on each axis).
+    walk_m2: f64,
 }
 
 impl MapCorrection {
@@ -233,11 +268,18 @@ impl MapCorrection {
             cov_m2: Matrix2::zeros(),
             hits: VecDeque::new(),
             next_fit_s: 0.0,
+            track: VecDeque::new(),
+            walk_m2: 0.0,
         }
     }
 
     pub fn settings(&self) -> &MapCorrectionSettings {
         &self.settings
+    }
+
+    /// When the next fit is due (s).
+    pub fn next_fit_s(&self) -> f64 {
+        self.next_fit_s
     }
 
     /// Reported position plus this is the position in the map's frame (ENU m; z is 0).
@@ -250,6 +292,7 @@ impl MapCorrection {
         if dt_s > 0.0 && dt_s.is_finite() {
             let q = self.settings.drift_mps().powi(2) * RANDOM_WALK_S * dt_s;
             self.cov_m2 += Matrix2::identity() * q;
+            self.walk_m2 += q;
         }
     }
 
@@ -274,9 +317,56 @@ impl MapCorrection {
         }
         self.next_fit_s = now_s + FIT_PERIOD_S;
         let hits: Vec<Vec2> = self.hits.iter().map(|(_, h)| *h).collect();
-        let fit = self.best_offset(&hits, score)?;
-        self.take(fit.offset_m, fit.quality.age_s);
-        Some(fit)
+        let fit = self.best_offset(&hits, score);
+        let before = self.offset_m;
+        if let Some(fit) = fit {
+            self.take(fit.offset_m, fit.quality.age_s);
+        }
+        let closes_loop =
+            fit.is_some_and(|f| f.quality.age_s >= LOOP_AGE_S) && self.offset_m != before;
+        self.record(now_s, closes_loop);
+        fit
+    }
+
+    /// Keeps the filter's state of `now_s` as a step of its past.
+    fn record(&mut self, now_s: f64, closes_loop: bool) {
+        self.track.push_back(TrackStep {
+            t_s: now_s,
+            offset_m: self.offset_m,
+            cov_m2: self.cov_m2,
+            walk_m2: self.walk_m2,
+            closes_loop,
+        });
+        self.walk_m2 = 0.0;
+        while self.track.len() > MAX_TRACK_STEPS {
+            self.track.pop_front();
+        }
+    }
+
+    /// The offset at each step of the filter's past (time s, ENU m; oldest first, at most
+    /// [`MAX_TRACK_STEPS`]) as all the fits since make it out: the filter's offsets smoothed
+    /// backwards (Rauch-Tung-Striebel, the drift a random walk). A step the filter was sure of
+    /// keeps its offset; the uncertain steps before a fit that closed a loop move with it. A
+    /// fit to the drone's own recent map moves only the steps from it on. The last step is the
+    /// filter's offset as it is.
+    pub fn smoothed_track(&self) -> Vec<(f64, Vec2)> {
+        let mut out: Vec<(f64, Vec2)> = self.track.iter().map(|s| (s.t_s, s.offset_m)).collect();
+        for k in (0..self.track.len().saturating_sub(1)).rev() {
+            let (here, next) = (&self.track[k], &self.track[k + 1]);
+            let prior = here.cov_m2 + Matrix2::identity() * next.walk_m2;
+            let gain = match prior.try_inverse() {
+                Some(inv) if next.walk_m2 > 0.0 || here.cov_m2.trace() > 0.0 => here.cov_m2 * inv,
+                _ => Matrix2::zeros(),
+            };
+            // What the later fits say of step k+1, and of the drift into it if its own fit
+            // closed a loop.
+            let mut later = out[k + 1].1 - next.offset_m;
+            if next.closes_loop {
+                later += next.offset_m - here.offset_m;
+            }
+            out[k].1 = here.offset_m + gain * later;
+        }
+        out
     }
 
     /// The mean of the offsets around the current one with the best score; `None` when it is
@@ -501,6 +591,83 @@ mod tests {
             "{}",
             offset(&c)
         );
+    }
+
+    /// Fits to the walls at `t` 0.1 .. 10 s, a minute with nothing to fit to, then back at
+    /// the walls 0.6 m off them, mapped `age_s` ago.
+    fn back_after_a_minute(age_s: f64) -> MapCorrection {
+        let mut c = MapCorrection::new(settings());
+        let mut t = 0.0;
+        while t < 10.0 {
+            t += 0.5;
+            c.predict(0.5);
+            c.add_hits(t, hits(Vec2::zeros()));
+            c.fit(t, count);
+        }
+        let nothing = |_: &[Vec2], _: Vec2| FitQuality::default();
+        while t < 70.0 {
+            t += 0.5;
+            c.predict(0.5);
+            c.fit(t, nothing);
+        }
+        t += 0.5;
+        c.predict(0.5);
+        c.add_hits(t, hits(Vec2::new(0.6, 0.0)));
+        c.fit(t, |h: &[Vec2], o: Vec2| FitQuality {
+            age_s,
+            ..count(h, o)
+        });
+        c
+    }
+
+    fn smoothed_at(track: &[(f64, Vec2)], t_s: f64) -> Vec2 {
+        track
+            .iter()
+            .find(|(t, _)| (*t - t_s).abs() < 1e-9)
+            .unwrap()
+            .1
+    }
+
+    #[test]
+    fn a_loop_closed_after_a_stretch_without_fits_moves_the_stretch_along_a_ramp() {
+        let c = back_after_a_minute(60.0);
+        let now = offset(&c);
+        assert!((now + Vec2::new(0.6, 0.0)).norm() < 0.05, "{now}");
+        let track = c.smoothed_track();
+        assert_eq!(
+            track.last().unwrap().1,
+            now,
+            "the last step is the filter's"
+        );
+        assert!(
+            smoothed_at(&track, 10.0).norm() < 0.05,
+            "the sure fits stay"
+        );
+        // Half-way through the minute, about half of the drift found at its end.
+        let mid = smoothed_at(&track, 40.0);
+        assert!((mid - now / 2.0).norm() < 0.1, "{mid} against {now}");
+        let late = smoothed_at(&track, 69.0);
+        assert!((late - now).norm() < 0.05, "{late}");
+    }
+
+    #[test]
+    fn a_fit_to_the_drones_own_recent_map_leaves_its_past_as_it_was() {
+        let c = back_after_a_minute(5.0);
+        assert!(offset(&c).norm() > 0.3, "the fit is taken: {}", offset(&c));
+        let track = c.smoothed_track();
+        let (_, before) = track[track.len() - 2];
+        assert!(before.norm() < 0.05, "{before}");
+        assert!(smoothed_at(&track, 40.0).norm() < 0.05);
+    }
+
+    #[test]
+    fn the_past_kept_is_bounded() {
+        let mut c = MapCorrection::new(settings());
+        let nothing = |_: &[Vec2], _: Vec2| FitQuality::default();
+        for k in 0..(MAX_TRACK_STEPS + 10) {
+            c.fit(k as f64 * FIT_PERIOD_S, nothing);
+        }
+        assert_eq!(c.smoothed_track().len(), MAX_TRACK_STEPS);
     }
 
     #[test]

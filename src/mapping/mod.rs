@@ -12,6 +12,8 @@
 //!   changed regions for clients.
 //! * [`registration`]: how well range hits, moved by an offset, fit the obstacles a map has held
 //!   for a while: the evidence the estimator's map correction learns a drifting estimate from.
+//! * [`history`]: a drone's scans as reported, kept to draw its map again when the offset of its
+//!   drifting estimate is found, later, to have been another.
 //! * [`graph`]: a [`TopoGraph`] (nodes + weighted edges), built from an indoor-farm description
 //!   or loaded from JSON.
 //!
@@ -22,6 +24,7 @@ pub mod config;
 pub mod export;
 pub mod graph;
 pub mod grid;
+pub mod history;
 pub mod layers;
 pub mod merged;
 pub mod raycast;

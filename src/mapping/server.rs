@@ -86,6 +86,27 @@ impl MapServer {
         &self.grid
     }
 
+    /// The insertion parameters the grid is drawn with.
+    pub fn params(&self) -> &InsertParams {
+        &self.params
+    }
+
+    /// Takes `grid`, the same scans drawn again ([`super::history`]), in place of the grid:
+    /// the cells that differ count as the last insertion's change. Returns them (`None`: none).
+    pub fn redrawn(&mut self, now: Duration, grid: OccupancyGrid) -> Option<CellBox> {
+        let changed = super::history::changed_box(&self.grid, &grid);
+        self.grid = grid;
+        if changed.is_some() {
+            self.revision += 1;
+            self.updated_at = now;
+        }
+        self.last_changed = match (self.last_changed, changed) {
+            (Some(a), Some(b)) => Some(a.union(b)),
+            (a, b) => a.or(b),
+        };
+        changed
+    }
+
     /// The cells the last [`Self::insert`] changed (`None`: nothing changed).
     pub fn last_changed(&self) -> Option<CellBox> {
         self.last_changed
