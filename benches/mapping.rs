@@ -1,4 +1,5 @@
-//! Mapping benchmarks: scan insertion (4-beam and 360-beam), distance transform (inflation) and
+//! Mapping benchmarks: scan insertion (4-beam and 360-beam), a drone's map drawn again from an
+//! hour of kept scans (a loop closed under drift), distance transform (inflation) and
 //! planning-map preparation of a 500 x 500 grid, PNG export.
 //!
 //! Run: `cargo bench --bench mapping -- --quick`
@@ -12,6 +13,7 @@ use nalgebra::{Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use kestrel::mapping::history::ScanHistory;
 use kestrel::mapping::scan::{from_multiranger, from_planar_lidar};
 use kestrel::mapping::{GridSpec, InsertParams, OccupancyGrid};
 use kestrel::planning::{DistanceField, PlanningMap};
@@ -96,6 +98,29 @@ fn scans(c: &mut Criterion) {
     });
 }
 
+/// What a loop closed under drift costs the control tick: an hour of a 4-beam ranger at 20 Hz
+/// (the most a core keeps) flown along a lawnmower over the 50 x 50 m grid, drawn again at a
+/// track that moves every scan.
+fn redraw(c: &mut Criterion) {
+    let params = InsertParams::default();
+    let scans_kept = 72_000;
+    let mut history = ScanHistory::new(must(OccupancyGrid::new(spec())), scans_kept);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for k in 0..scans_kept {
+        let t_s = k as f64 / 20.0;
+        // 0.75 m/s along rows 2 m apart, 48 m long.
+        let along = (t_s * 0.75) % 48.0 - 24.0;
+        let row = ((t_s * 0.75 / 48.0).floor() % 24.0) * 2.0 - 23.0;
+        let ranges = [0, 1, 2, 3].map(|_| rng.gen_bool(0.7).then(|| rng.gen_range(0.5..4.0)));
+        let scan = from_multiranger(Vector3::new(along, row, 1.0), t_s * 0.1, ranges, 0.02, 4.0);
+        history.push(t_s, &[scan], Vector2::zeros(), &params);
+    }
+    let track = [(0.0, Vector2::zeros()), (3600.0, Vector2::new(0.8, -0.4))];
+    c.bench_function("redraw/72000 4-beam scans (an hour at 20 Hz)", |b| {
+        b.iter(|| black_box(history.redraw(black_box(&track), &params)))
+    });
+}
+
 fn inflation(c: &mut Criterion) {
     let grid = random_grid(42);
     c.bench_function("distance_transform/500x500 10% obstacles", |b| {
@@ -109,5 +134,5 @@ fn inflation(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, scans, inflation);
+criterion_group!(benches, scans, redraw, inflation);
 criterion_main!(benches);
