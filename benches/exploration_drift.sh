@@ -5,7 +5,7 @@
 # truth against the true world, every run reported.
 #
 #   bash benches/exploration_drift.sh [OUT_DIR]
-#   (WORLDS="gen20-61 gen20-62" DRONES="1 3" DRIFTS="0 0.01 0.02 0.03 0.05" JOBS=1 to change;
+#   (WORLDS="gen20-61 gen20-62" DRONES="1 3" DRIFTS="0 0.01 0.02 0.03 0.05" JOBS=1 SEED=0 to change;
 #    a world named genS-W is `kestrel world generate --size-m S --density 0.1 --seed W`,
 #    low50-W, medium50-W and high50-W are 50 x 50 m worlds of the thesis's three densities (0.06,
 #    0.126 and 0.2548 poles per m^2) of seed W, to tune on in place of the thesis's own; any
@@ -21,6 +21,7 @@ worlds=${WORLDS:-"gen20-61 gen20-62"}
 drones=${DRONES:-"1 3"}
 drifts=${DRIFTS:-"0 0.01 0.02 0.03 0.05"}
 jobs=${JOBS:-1}
+explore_seed=${SEED:-0}
 mkdir -p "$out"
 # KESTREL_BIN=path runs a binary built elsewhere (same sources; the runs are deterministic).
 if [ -z "${KESTREL_BIN:-}" ]; then cargo build --release --quiet; fi
@@ -45,14 +46,14 @@ run() { # world-name world-file drones drift dropout
     local tag="$1-$3-$4-$5"
     if [ ! -s "$out/$tag.report.json" ]; then
         while [ -n "${WAIT_WHILE:-}" ] && [ -e "$WAIT_WHILE" ]; do sleep 20; done
-        "$bin" explore --world "$2" --drones "$3" --seed 0 --position-drift-mps "$4" \
+        "$bin" explore --world "$2" --drones "$3" --seed "$explore_seed" --position-drift-mps "$4" \
             --range-dropout "$5" --log "$out/$tag.jsonl" --log-overwrite \
             --report "$out/$tag.report.json" --progress-every-s 100000 > "$out/$tag.out" 2>&1 || true
         rm -f "$out/$tag.jsonl"
     fi
 }
 export -f run
-export out bin
+export out bin explore_seed
 {
     for w in $worlds; do
         f=$(world_file "$w")
