@@ -13,9 +13,6 @@ use nalgebra::{Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use kestrel::estimator::map_correction::{
-    FitQuality, MapCorrection, MapCorrectionSettings, FIT_PERIOD_S, MAX_TRACK_STEPS,
-};
 use kestrel::mapping::history::ScanHistory;
 use kestrel::mapping::scan::{from_multiranger, from_planar_lidar};
 use kestrel::mapping::{GridSpec, InsertParams, OccupancyGrid};
@@ -122,25 +119,6 @@ fn redraw(c: &mut Criterion) {
     c.bench_function("redraw/72000 4-beam scans (an hour at 20 Hz)", |b| {
         b.iter(|| black_box(history.redraw(black_box(&track), &params)))
     });
-    // What a control tick pays: one slice of a redraw under way (the core draws 600 a tick).
-    c.bench_function("redraw/one tick's slice of 600 scans", |b| {
-        b.iter(|| {
-            if !history.redrawing() {
-                history.start_redraw(track.to_vec());
-            }
-            black_box(history.step_redraw(600, &params))
-        })
-    });
-    // What a tick with a fit pays to decide: the past smoothed and the kept scans checked.
-    let mut correction = MapCorrection::new(MapCorrectionSettings::default().for_vehicle(0.03));
-    let nothing = |_: &[Vector2<f64>], _: Vector2<f64>| FitQuality::default();
-    for k in 0..MAX_TRACK_STEPS {
-        correction.fit(k as f64 * FIT_PERIOD_S, nothing);
-    }
-    c.bench_function(
-        "redraw/check: 14400 fits smoothed, 72000 scans' deviation",
-        |b| b.iter(|| black_box(history.deviation_m(&correction.smoothed_track()))),
-    );
 }
 
 fn inflation(c: &mut Criterion) {

@@ -78,10 +78,8 @@ impl DroneCore {
     }
 
     /// Keeps this tick's `reported` scans (vehicle frame) with the offset they were drawn at, and
-    /// after a fit starts drawing the map again when the correction's smoothed past moves any
-    /// kept scan more than [`REDRAW_AT_M`] from where it is drawn. A redraw is drawn
-    /// [`REDRAW_SCANS_PER_TICK`] scans a tick and takes the map's place once it has caught up;
-    /// fits meanwhile are looked at again after it.
+    /// after a fit draws the map again when the correction's smoothed past moves any kept scan
+    /// more than [`REDRAW_AT_M`] from where it is drawn.
     pub(super) fn redraw_if_moved(&mut self, reported: &[RangeScan]) {
         let (Some(history), Some(map), Some(correction)) = (
             self.history.as_mut(),
@@ -93,28 +91,18 @@ impl DroneCore {
         let offset = correction.offset_m();
         let now_s = self.now.as_secs_f64();
         history.push(now_s, reported, Vec2::new(offset.x, offset.y), map.params());
-        let fitted = std::mem::take(&mut self.fitted);
-        if !history.redrawing() {
-            if !fitted {
-                return;
-            }
-            let track = correction.smoothed_track();
-            let moved_m = history.deviation_m(&track);
-            if moved_m <= REDRAW_AT_M {
-                return;
-            }
-            tracing::debug!(
-                "{}: drawing the map again from {} scans at {now_s:.1} s: the map correction moved them up to {moved_m:.2} m",
-                self.config.drone_id,
-                history.len()
-            );
-            history.start_redraw(track);
+        if !std::mem::take(&mut self.fitted) {
+            return;
         }
-        if let Some(grid) = history.step_redraw(REDRAW_SCANS_PER_TICK, map.params()) {
+        let track = correction.smoothed_track();
+        let moved_m = history.deviation_m(&track);
+        if moved_m > REDRAW_AT_M {
+            let grid = history.redraw(&track, map.params());
             let changed = map.redrawn(self.now, grid);
             tracing::debug!(
-                "{}: map drawn again at {now_s:.1} s ({changed:?})",
-                self.config.drone_id
+                "{}: map drawn again from {} scans at {now_s:.1} s: the map correction moved them up to {moved_m:.2} m ({changed:?})",
+                self.config.drone_id,
+                history.len()
             );
         }
     }
@@ -132,9 +120,6 @@ fn hits_of(scan: &RangeScan) -> impl Iterator<Item = crate::types::Vec2> + '_ {
 /// Most scans a drone's map can be drawn again from: an hour of a 20 Hz ranger (older ones stay
 /// as drawn).
 pub(super) const MAX_KEPT_SCANS: usize = 72_000;
-/// Scans a redraw draws per control tick: about 1 ms (`cargo bench --bench mapping -- redraw`),
-/// so an hour of scans is drawn again in 120 ticks.
-const REDRAW_SCANS_PER_TICK: usize = 600;
 /// The map is drawn again when the map correction moves a past scan farther than this (m): a
 /// cell and a half.
 const REDRAW_AT_M: f64 = 0.15;

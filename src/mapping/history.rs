@@ -14,11 +14,6 @@
 //!
 //! Bounded: at most `max_scans` are kept; the oldest are folded into a base grid at the offset
 //! they were last drawn at, and stay as they are from then on.
-//!
-//! Drawing an hour of scans again takes about 0.1 s, too long for one control tick: a redraw is
-//! started ([`ScanHistory::start_redraw`]) and drawn a bounded number of scans per tick
-//! ([`ScanHistory::step_redraw`]); scans kept meanwhile are drawn into it too, and the grid is
-//! handed over once it has caught up with the present.
 
 use std::collections::VecDeque;
 
@@ -30,8 +25,6 @@ use super::scan::RangeScan;
 /// One kept scan.
 #[derive(Debug, Clone)]
 struct Drawn {
-    /// Counts the scans kept, from 0: the order they are drawn in.
-    seq: u64,
     at_s: f64,
     /// In the vehicle's reported frame.
     scan: RangeScan,
@@ -45,34 +38,6 @@ pub struct ScanHistory {
     base: OccupancyGrid,
     scans: VecDeque<Drawn>,
     max_scans: usize,
-    /// The `seq` the next kept scan gets.
-    next_seq: u64,
-    redraw: Option<Redraw>,
-}
-
-/// A redraw under way: the grid drawn so far and where it is in the kept scans.
-#[derive(Debug, Clone)]
-struct Redraw {
-    grid: OccupancyGrid,
-    track: Vec<(f64, Vector2<f64>)>,
-    /// The `seq` of the next scan to draw.
-    next_seq: u64,
-    /// Scans from this `seq` on were kept after the track was made: they keep their own offset.
-    first_newer_seq: u64,
-}
-
-impl Redraw {
-    /// Draws `d`, moved to the track's offset of its time when the track covers it.
-    fn draw(&mut self, d: &mut Drawn, params: &InsertParams) {
-        if d.seq < self.first_newer_seq {
-            if let Some(o) = offset_at(&self.track, d.at_s) {
-                d.offset_m = o;
-            }
-        }
-        // Scans were validated when the map took them first; a refused one changes nothing.
-        let _ = self.grid.insert_scan(&shifted(&d.scan, d.offset_m), params);
-        self.next_seq = d.seq + 1;
-    }
 }
 
 /// The offset of `track` (time s, offset; times rising) at `t_s`: between two steps, on the line
@@ -109,8 +74,6 @@ impl ScanHistory {
             base: initial,
             scans: VecDeque::new(),
             max_scans: max_scans.max(1),
-            next_seq: 0,
-            redraw: None,
         }
     }
 
@@ -134,62 +97,19 @@ impl ScanHistory {
     ) {
         for scan in scans {
             self.scans.push_back(Drawn {
-                seq: self.next_seq,
                 at_s,
                 scan: scan.clone(),
                 offset_m,
             });
-            self.next_seq += 1;
         }
         while self.scans.len() > self.max_scans {
-            if let Some(mut old) = self.scans.pop_front() {
-                // A redraw under way that has not reached it draws it first, so it moves with the
-                // track there as well as in the base.
-                if let Some(r) = self.redraw.as_mut().filter(|r| old.seq >= r.next_seq) {
-                    r.draw(&mut old, params);
-                }
+            if let Some(old) = self.scans.pop_front() {
                 // Scans were validated when the map took them first; a refused one changes nothing.
                 let _ = self
                     .base
                     .insert_scan(&shifted(&old.scan, old.offset_m), params);
             }
         }
-    }
-
-    /// Whether a redraw is under way.
-    pub fn redrawing(&self) -> bool {
-        self.redraw.is_some()
-    }
-
-    /// Starts drawing the grid again with every kept scan at `track`'s offset of its time (a scan
-    /// before the track keeps its own); a redraw under way is dropped.
-    pub fn start_redraw(&mut self, track: Vec<(f64, Vector2<f64>)>) {
-        self.redraw = Some(Redraw {
-            grid: self.base.clone(),
-            track,
-            next_seq: self.scans.front().map_or(self.next_seq, |d| d.seq),
-            first_newer_seq: self.next_seq,
-        });
-    }
-
-    /// Draws up to `max_scans` more of the redraw under way. Returns the grid once every kept
-    /// scan is drawn (the scans are drawn so from then on); `None` while it is not done or none
-    /// is under way.
-    pub fn step_redraw(
-        &mut self,
-        max_scans: usize,
-        params: &InsertParams,
-    ) -> Option<OccupancyGrid> {
-        let r = self.redraw.as_mut()?;
-        let front_seq = self.scans.front().map_or(self.next_seq, |d| d.seq);
-        let start = usize::try_from(r.next_seq.saturating_sub(front_seq)).unwrap_or(usize::MAX);
-        for d in self.scans.iter_mut().skip(start).take(max_scans) {
-            r.draw(d, params);
-        }
-        if r.next_seq < self.next_seq {
-            return None;
-        }
-        self.redraw.take().map(|r| r.grid)
     }
 
     /// The farthest `track` moves a kept scan from the offset it is drawn at (m).
@@ -207,10 +127,14 @@ impl ScanHistory {
         track: &[(f64, Vector2<f64>)],
         params: &InsertParams,
     ) -> OccupancyGrid {
-        self.start_redraw(track.to_vec());
-        // Unbounded, the step draws every kept scan and hands the grid over.
-        self.step_redraw(usize::MAX, params)
-            .unwrap_or_else(|| self.base.clone())
+        let mut grid = self.base.clone();
+        for d in &mut self.scans {
+            if let Some(o) = offset_at(track, d.at_s) {
+                d.offset_m = o;
+            }
+            let _ = grid.insert_scan(&shifted(&d.scan, d.offset_m), params);
+        }
+        grid
     }
 }
 
@@ -334,80 +258,5 @@ mod tests {
             occupied(&g, 2.05, 2.5) && occupied(&g, 2.05, 3.0),
             "kept, moved"
         );
-    }
-
-    #[test]
-    fn a_redraw_in_slices_catches_up_with_scans_kept_meanwhile_and_ends_as_one_in_a_step() {
-        let params = InsertParams::default();
-        let track = [(0.0, Vector2::zeros()), (10.0, Vector2::new(0.5, 0.0))];
-        let walls = |k: u32| east(-0.5, f64::from(k) * 0.2 - 4.0);
-        let mut sliced = ScanHistory::new(grid(), 100);
-        let mut whole = ScanHistory::new(grid(), 100);
-        for k in 0..30 {
-            for h in [&mut sliced, &mut whole] {
-                h.push(f64::from(k) / 3.0, &[walls(k)], Vector2::zeros(), &params);
-            }
-        }
-        sliced.start_redraw(track.to_vec());
-        assert!(sliced.redrawing());
-        let mut steps = 0;
-        let grid = loop {
-            steps += 1;
-            // Two more scans kept each tick, drawn at the offset of now (0.5 m east).
-            let k = 29 + steps;
-            sliced.push(
-                f64::from(k) / 3.0,
-                &[walls(k)],
-                Vector2::new(0.5, 0.0),
-                &params,
-            );
-            if let Some(g) = sliced.step_redraw(7, &params) {
-                break g;
-            }
-            assert!(steps < 20, "never caught up");
-        };
-        assert!(!sliced.redrawing());
-        // 30 scans, then one more per step, 7 drawn a step: 35 drawn by the fifth.
-        assert_eq!(steps, 5);
-        // The same scans at once: the first 30 moved with the track, the rest as kept.
-        for k in 30..(30 + steps) {
-            whole.push(
-                f64::from(k) / 3.0,
-                &[walls(k)],
-                Vector2::new(0.5, 0.0),
-                &params,
-            );
-        }
-        let at_once = whole.redraw(&track, &params);
-        assert_eq!(grid.data(), at_once.data());
-        assert_eq!(
-            sliced.step_redraw(7, &params).map(|_| ()),
-            None,
-            "none under way"
-        );
-    }
-
-    #[test]
-    fn a_scan_folded_into_the_base_before_a_redraw_reached_it_is_moved_too() {
-        let params = InsertParams::default();
-        let mut history = ScanHistory::new(grid(), 3);
-        for k in 0..3 {
-            history.push(
-                f64::from(k),
-                &[east(0.0, f64::from(k))],
-                Vector2::zeros(),
-                &params,
-            );
-        }
-        // Every scan 1 m north; nothing drawn yet when a fourth scan pushes the first out.
-        history.start_redraw(vec![(0.0, Vector2::new(0.0, 1.0))]);
-        history.push(3.0, &[east(0.0, 3.0)], Vector2::new(0.0, 1.0), &params);
-        let g = history.step_redraw(10, &params).unwrap();
-        assert!(occupied(&g, 2.05, 1.0), "the folded one, moved");
-        assert!(!occupied(&g, 2.05, 0.0), "not where it was");
-        assert!(occupied(&g, 2.05, 4.0), "the newest, at its own offset");
-        // The base has it moved as well: a later redraw keeps it there.
-        let again = history.redraw(&[(0.0, Vector2::new(0.0, 1.0))], &params);
-        assert!(occupied(&again, 2.05, 1.0) && !occupied(&again, 2.05, 0.0));
     }
 }
