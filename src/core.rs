@@ -246,7 +246,10 @@ impl DroneCore {
             goal_enu_m: motion.and_then(|(_, goal)| goal),
             stamp,
             local: true,
-            uncertainty_m: 0.0,
+            uncertainty_m: self
+                .correction
+                .as_ref()
+                .map_or(0.0, MapCorrection::uncertainty_m),
             silent: false,
             unaccounted: false,
         }

@@ -73,6 +73,12 @@ const MAX_HITS: usize = 1000;
 pub const LOOP_AGE_S: f64 = 30.0;
 /// Most steps of the filter's past kept: two hours of flight at a fit every [`FIT_PERIOD_S`].
 pub const MAX_TRACK_STEPS: usize = 14_400;
+/// The most a drone's corrected estimate is taken to be off the fleet's map where it flies (m):
+/// the drift of its flight, up to this. The fits hold a drone to the map around it, but that
+/// map was drawn by drones whose estimates drifted apart, so two drones' estimates near each
+/// other disagree by up to about twice this (1.35 m the most, over the 3-drone runs of 2 cm/s of
+/// BENCHMARKS.md "What a real drone has, seventh").
+pub const MAX_UNCERTAINTY_M: f64 = 0.75;
 
 /// `[estimator.map_correction]`: correcting the position estimate against the map.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -257,6 +263,8 @@ pub struct MapCorrection {
     track: VecDeque<TrackStep>,
     /// Process noise added since the last step of `track` (m², on each axis).
     walk_m2: f64,
+    /// Flight time so far (s).
+    flown_s: f64,
 }
 
 impl MapCorrection {
@@ -270,6 +278,7 @@ impl MapCorrection {
             next_fit_s: 0.0,
             track: VecDeque::new(),
             walk_m2: 0.0,
+            flown_s: 0.0,
         }
     }
 
@@ -293,7 +302,15 @@ impl MapCorrection {
             let q = self.settings.drift_mps().powi(2) * RANDOM_WALK_S * dt_s;
             self.cov_m2 += Matrix2::identity() * q;
             self.walk_m2 += q;
+            self.flown_s += dt_s;
         }
+    }
+
+    /// How far the corrected estimate may be off the fleet's map here (m, horizontal): what the
+    /// drift can have made of the flight so far, at most [`MAX_UNCERTAINTY_M`]; 0 for an
+    /// estimate that does not drift. Two drones keep apart by this much more each.
+    pub fn uncertainty_m(&self) -> f64 {
+        (self.settings.drift_mps() * self.flown_s).min(MAX_UNCERTAINTY_M)
     }
 
     /// Keeps the hits of `now_s` (reported frame) for the fits of the next [`WINDOW_S`].
@@ -449,6 +466,22 @@ mod tests {
 
     fn settings() -> MapCorrectionSettings {
         MapCorrectionSettings::default().for_vehicle(0.03)
+    }
+
+    #[test]
+    fn the_uncertainty_is_the_drift_of_the_flight_so_far_up_to_its_bound() {
+        let mut c = MapCorrection::new(settings());
+        assert_eq!(c.uncertainty_m(), 0.0, "before any flight");
+        c.predict(10.0);
+        assert!((c.uncertainty_m() - 0.3).abs() < 1e-9, "3 cm/s for 10 s");
+        c.predict(100.0);
+        assert_eq!(c.uncertainty_m(), MAX_UNCERTAINTY_M);
+        let still = MapCorrection::new(MapCorrectionSettings::default().for_vehicle(0.0));
+        assert_eq!(
+            still.uncertainty_m(),
+            0.0,
+            "an estimate that does not drift"
+        );
     }
 
     fn offset(c: &MapCorrection) -> Vec2 {

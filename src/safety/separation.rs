@@ -35,15 +35,25 @@ struct Closing {
     stop_only: bool,
 }
 
-/// Whether the straight-line motion `w` from relative position `offset` comes nearer than `r`.
-fn passes_within(offset: &Vec3, w: &Vec3, r: f64) -> bool {
+/// Whether the straight-line motion `w` from relative position `offset` comes nearer than
+/// `keep_m`, measured as [`least_distance_m`] with the same drift and hearing uncertainties.
+fn passes_within(offset: &Vec3, w: &Vec3, keep_m: f64, drift_m: f64, heard_m: f64) -> bool {
     let approach = offset.dot(w);
     let w2 = w.norm_squared();
-    if approach >= 0.0 || w2 < 1e-12 {
-        return offset.norm() < r;
-    }
-    let t = -approach / w2;
-    (offset + w * t).norm() < r
+    let closest = if approach >= 0.0 || w2 < 1e-12 {
+        *offset
+    } else {
+        offset + w * (-approach / w2)
+    };
+    least_distance_m(&closest, drift_m, heard_m) < keep_m
+}
+
+/// The least distance between two drones `offset` apart (m) when their horizontal positions may
+/// be `drift_m` off each other's and the other one anywhere within `heard_m` of its own: a
+/// drone held 1 m above another stays 1 m off it, however far their estimates drift.
+fn least_distance_m(offset: &Vec3, drift_m: f64, heard_m: f64) -> f64 {
+    let horizontal = (offset.xy().norm() - drift_m.max(0.0)).max(0.0);
+    horizontal.hypot(offset.z) - heard_m.max(0.0)
 }
 
 /// The highest closing speed that can still be braked to zero within `room_m`, reacting after
@@ -91,19 +101,26 @@ impl SafetyStage {
         let mut push = Vec3::zeros();
         let mut nearest: Option<(f64, &str)> = None;
         let counted = |d: &&DroneView| heard == Heard::All || !d.silent;
+        // This drone's drifting estimate may be off the map (horizontally), as may another one's
+        // of this Kestrel: the two may be that much nearer than their estimates say.
+        let own_drift_m = fleet.get(me).map_or(0.0, |d| d.uncertainty_m);
         for other in fleet.others(me).filter(|d| d.flying).filter(counted) {
             let offset = here - other.position_enu_m;
             // A remote drone may be up to its uncertainty nearer than where it was heard; a
             // silent one's uncertainty already holds wherever it could have gone.
-            let d = offset.norm() - other.uncertainty_m;
+            let (drift_m, heard_m) = if other.local {
+                (own_drift_m + other.uncertainty_m, 0.0)
+            } else {
+                (own_drift_m, other.uncertainty_m)
+            };
+            let d = least_distance_m(&offset, drift_m, heard_m);
             let other_v = if other.silent {
                 Vec3::zeros()
             } else {
                 other.velocity_enu_mps
             };
-            let reach = keep + other.uncertainty_m;
-            let heading_in = passes_within(&offset, &(asked - other_v), reach)
-                || passes_within(&offset, &(actual - other_v), reach);
+            let heading_in = passes_within(&offset, &(asked - other_v), keep, drift_m, heard_m)
+                || passes_within(&offset, &(actual - other_v), keep, drift_m, heard_m);
             if !heading_in && d >= keep {
                 continue;
             }

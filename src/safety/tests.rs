@@ -184,6 +184,47 @@ fn closing_in_on_another_drone_is_taken_out_of_the_motion() {
     );
 }
 
+/// Two drones whose estimates may each be 0.4 m off: 2.0 m apart by them, 1.2 m at the least,
+/// which is the kept distance; one held 1.5 m above the other is free to pass over it.
+#[test]
+fn drifting_estimates_are_kept_apart_by_their_uncertainty_but_not_below_and_above() {
+    let drifting = |id: &str, x: f64, z: f64| DroneView {
+        uncertainty_m: 0.4,
+        ..DroneView::at_rest(id, Vec3::new(x, 0.0, z), true)
+    };
+    let state = at(0.0, 0.0, 2.0);
+    let sent = |others: DroneView| {
+        let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+        let fleet = FleetView {
+            drones: vec![drifting("me", 0.0, 2.0), others],
+        };
+        let (out, o) = stage.check(
+            "me",
+            &state,
+            Vec3::zeros(),
+            Flight::Flying,
+            Some(velocity(1.0, 0.0, 0.0)),
+            NO_CAPS,
+            &fleet,
+        );
+        (out, o.map(|o| o.kind))
+    };
+    let (out, kind) = sent(drifting("other", 2.0, 2.0));
+    let v = sent_velocity(out);
+    assert_eq!(kind, Some(OverrideKind::Separation));
+    assert!(v.x.abs() < 1e-9, "no closing: {v}");
+    let (out, kind) = sent(drifting("other", 2.0, 3.5));
+    assert_eq!(
+        (out, kind),
+        (Some(velocity(1.0, 0.0, 0.0)), None),
+        "1.5 m below it"
+    );
+    // Without the uncertainties, 2.0 m leaves room to close in.
+    let (out, _) = sent(DroneView::at_rest("other", Vec3::new(2.0, 0.0, 2.0), true));
+    let v = sent_velocity(out);
+    assert!(v.x > 0.3, "{v}");
+}
+
 #[test]
 fn inside_the_minimum_separation_the_drones_are_pushed_apart() {
     let mut stage = SafetyStage::new(SafetyConfig::default(), None);

@@ -28,8 +28,9 @@ pub struct DroneView {
     pub stamp: Duration,
     /// Flown by this Kestrel (false: heard from another one over the fleet bus).
     pub local: bool,
-    /// How far the drone may be from `position_enu_m` (m): 0 for this Kestrel's drones; for a
-    /// remote one, how far it could have flown since it was heard (capped).
+    /// How far the drone may be from `position_enu_m` (m): for this Kestrel's drones, how far
+    /// its drifting estimate may be off the map (`MapCorrection::uncertainty_m`, 0 for one that
+    /// does not drift); for a remote one, how far it could have flown since it was heard (capped).
     pub uncertainty_m: f64,
     /// A remote drone whose Kestrel has not been heard for longer than `[fleet] peer_timeout_s`:
     /// it cannot take part in decisions that need both sides (the drone watcher), only be kept

@@ -29,6 +29,7 @@ impl Explore {
             position_enu_m: [here.x, here.y, here.z],
             remaining_m: self.target.map_or(0.0, |t| (t - here).xy().norm()),
             up,
+            uncertainty_m: ctx.fleet.get(ctx.drone_id).map_or(0.0, |d| d.uncertainty_m),
         }
     }
 
@@ -45,6 +46,8 @@ impl Explore {
                     .goal_enu_m
                     .map_or(0.0, |g| (g - d.position_enu_m).xy().norm()),
                 up: d.position_enu_m.z > self.base_z + 0.5,
+                // A remote drone's is how far it flew since heard; only the drift counts here.
+                uncertainty_m: if d.local { d.uncertainty_m } else { 0.0 },
             })
             .collect()
     }

@@ -5,8 +5,9 @@
 //! it may come back. Two drones closer than `trigger_m` horizontally at the same height: the one
 //! nearer its goal (an idle one counts as at its goal; ties go to the larger id) gives way,
 //! climbing `climb_m` and holding there until every other drone is farther than `release_m`
-//! (the thesis: 2.0 m, 1.0 m, 2.4 m). Both sides decide from the same view, so exactly one of
-//! them yields.
+//! (the thesis: 2.0 m, 1.0 m, 2.4 m). Drones whose estimates drift measure both distances from
+//! the least they may truly be apart (each one's uncertainty off). Both sides decide from the
+//! same view, so exactly one of them yields.
 
 /// One drone as the watcher sees it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,6 +18,8 @@ pub struct Watched<'a> {
     pub remaining_m: f64,
     /// Out of the way above the exploration height (giving way itself).
     pub up: bool,
+    /// How far its position may be off horizontally (m, a drifting estimate's uncertainty).
+    pub uncertainty_m: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,8 +40,10 @@ impl WatchParams {
     }
 }
 
-fn horizontal(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
+/// The least horizontal distance `a` and `b` may truly be apart (m, may be negative).
+fn horizontal(a: &Watched, b: &Watched) -> f64 {
+    let (p, q) = (&a.position_enu_m, &b.position_enu_m);
+    (p[0] - q[0]).hypot(p[1] - q[1]) - a.uncertainty_m.max(0.0) - b.uncertainty_m.max(0.0)
 }
 
 /// Whether `me`, flying at `my_height_m`, must give way to one of `others` now.
@@ -46,7 +51,7 @@ pub fn must_yield(me: &Watched, my_height_m: f64, others: &[Watched], p: &WatchP
     others.iter().any(|o| {
         let level = (o.position_enu_m[2] - my_height_m).abs() < 0.5 * p.climb_m;
         level
-            && horizontal(&me.position_enu_m, &o.position_enu_m) < p.trigger_m
+            && horizontal(me, o) < p.trigger_m
             && (me.remaining_m < o.remaining_m || (me.remaining_m == o.remaining_m && me.id > o.id))
     })
 }
@@ -55,9 +60,9 @@ pub fn must_yield(me: &Watched, my_height_m: f64, others: &[Watched], p: &WatchP
 /// distance, or gave way too and has the larger id (two drones that both climbed, each seeing the
 /// other one tick late, do not wait for each other for ever: the smaller id goes back).
 pub fn may_return(me: &Watched, others: &[Watched], p: &WatchParams) -> bool {
-    others.iter().all(|o| {
-        horizontal(&me.position_enu_m, &o.position_enu_m) > p.release_m || (o.up && o.id > me.id)
-    })
+    others
+        .iter()
+        .all(|o| horizontal(me, o) > p.release_m || (o.up && o.id > me.id))
 }
 
 #[cfg(test)]
@@ -70,6 +75,7 @@ mod tests {
             position_enu_m: [x, 0.0, z],
             remaining_m,
             up: z > 1.5,
+            uncertainty_m: 0.0,
         }
     }
 
@@ -113,5 +119,26 @@ mod tests {
         assert!(!may_return(&b, &[a], &p));
         // Once `a` is back down, `b` waits for it to leave.
         assert!(!may_return(&b, &[w("a", 0.0, 1.0, 3.0)], &p));
+    }
+
+    #[test]
+    fn drifting_estimates_give_way_and_hold_as_far_out_as_they_may_be_off() {
+        let p = WatchParams::thesis(2.0);
+        let drifting = |id, x, z, remaining_m| Watched {
+            uncertainty_m: 0.6,
+            ..w(id, x, z, remaining_m)
+        };
+        // 3 m apart by their estimates, at most 1.8 m truly: the one nearer its goal climbs.
+        let (a, b) = (drifting("a", 0.0, 1.0, 3.0), drifting("b", 3.0, 1.0, 8.0));
+        assert!(must_yield(&a, 1.0, &[b], &p));
+        assert!(!must_yield(&b, 1.0, &[a], &p));
+        assert!(
+            !must_yield(&a, 1.0, &[w("b", 3.0, 1.0, 8.0)], &p),
+            "b holds its place"
+        );
+        // Up, it comes back beyond 2.4 m plus both uncertainties only.
+        let up = drifting("a", 0.0, 2.0, 3.0);
+        assert!(!may_return(&up, &[drifting("b", 3.5, 1.0, 8.0)], &p));
+        assert!(may_return(&up, &[drifting("b", 3.7, 1.0, 8.0)], &p));
     }
 }
