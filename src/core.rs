@@ -23,7 +23,9 @@ use crate::mapping::history::ScanHistory;
 use crate::mapping::registration::Reference;
 use crate::mapping::server::MapServer;
 use crate::planning::worker::PlanAnswer;
-use crate::safety::{Around, Flight, LowestHeight, Obstacles, Override, SafetyConfig, SafetyStage};
+use crate::safety::{
+    Around, Flight, LowestHeight, Obstacles, Override, SafetyConfig, SafetyStage, Seen, SeenHits,
+};
 use crate::types::{Capabilities, PlatformEvent, PlatformFeedback, PlatformRequest};
 use crate::types::{DroneView, FleetView};
 use crate::types::{EstimatedState, LinkHealth, PlatformStatus, Vec3, VehicleState};
@@ -109,6 +111,9 @@ pub struct DroneCore {
     estimator: Box<dyn Estimator>,
     /// From the reported position to the map's frame (`None`: off, or no map).
     correction: Option<MapCorrection>,
+    /// What the range sensor hit in the last seconds (the vehicle's reported frame), kept off
+    /// by the safety stage where the estimate drifts (with the map correction on).
+    seen: SeenHits,
     /// The scans the map is drawn from, to draw it again when the correction finds the offsets
     /// of the past were others (`None`: no correction, or an estimate that does not drift).
     history: Option<ScanHistory>,
@@ -166,6 +171,7 @@ impl DroneCore {
         };
         Self {
             estimator: estimator::build(config.estimator),
+            seen: SeenHits::default(),
             correction: config
                 .map
                 .as_ref()
@@ -442,6 +448,7 @@ impl DroneCore {
         };
         let home = self.home_enu_m.unwrap_or(self.state.pose.position_m);
         let flying = self.platform.flight.is_airborne() && self.platform.armed;
+        let map_offset_m = self.map_offset_m();
         let (setpoint, safety) = self.safety.check(
             &self.config.drone_id,
             &self.state,
@@ -466,6 +473,10 @@ impl DroneCore {
                     }
                     (None, None) => None,
                 },
+                seen: (self.config.controller.estimate_drift_mps > 0.0).then(|| Seen {
+                    hits: &self.seen,
+                    map_offset_m,
+                }),
             },
         );
         self.controller.sent(

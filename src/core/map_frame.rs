@@ -56,6 +56,12 @@ impl DroneCore {
     ) -> Vec<RangeScan> {
         let flying =
             self.platform.flight.is_airborne() && self.platform.armed && reported.valid.position;
+        if flying && self.config.controller.estimate_drift_mps > 0.0 {
+            self.seen
+                .add(self.now.as_secs_f64(), scans.iter().flat_map(hits_of));
+        } else if !flying {
+            self.seen.clear();
+        }
         if let (Some(correction), Some(map), true) = (self.correction.as_mut(), map, flying) {
             let now_s = self.now.as_secs_f64();
             correction.predict(dt_s);

@@ -9,6 +9,7 @@
 
 pub mod geofence;
 mod obstacles;
+mod seen;
 mod separation;
 
 use crate::control::{ControllerConfig, Setpoint, SpeedCaps, YawTarget};
@@ -17,6 +18,7 @@ use crate::types::{EstimatedState, PositionLoop, Vec3};
 use geofence::Fence;
 pub use geofence::GeofenceSection;
 pub use obstacles::{Around, Obstacles};
+pub use seen::{Seen, SeenHits};
 use separation::Heard;
 use serde::Serialize;
 use std::time::Duration;
@@ -79,6 +81,8 @@ pub enum OverrideKind {
     Limit,
     Geofence,
     Separation,
+    /// Off what the range sensor hit in the last seconds (a drone whose estimate drifts).
+    Obstacle,
 }
 
 /// What the vehicle is doing, as far as the stage is concerned.
@@ -109,7 +113,7 @@ pub struct SafetyStage {
     /// The override of the previous tick (an episode is reported when it starts).
     active: Option<OverrideKind>,
     /// Per kind: when an episode was last reported, and how many started since unreported.
-    reported: [(Option<Duration>, u32); 4],
+    reported: [(Option<Duration>, u32); 5],
 }
 
 /// An episode of the same kind starting within this long of the last one reported is counted,
@@ -133,7 +137,7 @@ impl SafetyStage {
                 gain_z_per_s: 1.0,
             }),
             active: None,
-            reported: [(None, 0); 4],
+            reported: [(None, 0); 5],
         }
     }
 
@@ -200,6 +204,15 @@ impl SafetyStage {
                 .or_else(|| self.separated(me, state, sp, around, Heard::All))
                 .or_else(|| self.limited(sp))
                 .map_or((sp, None), |(s, kind, why)| (s, Some((kind, why))))
+        };
+        // Whatever the steps above made of it, the motion keeps off what the beams just hit.
+        let off_seen = around
+            .seen
+            .filter(|_| flight != Flight::OnGround)
+            .and_then(|seen| self.off_seen(here, out, seen));
+        let (out, change) = match off_seen {
+            Some((s, kind, why)) => (s, change.or(Some((kind, why)))),
+            None => (out, change),
         };
         // The speed caps are the last word, whatever the steps above made of the setpoint.
         let flying = flight != Flight::OnGround;

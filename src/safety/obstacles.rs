@@ -24,6 +24,8 @@ pub struct Obstacles<'a> {
 pub struct Around<'a> {
     pub fleet: &'a FleetView,
     pub obstacles: Option<Obstacles<'a>>,
+    /// What the range sensor hit lately, for a drone whose estimate drifts.
+    pub seen: Option<super::Seen<'a>>,
 }
 
 impl<'a> From<&'a FleetView> for Around<'a> {
@@ -32,6 +34,7 @@ impl<'a> From<&'a FleetView> for Around<'a> {
         Self {
             fleet,
             obstacles: None,
+            seen: None,
         }
     }
 }

@@ -6,7 +6,7 @@
 //! velocity setpoint that keeps the distances, or `None` when the asked one does.
 
 use super::obstacles::{Around, Obstacles};
-use super::{intended_velocity, OverrideKind, SafetyStage};
+use super::{intended_velocity, OverrideKind, SafetyConfig, SafetyStage};
 use crate::control::Setpoint;
 use crate::types::{DroneView, EstimatedState, Vec3};
 /// Reaction time of the separation cap beyond the controller's velocity lag (s): a tick or two
@@ -28,11 +28,16 @@ pub(super) enum Heard {
 /// One other drone's (or obstacle's) cap on the closing speed along `away` (unit, from it to
 /// this drone).
 #[derive(Debug, Clone, Copy)]
-struct Closing {
-    away: Vec3,
-    allowed_mps: f64,
+pub(super) struct Closing {
+    pub away: Vec3,
+    pub allowed_mps: f64,
     /// A silent drone: no sliding around its spot, only stopping.
-    stop_only: bool,
+    pub stop_only: bool,
+}
+
+/// How long the vehicle takes to start braking (s): its velocity lag and a tick.
+pub(super) fn reaction_s(config: &SafetyConfig) -> f64 {
+    config.limits.velocity_lag().max(0.0) + REACTION_EXTRA_S
 }
 
 /// Whether the straight-line motion `w` from relative position `offset` comes nearer than
@@ -58,7 +63,7 @@ fn least_distance_m(offset: &Vec3, drift_m: f64, heard_m: f64) -> f64 {
 
 /// The highest closing speed that can still be braked to zero within `room_m`, reacting after
 /// `react_s` and braking at `brake_mps2`: `c * react_s + c^2 / (2 brake) = room_m`.
-fn stoppable_mps(room_m: f64, react_s: f64, brake_mps2: f64) -> f64 {
+pub(super) fn stoppable_mps(room_m: f64, react_s: f64, brake_mps2: f64) -> f64 {
     if room_m <= 0.0 {
         return 0.0;
     }
@@ -93,7 +98,7 @@ impl SafetyStage {
         let here = state.pose.position_m;
         let min = self.config.min_separation_m;
         let keep = min + self.config.separation_margin_m.max(0.0);
-        let react_s = self.config.limits.velocity_lag().max(0.0) + REACTION_EXTRA_S;
+        let react_s = reaction_s(&self.config);
         let brake = self.config.braking_mps2.max(0.1);
         let (asked, yaw) = intended_velocity(&sp, here, &self.position_loop);
         let actual = state.velocity_enu_mps;
@@ -202,7 +207,7 @@ impl SafetyStage {
 /// `v` with the closing speed along each limit's `away` brought down to its cap, by sliding
 /// along it (a few rounds: sliding along one can close in on another), or stopped when a limit
 /// of a silent drone is exceeded or the caps cannot all be met.
-fn slide(mut v: Vec3, limits: &[Closing]) -> Vec3 {
+pub(super) fn slide(mut v: Vec3, limits: &[Closing]) -> Vec3 {
     for _ in 0..4 {
         let mut changed = false;
         for l in limits {

@@ -484,6 +484,7 @@ fn fly_next_to_mapped(
                     }
                     _ => None,
                 },
+                seen: None,
             },
         );
         let Some(Setpoint::Velocity {
@@ -702,4 +703,63 @@ fn the_speed_caps_are_the_last_word_on_velocities_and_position_targets() {
     // Within the caps nothing changes.
     let within = velocity(0.5, 0.0, 0.2);
     assert_eq!(check(&mut stage, within), (Some(within), None));
+}
+
+/// A drifting drone whose map is 0.3 m off: flown at a face its beams hit 2 m ahead, at
+/// 0.75 m/s, it stops 0.3 m short of the hits, slides round a pole that far off it, and is
+/// left alone passing 0.8 m beside it.
+#[test]
+fn a_drifting_drone_keeps_off_what_its_beams_just_hit_whatever_its_map_says() {
+    use crate::types::Vec2;
+    let fly = |start_y: f64, hits: &[Vec2]| {
+        let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+        let mut seen = SeenHits::default();
+        seen.add(0.0, hits.iter().copied());
+        let fleet = FleetView::default();
+        let offset = Vec3::new(0.3, 0.0, 0.0);
+        let mut reported = Vec3::new(0.0, start_y, 1.0);
+        let mut kinds = Vec::new();
+        let mut least_m = f64::INFINITY;
+        for k in 0..600 {
+            let mut state = at(reported.x + offset.x, reported.y, reported.z);
+            state.stamp = Duration::from_millis(10 * k);
+            let (out, o) = stage.check(
+                "me",
+                &state,
+                Vec3::zeros(),
+                Flight::Flying,
+                Some(velocity(0.75, 0.0, 0.0)),
+                NO_CAPS,
+                Around {
+                    fleet: &fleet,
+                    obstacles: None,
+                    seen: Some(Seen {
+                        hits: &seen,
+                        map_offset_m: offset,
+                    }),
+                },
+            );
+            kinds.extend(o.map(|o| o.kind));
+            reported += sent_velocity(out) * 0.01;
+            for h in hits {
+                least_m = least_m.min((reported.xy() - h).norm());
+            }
+        }
+        (reported, kinds, least_m)
+    };
+    // A wall's face, 4 m wide: stopped before it.
+    let face: Vec<Vec2> = (-20..=20)
+        .map(|i| Vec2::new(2.0, f64::from(i) * 0.1))
+        .collect();
+    let (stopped, kinds, least_m) = fly(0.0, &face);
+    assert!(stopped.x > 1.5, "{stopped}");
+    assert!(least_m >= seen::SEEN_KEEP_M - 1e-3, "{least_m}");
+    assert_eq!(kinds, vec![OverrideKind::Obstacle]);
+    // A pole 0.1 m off the line: slid round it, never nearer than the kept distance.
+    let (past, _, least_m) = fly(0.0, &[Vec2::new(2.0, -0.1)]);
+    assert!(least_m >= seen::SEEN_KEEP_M - 1e-3, "{least_m}");
+    assert!(past.x > 2.0, "{past}");
+    let (passed, kinds, _) = fly(0.8, &[Vec2::new(2.0, 0.0)]);
+    assert!((passed.x - 4.5).abs() < 1e-6, "{passed}");
+    assert!(kinds.is_empty());
 }
