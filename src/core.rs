@@ -473,7 +473,7 @@ impl DroneCore {
                     }
                     (None, None) => None,
                 },
-                seen: (self.config.controller.estimate_drift_mps > 0.0).then(|| Seen {
+                seen: (self.config.controller.estimate_drift_mps > 0.0).then_some(Seen {
                     hits: &self.seen,
                     map_offset_m,
                 }),
