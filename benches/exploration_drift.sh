@@ -10,7 +10,9 @@
 #    low50-W, medium50-W and high50-W are 50 x 50 m worlds of the thesis's three densities (0.06,
 #    0.126 and 0.2548 poles per m^2) of seed W, to tune on in place of the thesis's own; any
 #    other name is sitl/worlds/NAME.json; WAIT_WHILE=FILE holds each run while FILE exists, for
-#    a machine shared with real-time flights)
+#    a machine shared with real-time flights; EXPLORE_ARGS='{"heading": "align"}' passes the
+#    explore behavior's arguments to every run; KEEP_LOGS=1 keeps each run's flight log;
+#    NOISE_FREE=0 leaves out the noise-free runs)
 #
 # Writes OUT_DIR/drift.md: one line a run (world, drones, drift, dropout, time, area, observable
 # area, collisions, least clearance and separation, outcome).
@@ -48,17 +50,18 @@ run() { # world-name world-file drones drift dropout
         while [ -n "${WAIT_WHILE:-}" ] && [ -e "$WAIT_WHILE" ]; do sleep 20; done
         "$bin" explore --world "$2" --drones "$3" --seed "$explore_seed" --position-drift-mps "$4" \
             --range-dropout "$5" --log "$out/$tag.jsonl" --log-overwrite \
-            --report "$out/$tag.report.json" --progress-every-s 100000 > "$out/$tag.out" 2>&1 || true
-        rm -f "$out/$tag.jsonl"
+            --report "$out/$tag.report.json" --progress-every-s 100000 \
+            ${EXPLORE_ARGS:+--explore-args "$EXPLORE_ARGS"} > "$out/$tag.out" 2>&1 || true
+        [ -n "${KEEP_LOGS:-}" ] || rm -f "$out/$tag.jsonl"
     fi
 }
 export -f run
-export out bin explore_seed
+export out bin explore_seed EXPLORE_ARGS KEEP_LOGS
 {
     for w in $worlds; do
         f=$(world_file "$w")
         for n in $drones; do
-            echo "$w $f $n 0 0"
+            [ "${NOISE_FREE:-1}" = 0 ] || echo "$w $f $n 0 0"
             for d in $drifts; do echo "$w $f $n $d 0.05"; done
         done
     done

@@ -395,3 +395,55 @@ fn moving_a_frame_is_refused_when_it_would_invalidate_a_loaded_mission() {
     frame_at(&mut h, "site", 20.0, 0.0).unwrap();
     frame_at(&mut h, "elsewhere", 500.0, 0.0).unwrap();
 }
+
+/// A drone whose estimate drifts, sent straight at a pole: the safety stage keeps it off what
+/// its range beams hit, short of the pole, and says so in the flight log and to the operator.
+#[test]
+fn a_drifting_drone_sent_at_a_pole_stops_short_of_what_its_beams_hit_and_says_so() {
+    use kestrel::host::status::{EventBody, HostEvent};
+    let mut settings = kestrel::config::Config::default();
+    settings.sim.position_drift_mps = 0.02;
+    let mut h = Harness::with_config(
+        world_with_pole(5.0, 0.0, 0.25),
+        SimConfig {
+            settings,
+            ..SimConfig::default()
+        },
+    );
+    h.take_off(0, 1.0);
+    h.start(
+        0,
+        "go_to",
+        json!({ "x": 10.0, "y": 0.0, "z": 1.0, "speed": 0.75 }),
+    );
+    h.run_for(20.0);
+    let closest_m = h.samples[0]
+        .iter()
+        .map(|s| (s.position_m.xy() - Vec3::new(5.0, 0.0, 0.0).xy()).norm())
+        .fold(f64::INFINITY, f64::min);
+    // The pole's 0.25 m and the guard's 0.3 m from its face, less the vehicle's lag in
+    // braking: clear of a contact (the vehicle's 0.15 m radius) by more than 5 cm.
+    assert!(
+        closest_m > 0.45,
+        "came {closest_m:.2} m from the pole's centre"
+    );
+    assert!(
+        closest_m < 1.5,
+        "stopped {closest_m:.2} m off: not by the guard"
+    );
+    let records = h.log_records();
+    assert!(records.iter().all(|r| r["type"] != "collision"));
+    let said = |r: &str| r.contains("from what the range sensor hit");
+    assert!(
+        records
+            .iter()
+            .any(|r| r["type"] == "safety" && r["reason"].as_str().is_some_and(said)),
+        "no safety record of the guard"
+    );
+    assert!(
+        h.host_events.iter().any(|e| matches!(e,
+            HostEvent::Event { event: EventBody::Alert { message }, .. }
+                if message.starts_with("safety: ") && said(message))),
+        "no alert of the guard"
+    );
+}

@@ -763,3 +763,138 @@ fn a_drifting_drone_keeps_off_what_its_beams_just_hit_whatever_its_map_says() {
     assert!((passed.x - 4.5).abs() < 1e-6, "{passed}");
     assert!(kinds.is_empty());
 }
+
+/// What the platform flies for `out` at `here`: its velocity, or the pull of its position
+/// target through the default position loop.
+fn flown_velocity(out: Option<Setpoint>, here: Vec3) -> Vec3 {
+    let loop_gain = PositionLoop {
+        gain_xy_per_s: 1.0,
+        gain_z_per_s: 1.0,
+    };
+    match out {
+        Some(sp) => intended_velocity(&sp, here, &loop_gain).0,
+        None => panic!("a setpoint"),
+    }
+}
+
+/// A pole's face as the beams hit it: points on the half of a 0.25 m circle round `centre`
+/// that faces `from`.
+fn pole_face(centre: crate::types::Vec2, from: crate::types::Vec2) -> Vec<crate::types::Vec2> {
+    let toward = (from - centre).y.atan2((from - centre).x);
+    (-8..=8)
+        .map(|i| {
+            let a = toward + f64::from(i) * std::f64::consts::FRAC_PI_2 / 8.0;
+            centre + crate::types::Vec2::new(a.cos(), a.sin()) * 0.25
+        })
+        .collect()
+}
+
+/// Outside the fence, with a pole its beams just hit on the way back in: the way back slides
+/// round the pole, never nearer than the kept distance, and ends inside the fence; what is
+/// reported is the fence (the first change), and the guard's change to it is what is flown.
+#[test]
+fn the_way_back_inside_the_fence_keeps_off_what_the_beams_just_hit() {
+    use crate::types::Vec2;
+    let config = SafetyConfig {
+        geofence: GeofenceSection {
+            radius_m: Some(10.0),
+            ..GeofenceSection::default()
+        },
+        ..SafetyConfig::default()
+    };
+    let mut stage = SafetyStage::new(config, None);
+    let pole = Vec2::new(9.8, 0.05);
+    let face = pole_face(pole, Vec2::new(10.6, 0.0));
+    let mut seen = SeenHits::default();
+    seen.add(0.0, face.iter().copied());
+    let fleet = FleetView::default();
+    let mut here = Vec3::new(10.6, 0.0, 2.0);
+    let (mut kinds, mut guarded) = (Vec::new(), 0);
+    let (mut least_hit_m, mut least_surface_m) = (f64::INFINITY, f64::INFINITY);
+    for k in 0..800 {
+        let mut state = at(here.x, here.y, here.z);
+        state.stamp = Duration::from_millis(10 * k);
+        // Whatever the behavior asks, out here the fence takes the vehicle back.
+        let (out, o) = stage.check(
+            "me",
+            &state,
+            Vec3::zeros(),
+            Flight::Flying,
+            Some(velocity(0.5, 0.0, 0.0)),
+            NO_CAPS,
+            Around {
+                fleet: &fleet,
+                obstacles: None,
+                seen: Some(Seen {
+                    hits: &seen,
+                    map_offset_m: Vec3::zeros(),
+                }),
+            },
+        );
+        kinds.extend(o.map(|o| o.kind));
+        guarded += usize::from(matches!(out, Some(Setpoint::Velocity { .. })));
+        here += flown_velocity(out, here) * 0.01;
+        for h in &face {
+            least_hit_m = least_hit_m.min((here.xy() - h).norm());
+        }
+        least_surface_m = least_surface_m.min((here.xy() - pole).norm() - 0.25);
+    }
+    assert!(here.xy().norm() < 10.0, "back inside: {here}");
+    assert!(
+        least_hit_m >= seen::SEEN_KEEP_M - 1e-3,
+        "{least_hit_m:.3} m from a hit"
+    );
+    // The vehicle's 0.15 m radius never touches the pole.
+    assert!(
+        least_surface_m > 0.15,
+        "{least_surface_m:.3} m from the pole's surface"
+    );
+    assert!(guarded > 0, "the guard changed the way back");
+    assert_eq!(kinds.first(), Some(&OverrideKind::Geofence), "{kinds:?}");
+}
+
+/// Held for a silent peer beside a pole its beams just hit: held in place while flying (the
+/// guard pushes nothing), and a landing goes on straight down past it.
+#[test]
+fn a_hold_for_a_silent_peer_beside_a_pole_just_hit_still_lands_straight_down() {
+    use crate::types::Vec2;
+    let state = at(0.0, 0.0, 3.0);
+    let mut seen = SeenHits::default();
+    seen.add(0.0, pole_face(Vec2::new(0.45, 0.0), Vec2::zeros()));
+    let fleet = held_by_a_silent_peer(Vec::new());
+    let around = Around {
+        fleet: &fleet,
+        obstacles: None,
+        seen: Some(Seen {
+            hits: &seen,
+            map_offset_m: Vec3::zeros(),
+        }),
+    };
+    let sp = Some(landing_setpoint(&state));
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+    let (out, o) = stage.check(
+        "me",
+        &state,
+        Vec3::zeros(),
+        Flight::Flying,
+        sp,
+        NO_CAPS,
+        around,
+    );
+    assert_eq!(sent_velocity(out), Vec3::zeros());
+    assert!(o.unwrap().reason.contains("other fell silent"));
+    let mut stage = SafetyStage::new(SafetyConfig::default(), None);
+    let (out, o) = stage.check(
+        "me",
+        &state,
+        Vec3::zeros(),
+        Flight::Landing,
+        sp,
+        NO_CAPS,
+        around,
+    );
+    let v = sent_velocity(out);
+    assert_eq!((v.x, v.y), (0.0, 0.0), "{v}");
+    assert!((v.z + 0.6).abs() < 1e-9, "{v}");
+    assert_eq!(o.unwrap().kind, OverrideKind::Separation);
+}
