@@ -14,11 +14,15 @@ use serde::{Deserialize, Serialize};
 pub struct ExploreGoal {
     /// Flight height above the takeoff point (m).
     pub height: f64,
-    /// Cruise speed (m/s).
+    /// Cruise speed (m/s). While the position estimate drifts, at most what lets the turning
+    /// beams see ahead before the drone gets there ([`ExploreGoal::cruise_mps`]).
     pub speed: f64,
     /// Steady turn while exploring (rad/s, 0..=2), so the beams sweep all around; 0 keeps the
     /// heading (then only a 360-beam sensor sees sideways).
     pub spin_rate: f64,
+    /// How far the range beams see (m; the multiranger's 4 m). Sets the cruise speed while
+    /// the estimate drifts.
+    pub beam_range: f64,
     /// Least distance from obstacles and from unobserved space (m).
     pub safety_distance: f64,
     /// Closer than this to another drone at the same height, one of the two gives way (m).
@@ -66,6 +70,7 @@ impl Default for ExploreGoal {
             height: 1.0,
             speed: 0.75,
             spin_rate: 0.15,
+            beam_range: 4.0,
             safety_distance: 0.4,
             drone_safety_distance: 2.0,
             allocator: AllocatorKind::default(),
@@ -80,11 +85,35 @@ impl Default for ExploreGoal {
     }
 }
 
+/// Room kept between where the beams see an obstacle and where the drone must have stopped
+/// (m): the safety stage's 0.3 m from a hit and the braking from a sighted speed.
+pub const SIGHT_STOP_M: f64 = 0.5;
+
+impl ExploreGoal {
+    /// The cruise speed (m/s). Where the estimate drifts (`estimate_drift_mps` > 0) the map
+    /// can hold a pole metres from where it stands in the drone's present frame, and only what
+    /// the beams hit lately is placed right: four beams turning at `spin_rate` cross every
+    /// bearing once a quarter turn, so the drone flies no faster than covers `beam_range` less
+    /// [`SIGHT_STOP_M`] in a quarter turn, and an obstacle ahead is hit by a beam before the
+    /// drone is within its stopping room (0.33 m/s at the defaults). Otherwise `speed`, and
+    /// `speed` too without a steady turn (`align`, or `spin_rate` 0) to pace.
+    pub fn cruise_mps(&self, estimate_drift_mps: f64) -> f64 {
+        let turning = self.heading == HeadingMode::Spin && self.spin_rate > 0.0;
+        if !(estimate_drift_mps > 0.0 && turning) {
+            return self.speed;
+        }
+        let quarter_turn_s = std::f64::consts::FRAC_PI_2 / self.spin_rate;
+        let sighted = (self.beam_range - SIGHT_STOP_M).max(0.0) / quarter_turn_s;
+        self.speed.min(sighted.max(0.05))
+    }
+}
+
 impl Goal for ExploreGoal {
     fn check(&self) -> Result<(), GoalError> {
         check_within("height", self.height, 0.2, 100.0, "m")?;
         check_positive("speed", self.speed, "m/s")?;
         check_within("spin_rate", self.spin_rate, 0.0, 2.0, "rad/s")?;
+        check_within("beam_range", self.beam_range, 0.5, 50.0, "m")?;
         check_within("safety_distance", self.safety_distance, 0.1, 5.0, "m")?;
         check_within(
             "drone_safety_distance",

@@ -73,7 +73,7 @@ impl Explore {
                 "no clear place to land: another drone is below",
             ));
         }
-        let follow = self.path_goal(&back);
+        let follow = self.path_goal(ctx, &back);
         let mut child = FollowPath::new(follow);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
         self.phase = Phase::Relocating(Box::new(child));

@@ -11,7 +11,9 @@
 //!
 //! A long frontier is flown along from end to end (`sweep_along`), so the beams clear it on the
 //! way instead of while the drone waits at its middle; one sweep usually ends where the next
-//! begins, and the known space grows in bands about a beam range wide.
+//! begins, and the known space grows in bands about a beam range wide. While the estimate
+//! drifts, paths are flown no faster than the turning beams see ahead
+//! ([`ExploreGoal::cruise_mps`]).
 //!
 //! The drone asks the fleet's frontier allocator (a service: asked on one tick, answered on a
 //! later one) for a goal and the path to it through space observed free with the safety
@@ -258,7 +260,7 @@ impl Explore {
     }
 
     fn fly(&mut self, ctx: &BehaviorContext, goal: Vec3, path: &[Vec3]) -> Result<(), Failure> {
-        let follow = self.path_goal(path);
+        let follow = self.path_goal(ctx, path);
         follow.check()?;
         let mut child = FollowPath::new(follow);
         child.activate(ctx).map_err(|e| e.within("follow_path"))?;
@@ -269,14 +271,14 @@ impl Explore {
         Ok(())
     }
 
-    /// A path flown at the exploring speed. The heading is the explorer's own turn
-    /// ([`Self::heading`]), so the path asks for none: one held at its start would keep the
+    /// A path flown at the cruise speed ([`ExploreGoal::cruise_mps`]). The heading is the
+    /// explorer's own turn ([`Self::heading`]), so the path asks for none: one held at its start would keep the
     /// path from ending until the turn came round to it (up to a full turn, 42 s at the
     /// thesis's rate), which held drones over their landing spots at the end of a run.
-    fn path_goal(&self, path: &[Vec3]) -> FollowPathGoal {
+    fn path_goal(&self, ctx: &BehaviorContext, path: &[Vec3]) -> FollowPathGoal {
         FollowPathGoal {
             path: path.iter().map(|p| [p.x, p.y, p.z]).collect(),
-            speed: self.goal.speed,
+            speed: self.goal.cruise_mps(ctx.estimate_drift_mps),
             yaw: YawArgs {
                 yaw_mode: YawMode::PathFacing,
                 ..YawArgs::default()
@@ -473,7 +475,8 @@ impl Behavior for Explore {
         // The goal's speed holds for the holds borrowed from the context too (their
         // `hold_speed_mps` is faster): a hold that a map correction's step moved a metre off
         // flew back at 1 m/s.
-        let reference = reference.map(|r| r.at_most(self.goal.speed));
+        let cruise_mps = self.goal.cruise_mps(ctx.estimate_drift_mps);
+        let reference = reference.map(|r| r.at_most(cruise_mps));
         if ctx.is_flying() {
             self.watch_tracking(ctx, reference.as_ref());
         }
