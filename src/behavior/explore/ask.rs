@@ -2,7 +2,9 @@
 //! answers: a goal is flown (unless the drone has moved on since it asked), `Done` goes to the
 //! end rule ([`super::end`]). Before an end with frontiers left while the drone keeps extra
 //! room for straying, one more question without that room (claiming nothing) tells whether
-//! frontiers were left only within it, which the drone then says as it ends.
+//! frontiers were left only within it. A drone that holds its path again (at once or within
+//! [`BOXED_WAIT_S`] of hovering) then lets the room go and explores on (it earns the room back
+//! by straying); one that still strays ends and says so.
 use super::end::{self, EndFacts, Left};
 use super::{seconds, trace, Explore};
 use crate::behavior::progress::lost_peer;
@@ -16,6 +18,11 @@ const STALE_ANSWER_M: f64 = 0.3;
 /// Kept from a silent drone's last position beyond its uncertainty (m): the safety stage's
 /// default least separation and its margin (1.0 + 0.2 m), and 0.3 m of room.
 const SILENT_KEEP_OUT_M: f64 = 1.5;
+/// A drone boxed in by its straying room waits this long for its stray to settle (s): a map
+/// correction's jump of 0.8 m settles in about 12 s ([`TrackingMargin::holds_path`]).
+///
+/// [`TrackingMargin::holds_path`]: crate::exploration::online::tracking::TrackingMargin::holds_path
+const BOXED_WAIT_S: f64 = 30.0;
 
 impl Explore {
     /// Asks the allocator for a goal from where the drone is, with this drone's settings
@@ -130,6 +137,7 @@ impl Explore {
                 }
                 self.frontiers = frontiers;
                 self.done_since = None;
+                self.boxed_since = None;
                 // A late answer (a slow allocator on the wall clock) has a path from where the
                 // drone was, not where it is: the way back to its start may not be clear. Asked
                 // again instead; the drone flies on meanwhile.
@@ -158,9 +166,12 @@ impl Explore {
     }
 
     /// The answer to the last question before the end, asked with no room for straying: a goal
-    /// there means frontiers were left only within the room kept. The exploration ends either
-    /// way (the room is kept: with it, nothing is reachable), but then says so (a warning, and
-    /// `frontiers_left_within_room` in its feedback while it lands).
+    /// there means frontiers were left only within the room kept. A drone that holds its path
+    /// now (what widened the room was a map correction's jump or a gust, not a wandering hold)
+    /// lets the room go and asks again; one that strays still hovers and asks again, for up to
+    /// [`BOXED_WAIT_S`]. Else the exploration ends (the room is kept: with it,
+    /// nothing is reachable), and says so (a warning, and `frontiers_left_within_room` in its
+    /// feedback while it lands).
     fn read_probe(
         &mut self,
         ctx: &BehaviorContext,
@@ -170,6 +181,26 @@ impl Explore {
         match answer {
             Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
             Ok(Allocation::Done { .. }) => Ok(true),
+            Ok(Allocation::Goal { frontiers, .. }) if self.tracking.holds_path() => {
+                tracing::warn!(
+                    "{}: {frontiers} frontier(s) left only within the {kept_m:.1} m kept for \
+                     straying up to {:.2} m; it holds its path again, so it lets that room go \
+                     and explores on",
+                    ctx.drone_id,
+                    self.tracking.peak_m()
+                );
+                trace(ctx, "relax", || format!("kept={kept_m:.1}"));
+                self.tracking.relax();
+                self.done_since = None;
+                self.boxed_since = None;
+                Ok(false)
+            }
+            Ok(Allocation::Goal { .. })
+                if seconds(ctx.now, *self.boxed_since.get_or_insert(ctx.now)) < BOXED_WAIT_S =>
+            {
+                trace(ctx, "boxed", || format!("kept={kept_m:.1}"));
+                Ok(false)
+            }
             Ok(Allocation::Goal { frontiers, .. }) => {
                 let why = format!(
                     "exploration ends with {frontiers} frontier(s) left that it could reach \

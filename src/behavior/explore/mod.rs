@@ -136,6 +136,8 @@ pub struct Explore {
     /// Asked, at its end, whether anything is left within the room kept for straying (the
     /// extra room it kept, m).
     probing: Option<f64>,
+    /// Since when it has found frontiers only within that room, waiting to hold its path again.
+    boxed_since: Option<Duration>,
     /// Frontiers it ended with that it could have reached only within that room (it ends
     /// anyway, and says so).
     left_within_room: Option<usize>,
@@ -165,6 +167,7 @@ impl Explore {
             hover_at: None,
             watch: blocked::PathWatch::default(),
             probing: None,
+            boxed_since: None,
             left_within_room: None,
         }
     }

@@ -356,7 +356,7 @@ fn an_obstacle_mapped_on_the_path_ahead_drops_the_path_and_asks_again() {
 #[test]
 fn an_end_short_of_frontiers_reachable_without_the_straying_room_is_said() {
     // A drone that strayed 0.5 m (0.3 m kept beyond its safety distance), boxed in with that
-    // room: before it ends, it asks once more without the room.
+    // room, still straying: before it ends, it asks once more without the room.
     let run = |probe_finds_a_goal: bool| {
         let scene = Scene::flying();
         let mut explore = Explore::new(ExploreGoal::default());
@@ -374,6 +374,8 @@ fn an_end_short_of_frontiers_reachable_without_the_straying_room_is_said() {
         explore.allocations = 1;
         explore.crumbs = vec![Vec3::zeros(), Vec3::new(1.5, 0.0, 0.0)];
         explore.anchor.1 = Duration::ZERO;
+        // Boxed in since the start: it has waited its while for the stray to settle.
+        explore.boxed_since = Some(Duration::ZERO);
         let mut requests = Vec::new();
         explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
         answer_done(&scene, 3, 0, 2);
@@ -406,7 +408,7 @@ fn an_end_short_of_frontiers_reachable_without_the_straying_room_is_said() {
         scene
             .services
             .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
-        explore.explore_tick(&scene.ctx(13), &mut requests).unwrap();
+        explore.explore_tick(&scene.ctx(31), &mut requests).unwrap();
         assert!(
             matches!(explore.phase, Phase::Landing(_) | Phase::Relocating(_)),
             "it ends (and lands) either way: the goal is not flown"
@@ -471,4 +473,104 @@ fn a_drifting_drone_flies_no_faster_than_its_turning_beams_see_ahead() {
     let (free, drifting) = (fastest(0.0), fastest(0.02));
     assert!(free > 0.7, "{free}");
     assert!(drifting <= sighted + 1e-9 && drifting > 0.3, "{drifting}");
+}
+
+#[test]
+fn a_drone_boxed_in_by_its_straying_room_that_holds_its_path_again_lets_it_go_and_explores_on() {
+    // It strayed 0.5 m (a map correction's jump), then held its path for 20 s: the slow peak
+    // still keeps 0.2 m, which boxes it in.
+    let scene = Scene::flying();
+    let mut explore = Explore::new(ExploreGoal::default());
+    explore.start_exploring(&scene.ctx(0));
+    let on_path = Vec3::new(0.0, 0.0, 1.0);
+    let stray = |explore: &mut Explore, point: Vec3, seconds: f64| {
+        for _ in 0..(seconds * 100.0) as usize {
+            explore
+                .tracking
+                .observe(point, Vec3::zeros(), on_path, Vec3::zeros(), 0.01);
+        }
+    };
+    stray(&mut explore, Vec3::new(0.5, 0.0, 1.0), 1.0);
+    stray(&mut explore, on_path, 20.0);
+    assert!(
+        explore.tracking.extra_m() > 0.15,
+        "{}",
+        explore.tracking.extra_m()
+    );
+    explore.allocations = 1;
+    explore.crumbs = vec![Vec3::zeros(), Vec3::new(1.5, 0.0, 0.0)];
+    explore.anchor.1 = Duration::ZERO;
+    let mut requests = Vec::new();
+    explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
+    answer_done(&scene, 3, 0, 2);
+    explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
+    let Some(ServiceCall::Explore(job)) = scene.services.drain_calls().into_iter().next() else {
+        panic!("no second question");
+    };
+    assert!(!job.request.claim);
+    let from = job.request.position_enu_m;
+    let answer = Allocation::Goal {
+        goal_enu_m: from + Vec3::new(2.0, 0.0, 0.0),
+        path_enu_m: vec![from, from + Vec3::new(2.0, 0.0, 0.0)],
+        frontiers: 3,
+        clockwise: None,
+    };
+    scene
+        .services
+        .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
+    explore.explore_tick(&scene.ctx(13), &mut requests).unwrap();
+    assert!(matches!(explore.phase, Phase::Exploring), "it explores on");
+    assert_eq!(explore.tracking.extra_m(), 0.0, "the room let go");
+    assert_eq!(
+        explore.feedback()["frontiers_left_within_room"],
+        serde_json::Value::Null
+    );
+    // Its next question claims a goal without the room.
+    explore.explore_tick(&scene.ctx(15), &mut requests).unwrap();
+    let Some(ServiceCall::Explore(job)) = scene.services.drain_calls().into_iter().next() else {
+        panic!("no next question");
+    };
+    assert!(job.request.claim);
+    assert_eq!(job.request.space.safety_distance_m, 0.4);
+}
+
+#[test]
+fn a_drone_boxed_in_while_it_still_strays_hovers_for_its_stray_to_settle_before_it_ends() {
+    let scene = Scene::flying();
+    let mut explore = Explore::new(ExploreGoal::default());
+    explore.start_exploring(&scene.ctx(0));
+    for _ in 0..100 {
+        explore.tracking.observe(
+            Vec3::new(0.5, 0.0, 1.0),
+            Vec3::zeros(),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::zeros(),
+            0.01,
+        );
+    }
+    explore.allocations = 1;
+    explore.crumbs = vec![Vec3::zeros(), Vec3::new(1.5, 0.0, 0.0)];
+    explore.anchor.1 = Duration::ZERO;
+    let mut requests = Vec::new();
+    explore.explore_tick(&scene.ctx(11), &mut requests).unwrap();
+    answer_done(&scene, 3, 0, 2);
+    explore.explore_tick(&scene.ctx(12), &mut requests).unwrap();
+    let Some(ServiceCall::Explore(job)) = scene.services.drain_calls().into_iter().next() else {
+        panic!("no second question");
+    };
+    let from = job.request.position_enu_m;
+    let answer = Allocation::Goal {
+        goal_enu_m: from + Vec3::new(2.0, 0.0, 0.0),
+        path_enu_m: vec![from, from + Vec3::new(2.0, 0.0, 0.0)],
+        frontiers: 3,
+        clockwise: None,
+    };
+    scene
+        .services
+        .deliver(job.ticket, ServiceAnswer::Explore(Ok(answer)), job.cancel);
+    explore.explore_tick(&scene.ctx(13), &mut requests).unwrap();
+    assert!(matches!(explore.phase, Phase::Exploring), "it waits");
+    assert!(explore.target.is_none(), "the goal is not flown");
+    assert!(explore.tracking.extra_m() > 0.25, "the room is kept");
+    assert_eq!(explore.boxed_since, Some(Duration::from_secs(13)));
 }

@@ -16,6 +16,10 @@
 //! own reported velocity integrates to (BENCHMARKS.md, "Three PX4 SIH exploring"), carrying the
 //! drone's estimate toward a wall while the vehicle flew nowhere. That walk (the position against
 //! the velocity integrated over about [`WALK_WINDOW_S`]) counts as straying too.
+//!
+//! Beside the slow peak, a quick one ([`RECENT_DECAY_MPS`]) says whether the drone holds its
+//! path now: a drone boxed in by the room it keeps (a map correction's jump, one gust) may let
+//! the room go once it does ([`TrackingMargin::relax`]), and earns it back by straying again.
 
 use crate::types::Vec3;
 
@@ -33,12 +37,16 @@ pub const MAX_EXTRA_M: f64 = 1.0;
 const WALK_WINDOW_S: f64 = 2.0;
 /// How fast the remembered peak comes down (m/s): 0.1 m per 20 s.
 const DECAY_MPS: f64 = 0.005;
+/// How fast the quick peak comes down (m/s): a 1 m stray is forgotten in 16 s of holding.
+const RECENT_DECAY_MPS: f64 = 0.05;
 /// Below this reference speed the whole horizontal error counts (m/s).
 const MOVING_MPS: f64 = 0.1;
 
 #[derive(Debug, Clone, Default)]
 pub struct TrackingMargin {
     peak_m: f64,
+    /// The same peak, coming down at [`RECENT_DECAY_MPS`].
+    recent_m: f64,
     /// The horizontal position the reported velocity leads to, pulled toward the reported
     /// position over [`WALK_WINDOW_S`]: how far the two part is the walk of the last seconds.
     dead_reckoned: Option<Vec3>,
@@ -66,6 +74,7 @@ impl TrackingMargin {
         let stray = across.max(walk);
         if stray.is_finite() {
             self.peak_m = stray.max(self.peak_m - DECAY_MPS * dt_s.max(0.0));
+            self.recent_m = stray.max(self.recent_m - RECENT_DECAY_MPS * dt_s.max(0.0));
         }
     }
 
@@ -86,6 +95,17 @@ impl TrackingMargin {
     /// The largest recent stray across the path (m).
     pub fn peak_m(&self) -> f64 {
         self.peak_m
+    }
+
+    /// The drone holds its path now: its stray of the last seconds is within the allowance.
+    pub fn holds_path(&self) -> bool {
+        self.recent_m <= ALLOWANCE_M
+    }
+
+    /// Lets the room go down to what the last seconds' stray asks for (none, when the drone
+    /// [`Self::holds_path`]).
+    pub fn relax(&mut self) {
+        self.peak_m = self.peak_m.min(self.recent_m);
     }
 
     /// Extra distance to keep (m): the stray beyond the allowance, in whole steps, at most
@@ -186,5 +206,37 @@ mod tests {
         assert!((m.extra_m() - 0.3).abs() < 1e-9, "10 s: {}", m.extra_m());
         fly(&mut m, 60.0, on_path, Vec3::zeros(), on_path);
         assert_eq!(m.extra_m(), 0.0);
+    }
+
+    #[test]
+    fn a_drone_holding_its_path_again_may_let_the_room_go_and_earns_it_back_by_straying() {
+        let mut m = TrackingMargin::default();
+        let on_path = Vec3::zeros();
+        // A 0.8 m stray (a correction's jump), then 10 s on the path: still straying lately.
+        fly(
+            &mut m,
+            0.1,
+            Vec3::new(0.8, 0.0, 1.0),
+            Vec3::zeros(),
+            on_path,
+        );
+        fly(&mut m, 10.0, on_path, Vec3::zeros(), on_path);
+        assert!(!m.holds_path());
+        // 10 s more: it holds its path; the slow peak still keeps about half a metre.
+        fly(&mut m, 10.0, on_path, Vec3::zeros(), on_path);
+        assert!(m.holds_path());
+        assert!(m.extra_m() >= 0.4, "{}", m.extra_m());
+        m.relax();
+        assert_eq!(m.extra_m(), 0.0);
+        // Straying again brings the room back at once.
+        fly(
+            &mut m,
+            0.1,
+            Vec3::new(0.5, 0.0, 1.0),
+            Vec3::zeros(),
+            on_path,
+        );
+        assert!((m.extra_m() - 0.3).abs() < 1e-9, "{}", m.extra_m());
+        assert!(!m.holds_path());
     }
 }
