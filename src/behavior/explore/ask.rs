@@ -2,9 +2,10 @@
 //! answers: a goal is flown (unless the drone has moved on since it asked), `Done` goes to the
 //! end rule ([`super::end`]). Before an end with frontiers left while the drone keeps extra
 //! room for straying, one more question without that room (claiming nothing) tells whether
-//! frontiers were left only within it. A drone that holds its path again (at once or within
-//! [`BOXED_WAIT_S`] of hovering) then lets the room go and explores on (it earns the room back
-//! by straying); one that still strays ends and says so.
+//! frontiers were left only within it. A drone whose estimate drifts and that holds its path
+//! again (at once or within [`BOXED_WAIT_S`] of hovering) then lets the room go and explores on
+//! (it earns the room back by straying); one that still strays, or whose estimate does not
+//! drift (its hold wanders: the room is what keeps it off the obstacles), ends and says so.
 use super::end::{self, EndFacts, Left};
 use super::{seconds, trace, Explore};
 use crate::behavior::progress::lost_peer;
@@ -166,10 +167,11 @@ impl Explore {
     }
 
     /// The answer to the last question before the end, asked with no room for straying: a goal
-    /// there means frontiers were left only within the room kept. A drone that holds its path
-    /// now (what widened the room was a map correction's jump or a gust, not a wandering hold)
-    /// lets the room go and asks again; one that strays still hovers and asks again, for up to
-    /// [`BOXED_WAIT_S`]. Else the exploration ends (the room is kept: with it,
+    /// there means frontiers were left only within the room kept. A drone whose estimate drifts
+    /// (`estimate_drift_mps` > 0, whose map correction's jumps read as straying) and that holds
+    /// its path now lets the room go and asks again; one that strays still hovers and asks
+    /// again, for up to [`BOXED_WAIT_S`]. A drone whose estimate does not drift strays because
+    /// its hold wanders (a real autopilot's), so it keeps the room. Else the exploration ends (the room is kept: with it,
     /// nothing is reachable), and says so (a warning, and `frontiers_left_within_room` in its
     /// feedback while it lands).
     fn read_probe(
@@ -178,10 +180,11 @@ impl Explore {
         answer: Result<Allocation, ExploreError>,
         kept_m: f64,
     ) -> Result<bool, Failure> {
+        let drifts = ctx.estimate_drift_mps > 0.0;
         match answer {
             Err(e) => Err(Failure::new(FailureCode::Internal, e.to_string())),
             Ok(Allocation::Done { .. }) => Ok(true),
-            Ok(Allocation::Goal { frontiers, .. }) if self.tracking.holds_path() => {
+            Ok(Allocation::Goal { frontiers, .. }) if drifts && self.tracking.holds_path() => {
                 tracing::warn!(
                     "{}: {frontiers} frontier(s) left only within the {kept_m:.1} m kept for \
                      straying up to {:.2} m; it holds its path again, so it lets that room go \
@@ -196,7 +199,9 @@ impl Explore {
                 Ok(false)
             }
             Ok(Allocation::Goal { .. })
-                if seconds(ctx.now, *self.boxed_since.get_or_insert(ctx.now)) < BOXED_WAIT_S =>
+                if drifts
+                    && seconds(ctx.now, *self.boxed_since.get_or_insert(ctx.now))
+                        < BOXED_WAIT_S =>
             {
                 trace(ctx, "boxed", || format!("kept={kept_m:.1}"));
                 Ok(false)

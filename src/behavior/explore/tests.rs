@@ -479,7 +479,9 @@ fn a_drifting_drone_flies_no_faster_than_its_turning_beams_see_ahead() {
 fn a_drone_boxed_in_by_its_straying_room_that_holds_its_path_again_lets_it_go_and_explores_on() {
     // It strayed 0.5 m (a map correction's jump), then held its path for 20 s: the slow peak
     // still keeps 0.2 m, which boxes it in.
-    let scene = Scene::flying();
+    let mut scene = Scene::flying();
+    // A drifting estimate: the room was widened by a map correction's jump.
+    scene.estimate_drift_mps = 0.02;
     let mut explore = Explore::new(ExploreGoal::default());
     explore.start_exploring(&scene.ctx(0));
     let on_path = Vec3::new(0.0, 0.0, 1.0);
@@ -536,7 +538,9 @@ fn a_drone_boxed_in_by_its_straying_room_that_holds_its_path_again_lets_it_go_an
 
 #[test]
 fn a_drone_boxed_in_while_it_still_strays_hovers_for_its_stray_to_settle_before_it_ends() {
-    let scene = Scene::flying();
+    let mut scene = Scene::flying();
+    // A drifting estimate: the room was widened by a map correction's jump.
+    scene.estimate_drift_mps = 0.02;
     let mut explore = Explore::new(ExploreGoal::default());
     explore.start_exploring(&scene.ctx(0));
     for _ in 0..100 {
