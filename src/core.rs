@@ -338,6 +338,7 @@ impl DroneCore {
             services: &self.services,
             fleet: &self.fleet,
             estimate_drift_mps: self.config.controller.estimate_drift_mps,
+            safety_override: self.safety.active(),
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -402,6 +403,7 @@ impl DroneCore {
             services: &self.services,
             fleet: &self.fleet,
             estimate_drift_mps: self.config.controller.estimate_drift_mps,
+            safety_override: self.safety.active(),
         };
         let takeover = end_what_cannot_go_on(&mut self.server, &ctx, feedback, previous_link);
         let out = self.server.tick(&ctx);

@@ -112,6 +112,10 @@ fn three_px4_without_range_sensors_explore_a_virtual_room() {
     // The merged map has the room where it is: the walls and poles in the shared frame.
     let map = api.get("/api/map");
     let (floor_pct, stray) = judge_map(&map, &w, 0.3);
+    println!(
+        "{floor_pct:.1} % of the floor known, {} stray cells",
+        stray.len()
+    );
     assert!(floor_pct >= 95.0, "{floor_pct:.1} % of the floor known");
     assert!(
         stray.len() <= 10,

@@ -120,6 +120,9 @@ pub struct BehaviorContext<'a> {
     /// How fast the position estimate may drift (m/s; the map correction's `drift_mps`, 0
     /// where nothing drifts): the vehicle flies up to this much faster than it is sent.
     pub estimate_drift_mps: f64,
+    /// How the safety stage changed the last setpoint sent (`None`: it passed unchanged), so
+    /// a behavior can tell its own drift from a hold it did not ask for.
+    pub safety_override: Option<crate::safety::OverrideKind>,
 }
 
 impl BehaviorContext<'_> {

@@ -29,6 +29,8 @@ pub(crate) struct Scene {
     pub fleet: FleetView,
     /// How fast the estimate drifts in the next contexts (m/s).
     pub estimate_drift_mps: f64,
+    /// The safety stage's override in the next contexts.
+    pub safety_override: Option<crate::safety::OverrideKind>,
 }
 
 impl Scene {
@@ -58,6 +60,7 @@ impl Scene {
             services: ServiceDesk::default(),
             fleet: FleetView::default(),
             estimate_drift_mps: 0.0,
+            safety_override: None,
         }
     }
 
@@ -89,6 +92,7 @@ impl Scene {
             services: &self.services,
             fleet: &self.fleet,
             estimate_drift_mps: self.estimate_drift_mps,
+            safety_override: self.safety_override,
         }
     }
 }

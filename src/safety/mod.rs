@@ -141,6 +141,11 @@ impl SafetyStage {
         }
     }
 
+    /// The override the last checked setpoint had (`None` when it passed unchanged).
+    pub fn active(&self) -> Option<OverrideKind> {
+        self.active
+    }
+
     /// An episode of `kind` starting at `now`: reported, unless one of that kind was within
     /// [`REPORT_EVERY`]; the next report says how many were not.
     fn episode(&mut self, kind: OverrideKind, reason: String, now: Duration) -> Option<Override> {

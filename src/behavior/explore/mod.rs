@@ -62,6 +62,7 @@ use super::{Behavior, BehaviorContext, Failure, FailureCode, Step};
 use crate::control::{MotionReference, YawTarget};
 use crate::estimator::frames::EARTH;
 use crate::exploration::online::tracking::TrackingMargin;
+use crate::safety::OverrideKind;
 use crate::types::{PlatformRequest, Vec3};
 use nalgebra::Vector2;
 use serde_json::json;
@@ -86,6 +87,9 @@ const NEAR_GOAL_M: f64 = 1.5;
 const STUCK_RADIUS_M: f64 = 1.0;
 /// ... for a quarter turn plus this long gives its goal up.
 const STUCK_EXTRA_S: f64 = 2.0;
+/// For this long after the safety stage last held the drone for a peer, its reference running
+/// ahead is the hold's, not a stray (s): the stage lets go as the peer moves or reports again.
+const PEER_GRACE_S: f64 = 5.0;
 
 enum Phase {
     TakingOff(Box<dyn Behavior>),
@@ -141,6 +145,8 @@ pub struct Explore {
     /// Frontiers it ended with that it could have reached only within that room (it ends
     /// anyway, and says so).
     left_within_room: Option<usize>,
+    /// When the safety stage last held it for a peer (a silent one, or one too close).
+    kept_for_peer_at: Option<Duration>,
 }
 
 impl Explore {
@@ -169,6 +175,7 @@ impl Explore {
             probing: None,
             boxed_since: None,
             left_within_room: None,
+            kept_for_peer_at: None,
         }
     }
 
@@ -220,6 +227,16 @@ impl Explore {
             }) => (*position_enu_m, *velocity_ff_enu_mps),
             _ => return,
         };
+        if ctx.safety_override == Some(OverrideKind::Separation) {
+            self.kept_for_peer_at = Some(ctx.now);
+        }
+        if self
+            .kept_for_peer_at
+            .is_some_and(|t| seconds(ctx.now, t) < PEER_GRACE_S)
+        {
+            self.tracking.excuse();
+            return;
+        }
         let before = self.tracking.extra_m();
         self.tracking.observe(
             point,

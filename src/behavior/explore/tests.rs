@@ -578,3 +578,42 @@ fn a_drone_boxed_in_while_it_still_strays_hovers_for_its_stray_to_settle_before_
     assert!(explore.tracking.extra_m() > 0.25, "the room is kept");
     assert_eq!(explore.boxed_since, Some(Duration::from_secs(13)));
 }
+
+#[test]
+fn a_drone_the_safety_stage_holds_for_a_peer_is_not_straying_nor_on_its_way_back() {
+    // Its path runs east at 0.5 m/s; the stage holds it at the origin for a silent peer, so the
+    // reference runs ahead (along the path) and past it sideways where the path turns north.
+    let mut scene = Scene::flying();
+    scene.estimate_drift_mps = 0.02;
+    scene.dt_s = 0.1;
+    scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+    let mut explore = Explore::new(ExploreGoal::default());
+    explore.start_exploring(&scene.ctx(0));
+    let ahead_and_aside = |k: u64| MotionReference::Trajectory {
+        position_enu_m: Vec3::new(0.6, 0.05 * k as f64, 1.0),
+        velocity_enu_mps: Vec3::new(0.0, 0.5, 0.0),
+        acceleration_enu_mps2: Vec3::zeros(),
+        yaw: YawTarget::Rate(0.0),
+        max_speed_mps: 0.75,
+    };
+    let hold = |explore: &mut Explore, scene: &Scene, from_ms: u64, ticks: u64| {
+        for k in 0..ticks {
+            let ctx = scene.ctx_at(Duration::from_millis(from_ms + 100 * k));
+            explore.watch_tracking(&ctx, Some(&ahead_and_aside(k)));
+        }
+    };
+    scene.safety_override = Some(OverrideKind::Separation);
+    hold(&mut explore, &scene, 0, 30);
+    assert_eq!(explore.tracking.extra_m(), 0.0, "held for a peer: no stray");
+    // Let go, it catches up within the grace: still none.
+    scene.safety_override = None;
+    hold(&mut explore, &scene, 3_000, 20);
+    assert_eq!(explore.tracking.extra_m(), 0.0, "catching up: no stray");
+    // Past the grace, the same error is its own.
+    hold(&mut explore, &scene, 8_100, 10);
+    assert!(
+        explore.tracking.extra_m() >= 0.3,
+        "{}",
+        explore.tracking.extra_m()
+    );
+}

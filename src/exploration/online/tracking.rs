@@ -92,6 +92,13 @@ impl TrackingMargin {
         (here - *dr).norm()
     }
 
+    /// The drone was held off its path by something other than itself (the safety stage
+    /// keeping it from a peer): its reference running ahead is not a stray, and the walk
+    /// starts anew from where it is.
+    pub fn excuse(&mut self) {
+        self.dead_reckoned = None;
+    }
+
     /// The largest recent stray across the path (m).
     pub fn peak_m(&self) -> f64 {
         self.peak_m
