@@ -18,6 +18,13 @@
 //! offset as it is ([`MIN_GAIN_SHARE`]); else the fit confirms the offset. Obstacles mapped long
 //! ago weigh most (`mapping::registration`), and the older the map a fit rests on, the more the
 //! drift since may have moved the offset: the filter trusts its own offset that much less.
+//! A fit farther off the offset than the drift since the fits it agrees with allows
+//! ([`JUMP_SIGMAS`]) is a jump: among dense obstacles a wrong fit to an old map can score best
+//! (a pole where another stood), and one such fit moved the offset a metre and back. A jump is
+//! taken only once a fit of hits it did not see (at least [`WINDOW_S`] later, within
+//! [`CONFIRM_WITHIN_S`]) measures the same offset, and no fit in between held the offset as it is
+//! or measured another. A wrong fit that holds over more than a window of fresh hits is still
+//! taken: the gate delays a true loop closure by a window to reject the fleeting ones.
 //! A Kalman filter of the 2D offset takes the fits: the offset wanders as a drift does (process
 //! noise from the drift speed expected), a fit far from the filter's offset is clipped to
 //! [`CLIP_SIGMAS`] standard deviations (one wrong fit moves it little), and the offset never
@@ -65,6 +72,13 @@ const TIE: f64 = 1e-9;
 /// about the drift speed times that; over a minute without fits, 0.33 m at 3 cm/s (less than a
 /// drift can go: the clip then only slows the first fits back).
 const RANDOM_WALK_S: f64 = 2.0;
+/// A fit farther than this many standard deviations (the filter's own, before a fit's map age
+/// widens them, with the fit's) from the offset is a jump, taken only when confirmed.
+pub const JUMP_SIGMAS: f64 = 3.0;
+/// A jump is confirmed by a fit at least [`WINDOW_S`] and at most this long after it (s)...
+pub const CONFIRM_WITHIN_S: f64 = 3.0 * WINDOW_S;
+/// ... that measures an offset this close to it (m).
+const CONFIRM_AGREE_M: f64 = 2.0 * FIT_SPREAD_M;
 /// Most hits kept (a 3 s window of a 20 Hz lidar of 16 beams).
 const MAX_HITS: usize = 1000;
 /// A fit against obstacles mapped this long ago (s, on average) closes a loop: the drone is back
@@ -265,6 +279,8 @@ pub struct MapCorrection {
     walk_m2: f64,
     /// Flight time so far (s).
     flown_s: f64,
+    /// A jump measured and not yet confirmed: when, and to which offset.
+    jump: Option<(f64, Vec2)>,
 }
 
 impl MapCorrection {
@@ -279,6 +295,7 @@ impl MapCorrection {
             track: VecDeque::new(),
             walk_m2: 0.0,
             flown_s: 0.0,
+            jump: None,
         }
     }
 
@@ -337,12 +354,48 @@ impl MapCorrection {
         let fit = self.best_offset(&hits, score);
         let before = self.offset_m;
         if let Some(fit) = fit {
-            self.take(fit.offset_m, fit.quality.age_s);
+            if self.confirmed(now_s, fit.offset_m) {
+                self.take(fit.offset_m, fit.quality.age_s);
+            }
         }
         let closes_loop =
             fit.is_some_and(|f| f.quality.age_s >= LOOP_AGE_S) && self.offset_m != before;
         self.record(now_s, closes_loop);
         fit
+    }
+
+    /// Whether a fit measuring `measured_m` at `now_s` may be taken: when it lies within what
+    /// the drift allows of the offset, or confirms a jump measured before (else it is kept as
+    /// a jump to confirm).
+    fn confirmed(&mut self, now_s: f64, measured_m: Vec2) -> bool {
+        let s = self.cov_m2 + Matrix2::identity() * FIT_SIGMA_M.powi(2);
+        let innovation = measured_m - self.offset_m;
+        let within = s
+            .try_inverse()
+            .is_some_and(|inv| innovation.dot(&(inv * innovation)).sqrt() <= JUMP_SIGMAS);
+        if within {
+            self.jump = None;
+            return true;
+        }
+        match self.jump {
+            Some((t, at))
+                if now_s - t >= WINDOW_S
+                    && now_s - t <= CONFIRM_WITHIN_S
+                    && (measured_m - at).norm() <= CONFIRM_AGREE_M =>
+            {
+                self.jump = None;
+                true
+            }
+            Some((t, at))
+                if now_s - t < WINDOW_S && (measured_m - at).norm() <= CONFIRM_AGREE_M =>
+            {
+                false
+            }
+            _ => {
+                self.jump = Some((now_s, measured_m));
+                false
+            }
+        }
     }
 
     /// Keeps the filter's state of `now_s` as a step of its past.
@@ -605,8 +658,8 @@ mod tests {
         assert_eq!(c.offset_m(), Vec3::zeros());
     }
 
-    #[test]
-    fn a_fit_to_a_map_drawn_long_ago_is_taken_at_once() {
+    /// Three seconds of fits to the walls where the map has them: the offset is sure.
+    fn settled() -> (MapCorrection, f64) {
         let mut c = MapCorrection::new(settings());
         let mut t = 0.0;
         for _ in 0..30 {
@@ -615,15 +668,72 @@ mod tests {
             c.add_hits(t, hits(Vec2::zeros()));
             c.fit(t, count);
         }
-        // Back among walls mapped a minute ago, 0.8 m off them: a minute at 3 cm/s allows it.
+        (c, t)
+    }
+
+    /// Fits every 0.5 s for `seconds`, the hits `drift` off the walls mapped a minute ago.
+    fn fit_for(c: &mut MapCorrection, t: &mut f64, seconds: f64, drift: Vec2) {
+        let end = *t + seconds;
+        while *t < end - 1e-9 {
+            *t += 0.5;
+            c.predict(0.5);
+            c.add_hits(*t, hits(drift));
+            c.fit(*t, count);
+        }
+    }
+
+    #[test]
+    fn a_jump_to_a_map_drawn_long_ago_is_taken_once_hits_it_did_not_see_confirm_it() {
+        let (mut c, mut t) = settled();
+        // Back among walls mapped a minute ago, 0.8 m off them: a minute at 3 cm/s allows it,
+        // but the offset was sure a moment ago. One fit is not enough.
         t += 5.0;
         c.add_hits(t, hits(Vec2::new(0.8, 0.0)));
         assert!(c.fit(t, count).is_some());
+        assert!(offset(&c).norm() < 0.05, "{}", offset(&c));
+        // Fits of the same hits agree and confirm nothing; fresh ones 3 s on do.
+        fit_for(&mut c, &mut t, 2.5, Vec2::new(0.8, 0.0));
+        assert!(offset(&c).norm() < 0.05, "{}", offset(&c));
+        fit_for(&mut c, &mut t, 0.5, Vec2::new(0.8, 0.0));
         assert!(
             (offset(&c) + Vec2::new(0.8, 0.0)).norm() < 0.05,
             "{}",
             offset(&c)
         );
+    }
+
+    #[test]
+    fn wrong_fits_that_jump_back_and_forth_never_move_the_offset() {
+        let (mut c, mut t) = settled();
+        // Among dense poles, fits to an old map say 0.6 m east for a second or two, then the
+        // offset as it is, then 0.9 m north, then east again (as a flight's log showed: five
+        // jumps in 12 s).
+        for (seconds, drift) in [
+            (1.5, Vec2::new(-0.6, 0.0)),
+            (1.0, Vec2::zeros()),
+            (2.0, Vec2::new(-0.6, 0.0)),
+            (1.5, Vec2::zeros()),
+            (1.5, Vec2::new(0.0, -0.9)),
+            (1.0, Vec2::new(-0.6, 0.0)),
+            (1.0, Vec2::zeros()),
+            (2.0, Vec2::new(0.0, -0.9)),
+        ] {
+            fit_for(&mut c, &mut t, seconds, drift);
+            assert!(offset(&c).norm() < 0.05, "at {t} s: {}", offset(&c));
+        }
+        // A jump confirmed too late (beyond CONFIRM_WITHIN_S) starts over.
+        let (mut c, mut t) = settled();
+        t += 1.0;
+        c.add_hits(t, hits(Vec2::new(0.6, 0.0)));
+        c.fit(t, count);
+        let nothing = |_: &[Vec2], _: Vec2| FitQuality::default();
+        while t < 1.0 + CONFIRM_WITHIN_S + 3.0 {
+            t += 0.5;
+            c.fit(t, nothing);
+        }
+        c.add_hits(t, hits(Vec2::new(0.6, 0.0)));
+        c.fit(t, count);
+        assert!(offset(&c).norm() < 0.05, "{}", offset(&c));
     }
 
     /// Fits to the walls at `t` 0.1 .. 10 s, a minute with nothing to fit to, then back at
