@@ -339,6 +339,7 @@ impl DroneCore {
             fleet: &self.fleet,
             estimate_drift_mps: self.config.controller.estimate_drift_mps,
             safety_override: self.safety.active(),
+            map_step_m: Vec3::zeros(),
         };
         match cmd {
             BehaviorCommand::Start { behavior, goal } => {
@@ -373,7 +374,9 @@ impl DroneCore {
         let previous_link = self.platform.link;
         self.platform = feedback.status.clone();
         let reported = self.estimator.update(now, &feedback.measurements);
+        let offset_before = self.map_offset_m();
         let scans = self.correct_against_map(reported, &feedback.scans, fleet.map, dt_s);
+        let map_step_m = self.map_offset_m() - offset_before;
         if self.state.valid.position {
             self.position_at = Some(now);
         }
@@ -404,6 +407,7 @@ impl DroneCore {
             fleet: &self.fleet,
             estimate_drift_mps: self.config.controller.estimate_drift_mps,
             safety_override: self.safety.active(),
+            map_step_m,
         };
         let takeover = end_what_cannot_go_on(&mut self.server, &ctx, feedback, previous_link);
         let out = self.server.tick(&ctx);

@@ -123,6 +123,9 @@ pub struct BehaviorContext<'a> {
     /// How the safety stage changed the last setpoint sent (`None`: it passed unchanged), so
     /// a behavior can tell its own drift from a hold it did not ask for.
     pub safety_override: Option<crate::safety::OverrideKind>,
+    /// How far the map correction moved this drone's estimate this tick (ENU m, horizontal;
+    /// zero without a step): the vehicle did not move, its place on the map did.
+    pub map_step_m: Vec3,
 }
 
 impl BehaviorContext<'_> {

@@ -31,6 +31,8 @@ pub(crate) struct Scene {
     pub estimate_drift_mps: f64,
     /// The safety stage's override in the next contexts.
     pub safety_override: Option<crate::safety::OverrideKind>,
+    /// The map correction's step in the next contexts.
+    pub map_step_m: Vec3,
 }
 
 impl Scene {
@@ -61,6 +63,7 @@ impl Scene {
             fleet: FleetView::default(),
             estimate_drift_mps: 0.0,
             safety_override: None,
+            map_step_m: Vec3::zeros(),
         }
     }
 
@@ -93,6 +96,7 @@ impl Scene {
             fleet: &self.fleet,
             estimate_drift_mps: self.estimate_drift_mps,
             safety_override: self.safety_override,
+            map_step_m: self.map_step_m,
         }
     }
 }

@@ -90,6 +90,10 @@ const STUCK_EXTRA_S: f64 = 2.0;
 /// For this long after the safety stage last held the drone for a peer, its reference running
 /// ahead is the hold's, not a stray (s): the stage lets go as the peer moves or reports again.
 const PEER_GRACE_S: f64 = 5.0;
+/// A map correction's step this long or longer (m) drops the path being flown: it was planned
+/// from where the map had the drone before, and following it now would fly the step in truth,
+/// through space nobody saw.
+const MAP_STEP_M: f64 = 0.2;
 
 enum Phase {
     TakingOff(Box<dyn Behavior>),
@@ -348,6 +352,7 @@ impl Explore {
             }
             return Ok(None);
         }
+        self.follow_map_step(ctx);
         self.drop_crumb(ctx);
         self.check_stuck(ctx);
         // Paths keep half the safety distance from obstacles unless they start closer: an
@@ -389,6 +394,26 @@ impl Explore {
                 self.child = None;
                 Ok(Some(self.hover(ctx)))
             }
+        }
+    }
+
+    /// After a map correction's step, the point it hovers on moves with it (the vehicle stays
+    /// where it is), and a step of [`MAP_STEP_M`] or more drops the path and asks again from
+    /// where the map now has the drone.
+    fn follow_map_step(&mut self, ctx: &BehaviorContext) {
+        let step = Vec3::new(ctx.map_step_m.x, ctx.map_step_m.y, 0.0);
+        if step.norm() == 0.0 {
+            return;
+        }
+        if let Some(at) = self.hover_at.as_mut() {
+            *at += step;
+        }
+        if step.norm() >= MAP_STEP_M && self.child.is_some() {
+            trace(ctx, "mapstep", || format!("{:.2}", step.norm()));
+            self.child = None;
+            self.watch.clear();
+            self.asked_at = None;
+            self.hover_at = Some(ctx.position());
         }
     }
 

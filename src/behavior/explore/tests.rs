@@ -617,3 +617,51 @@ fn a_drone_the_safety_stage_holds_for_a_peer_is_not_straying_nor_on_its_way_back
         explore.tracking.extra_m()
     );
 }
+
+#[test]
+fn a_map_correction_step_drops_the_path_and_the_hover_point_moves_with_it() {
+    let mut scene = Scene::flying();
+    scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+    let mut explore = Explore::new(ExploreGoal::default());
+    explore.start_exploring(&scene.ctx(0));
+    let mut requests = Vec::new();
+    explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
+    answer_with_goal(&scene);
+    explore.explore_tick(&scene.ctx(2), &mut requests).unwrap();
+    assert!(explore.child.is_some(), "flying to its frontier");
+    // A small step is followed: the path goes on.
+    scene.map_step_m = Vec3::new(0.1, 0.0, 0.0);
+    scene.set_position(Vec3::new(0.1, 0.0, 1.0), Vec3::zeros());
+    explore.explore_tick(&scene.ctx(3), &mut requests).unwrap();
+    assert!(explore.child.is_some(), "a 0.1 m step keeps the path");
+    // A 0.6 m step: the map now has the drone 0.6 m north of where its path starts.
+    scene.map_step_m = Vec3::new(0.0, 0.6, 0.0);
+    scene.set_position(Vec3::new(0.1, 0.6, 1.0), Vec3::zeros());
+    let held = explore.explore_tick(&scene.ctx(4), &mut requests).unwrap();
+    assert!(explore.child.is_none(), "the path is dropped");
+    let Some(MotionReference::Position { position_enu_m, .. }) = held else {
+        panic!("no hold: {held:?}");
+    };
+    assert!(
+        (position_enu_m - Vec3::new(0.1, 0.6, 1.0)).norm() < 1e-9,
+        "it holds where the vehicle is, not where the map had it: {position_enu_m}"
+    );
+    assert!(
+        matches!(
+            scene.services.drain_calls().first(),
+            Some(ServiceCall::Explore(_))
+        ),
+        "and asks again at once"
+    );
+    // Hovering, a further step moves the hover point with it.
+    scene.map_step_m = Vec3::new(-0.3, 0.0, 0.0);
+    scene.set_position(Vec3::new(-0.2, 0.6, 1.0), Vec3::zeros());
+    let held = explore.explore_tick(&scene.ctx(5), &mut requests).unwrap();
+    let Some(MotionReference::Position { position_enu_m, .. }) = held else {
+        panic!("no hold: {held:?}");
+    };
+    assert!(
+        (position_enu_m - Vec3::new(-0.2, 0.6, 1.0)).norm() < 1e-9,
+        "{position_enu_m}"
+    );
+}
