@@ -24,6 +24,9 @@
 //! own map shows an obstacle on (within half the safety distance ahead: news the plan did not
 //! have, as a drifting estimate brings) is dropped at once and asked again. A frontier
 //! it sat next to for a quarter turn without it going away is given up (an occluded pocket).
+//! A map correction's step (`BehaviorContext::map_step_m`) moves the point it hovers on with it,
+//! and one of 0.2 m or more drops the path and asks again; while the safety stage holds it for a
+//! peer (`BehaviorContext::safety_override`) its reference running ahead is not straying.
 //! The exploration ends for this drone when the allocator has nothing for it and no other drone
 //! holds a frontier, once it has flown to one (it turns all the time, so its beams swept all
 //! around on the way) and has a path to every frontier left or has turned a quarter turn where

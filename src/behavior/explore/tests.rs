@@ -8,6 +8,17 @@ use crate::behavior::testing::Scene;
 use crate::exploration::online::service::Allocation;
 use crate::mapping::grid::OccupancyGrid;
 
+/// A drone exploring at the origin, 1 m up, that has asked the allocator once (at 1 s).
+fn asked_at_the_origin() -> (Scene, Explore, Vec<PlatformRequest>) {
+    let mut scene = Scene::flying();
+    scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
+    let mut explore = Explore::new(ExploreGoal::default());
+    explore.start_exploring(&scene.ctx(0));
+    let mut requests = Vec::new();
+    explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
+    (scene, explore, requests)
+}
+
 /// The explorer's question this tick, answered with a goal 5 m east of where it asked.
 fn answer_with_goal(scene: &Scene) {
     let calls = scene.services.drain_calls();
@@ -163,12 +174,7 @@ fn a_drone_giving_way_under_another_that_gave_way_comes_back_once_the_level_one_
 
 #[test]
 fn a_late_answer_from_where_the_drone_no_longer_is_is_asked_again_not_flown() {
-    let mut scene = Scene::flying();
-    scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
-    let mut explore = Explore::new(ExploreGoal::default());
-    explore.start_exploring(&scene.ctx(0));
-    let mut requests = Vec::new();
-    explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
+    let (mut scene, mut explore, mut requests) = asked_at_the_origin();
     // The answer comes once the drone has drifted 1 m: its path starts where it was.
     scene.set_position(Vec3::new(0.0, 1.0, 1.0), Vec3::zeros());
     answer_with_goal(&scene);
@@ -620,12 +626,7 @@ fn a_drone_the_safety_stage_holds_for_a_peer_is_not_straying_nor_on_its_way_back
 
 #[test]
 fn a_map_correction_step_drops_the_path_and_the_hover_point_moves_with_it() {
-    let mut scene = Scene::flying();
-    scene.set_position(Vec3::new(0.0, 0.0, 1.0), Vec3::zeros());
-    let mut explore = Explore::new(ExploreGoal::default());
-    explore.start_exploring(&scene.ctx(0));
-    let mut requests = Vec::new();
-    explore.explore_tick(&scene.ctx(1), &mut requests).unwrap();
+    let (mut scene, mut explore, mut requests) = asked_at_the_origin();
     answer_with_goal(&scene);
     explore.explore_tick(&scene.ctx(2), &mut requests).unwrap();
     assert!(explore.child.is_some(), "flying to its frontier");
